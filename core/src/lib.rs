@@ -1,0 +1,35 @@
+//! # cta-core
+//!
+//! The body of math behind CTA, after Stancliffe (2010), *Analysis and design of a test
+//! apparatus for resolving near-field effects associated with using a coarse sun sensor as
+//! part of a 6-DOF solution* (Texas A&M). Equation numbers in doc comments are the thesis's.
+//!
+//! `no_std`; the `alloc` feature adds dynamically sized least-squares problems and `std`
+//! (default) is for the host. Everything numeric is generic over [`Real`] (`f32` on the
+//! chip, `f64` on the host).
+//!
+//! Conventions (REFERENCE.md section 1): lengths in inches, angles in degrees at every
+//! interface (radians inside), N = sensor-board frame, O = sensor-head frame,
+//! `C = C(p)` maps N components to O components.
+#![cfg_attr(not(feature = "std"), no_std)]
+
+#[cfg(feature = "alloc")]
+extern crate alloc;
+
+pub mod real;
+pub use real::Real;
+
+pub mod collinearity;
+pub mod emulator;
+pub mod glsdc;
+pub mod mrp;
+pub mod nearfield2d;
+pub mod pattern;
+pub mod uncertainty;
+
+/// Wire protocol shared by the boards and the host (issue: firmware-beacon / firmware-sensor).
+pub mod wire;
+/// Beacon modulation schedule (issue: firmware-beacon).
+pub mod schedule;
+/// On-chip 6-dof pose solution (issue: firmware-sensor).
+pub mod pose;
