@@ -1,1 +1,251 @@
-//! (being written)
+//! Modified Rodrigues Parameters (MRP) and direction cosine matrices (thesis eqs 54/55,
+//! after Schaub & Junkins).
+//!
+//! Convention (REFERENCE.md section 1): `C = C(p)` maps N-frame components to O-frame
+//! components, `v_O = C v_N`. MRPs are `p = e tan(phi/4)` for principal axis `e` and angle
+//! `phi`; they are singular only at `phi = 2 pi`. The *shadow set* `-p / |p|^2` describes the
+//! same attitude; switching to it whenever `|p| > 1` keeps `|p| <= 1` (`phi <= pi`).
+
+use crate::Real;
+use nalgebra::{Matrix3, Vector3};
+
+/// The skew-symmetric cross-product matrix `[p x]` of eq 54.
+#[inline]
+pub fn skew<T: Real>(p: &Vector3<T>) -> Matrix3<T> {
+    let z = T::zero();
+    Matrix3::new(z, -p.z, p.y, p.z, z, -p.x, -p.y, p.x, z)
+}
+
+/// DCM from MRP, eq 54: `C = I + (8 [p x]^2 - 4 (1 - p^T p) [p x]) / (1 + p^T p)^2`.
+/// Element by element this is eq 55.
+#[inline]
+pub fn dcm<T: Real>(p: &Vector3<T>) -> Matrix3<T> {
+    let s = skew(p);
+    let sig = p.norm_squared();
+    let one = T::one();
+    let a = one + sig;
+    Matrix3::identity() + (s * s * T::lit(8.0) - s * (T::lit(4.0) * (one - sig))) / (a * a)
+}
+
+/// Partial derivatives `dC/dp_i` (i = 1, 2, 3) of eq 54, for analytic Jacobians (eq 66).
+///
+/// With `S = [p x]`, `sigma = p^T p`, `a = 1 + sigma` and `E_i = [e_i x]`:
+/// `dC/dp_i = (8 (E_i S + S E_i) - 4 (1 - sigma) E_i + 8 p_i S) / a^2
+///            - 4 p_i (8 S^2 - 4 (1 - sigma) S) / a^3`.
+pub fn dcm_partials<T: Real>(p: &Vector3<T>) -> [Matrix3<T>; 3] {
+    let s = skew(p);
+    let sig = p.norm_squared();
+    let one = T::one();
+    let a = one + sig;
+    let a2 = a * a;
+    let a3 = a2 * a;
+    let f = s * s * T::lit(8.0) - s * (T::lit(4.0) * (one - sig));
+    let mut out = [Matrix3::zeros(); 3];
+    for (i, o) in out.iter_mut().enumerate() {
+        let e = skew(&Vector3::ith(i, one));
+        let pi = p[i];
+        let num = (e * s + s * e) * T::lit(8.0) - e * (T::lit(4.0) * (one - sig)) + s * (T::lit(8.0) * pi);
+        *o = num / a2 - f * (T::lit(4.0) * pi / a3);
+    }
+    out
+}
+
+/// MRP from a proper orthogonal DCM (Shepperd-style via the quaternion, robust for every
+/// attitude). Returns the set with `|p| <= 1`.
+pub fn from_dcm<T: Real>(c: &Matrix3<T>) -> Vector3<T> {
+    // Quaternion (q0 scalar) of the rotation whose DCM is C, choosing the largest component.
+    let one = T::one();
+    let quarter = T::lit(0.25);
+    let tr = c[(0, 0)] + c[(1, 1)] + c[(2, 2)];
+    let cand = [tr, c[(0, 0)], c[(1, 1)], c[(2, 2)]];
+    let mut k = 0;
+    for i in 1..4 {
+        if cand[i] > cand[k] {
+            k = i;
+        }
+    }
+    let (q0, q1, q2, q3);
+    match k {
+        0 => {
+            let s = (one + tr).sqrt() * T::lit(2.0);
+            q0 = quarter * s;
+            q1 = (c[(1, 2)] - c[(2, 1)]) / s;
+            q2 = (c[(2, 0)] - c[(0, 2)]) / s;
+            q3 = (c[(0, 1)] - c[(1, 0)]) / s;
+        }
+        1 => {
+            let s = (one + c[(0, 0)] - c[(1, 1)] - c[(2, 2)]).sqrt() * T::lit(2.0);
+            q0 = (c[(1, 2)] - c[(2, 1)]) / s;
+            q1 = quarter * s;
+            q2 = (c[(0, 1)] + c[(1, 0)]) / s;
+            q3 = (c[(2, 0)] + c[(0, 2)]) / s;
+        }
+        2 => {
+            let s = (one + c[(1, 1)] - c[(0, 0)] - c[(2, 2)]).sqrt() * T::lit(2.0);
+            q0 = (c[(2, 0)] - c[(0, 2)]) / s;
+            q1 = (c[(0, 1)] + c[(1, 0)]) / s;
+            q2 = quarter * s;
+            q3 = (c[(1, 2)] + c[(2, 1)]) / s;
+        }
+        _ => {
+            let s = (one + c[(2, 2)] - c[(0, 0)] - c[(1, 1)]).sqrt() * T::lit(2.0);
+            q0 = (c[(0, 1)] - c[(1, 0)]) / s;
+            q1 = (c[(2, 0)] + c[(0, 2)]) / s;
+            q2 = (c[(1, 2)] + c[(2, 1)]) / s;
+            q3 = quarter * s;
+        }
+    }
+    // Choose the hemisphere q0 >= 0 so that |p| <= 1.
+    let sign = if q0 < T::zero() { -one } else { one };
+    let d = one + q0 * sign;
+    Vector3::new(q1 * sign / d, q2 * sign / d, q3 * sign / d)
+}
+
+/// The shadow set `-p / |p|^2`: the same attitude, the other side of `|p| = 1`.
+#[inline]
+pub fn shadow<T: Real>(p: &Vector3<T>) -> Vector3<T> {
+    let n2 = p.norm_squared();
+    if n2 == T::zero() {
+        return *p;
+    }
+    -*p / n2
+}
+
+/// Switch to the shadow set when `|p| > 1`, keeping the principal angle within pi.
+#[inline]
+pub fn canonical<T: Real>(p: &Vector3<T>) -> Vector3<T> {
+    if p.norm_squared() > T::one() {
+        shadow(p)
+    } else {
+        *p
+    }
+}
+
+/// Composition: the MRP of `C(p2) C(p1)` (first rotate by `p1`, then by `p2`), in the
+/// canonical (`|p| <= 1`) set (Schaub & Junkins eq. 3.152).
+pub fn compose<T: Real>(p2: &Vector3<T>, p1: &Vector3<T>) -> Vector3<T> {
+    let one = T::one();
+    let s1 = p1.norm_squared();
+    let s2 = p2.norm_squared();
+    let den = one + s1 * s2 - T::lit(2.0) * p1.dot(p2);
+    if den.abs() < T::lit(1e-6) {
+        // Near the 360 deg singularity of the formula: go through the DCM.
+        return from_dcm(&(dcm(p2) * dcm(p1)));
+    }
+    let num = p1 * (one - s2) + p2 * (one - s1) - p2.cross(p1) * T::lit(2.0);
+    canonical(&(num / den))
+}
+
+/// MRP of a principal rotation by `angle` (radians) about unit `axis`.
+#[inline]
+pub fn from_axis_angle<T: Real>(axis: &Vector3<T>, angle: T) -> Vector3<T> {
+    axis.normalize() * (angle / T::lit(4.0)).tan()
+}
+
+/// Principal rotation angle (radians) of an MRP: `phi = 4 atan |p|`.
+#[inline]
+pub fn angle<T: Real>(p: &Vector3<T>) -> T {
+    T::lit(4.0) * p.norm().atan()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use core::f64::consts::PI;
+
+    #[test]
+    fn rotation_about_z_maps_n_to_o() {
+        // A frame O rotated +90 deg about z relative to N: the N x axis appears as -y in O.
+        let p = from_axis_angle(&Vector3::z(), PI / 2.0);
+        let c = dcm(&p);
+        let v = c * Vector3::x();
+        assert_relative_eq!(v, -Vector3::y(), epsilon = 1e-12);
+        assert_relative_eq!(c * Vector3::z(), Vector3::z(), epsilon = 1e-12);
+    }
+
+    #[test]
+    fn known_rotations_and_orthogonality() {
+        for (axis, ang) in [
+            (Vector3::x(), 0.3f64),
+            (Vector3::new(1.0, 2.0, -0.5), 2.5),
+            (Vector3::new(-0.2, 0.1, 1.0), -1.2),
+        ] {
+            let p = from_axis_angle(&axis, ang);
+            let c = dcm(&p);
+            assert_relative_eq!(c * c.transpose(), Matrix3::identity(), epsilon = 1e-12);
+            assert_relative_eq!(c.determinant(), 1.0, epsilon = 1e-12);
+            // Rodrigues' formula for the same frame rotation: C = cos I + (1-cos) e e^T - sin [e x].
+            let e = axis.normalize();
+            let r = Matrix3::identity() * ang.cos() + e * e.transpose() * (1.0 - ang.cos())
+                - skew(&e) * ang.sin();
+            assert_relative_eq!(c, r, epsilon = 1e-12);
+            assert_relative_eq!(angle(&p), ang.abs(), epsilon = 1e-12);
+        }
+    }
+
+    #[test]
+    fn eq55_element_form_matches_eq54() {
+        let p = Vector3::new(0.1f64, -0.2, 0.3);
+        let (p1, p2, p3) = (p.x, p.y, p.z);
+        let s = p.norm_squared();
+        let k = 1.0 / (1.0 + s).powi(2);
+        let m = Matrix3::new(
+            4.0 * (p1 * p1 - p2 * p2 - p3 * p3) + (1.0 - s).powi(2),
+            8.0 * p1 * p2 + 4.0 * p3 * (1.0 - s),
+            8.0 * p1 * p3 - 4.0 * p2 * (1.0 - s),
+            8.0 * p1 * p2 - 4.0 * p3 * (1.0 - s),
+            4.0 * (-p1 * p1 + p2 * p2 - p3 * p3) + (1.0 - s).powi(2),
+            8.0 * p2 * p3 + 4.0 * p1 * (1.0 - s),
+            8.0 * p1 * p3 + 4.0 * p2 * (1.0 - s),
+            8.0 * p2 * p3 - 4.0 * p1 * (1.0 - s),
+            4.0 * (-p1 * p1 - p2 * p2 + p3 * p3) + (1.0 - s).powi(2),
+        ) * k;
+        assert_relative_eq!(dcm(&p), m, epsilon = 1e-14);
+    }
+
+    #[test]
+    fn round_trip_and_shadow() {
+        for p in [
+            Vector3::new(0.001, 0.002, 0.001),
+            Vector3::new(0.5, -0.4, 0.3),
+            Vector3::new(0.0, 0.0, 0.99),
+            Vector3::new(-0.7, 0.1, 0.6),
+        ] {
+            let c = dcm(&p);
+            assert_relative_eq!(from_dcm(&c), canonical(&p), epsilon = 1e-10);
+            assert_relative_eq!(dcm(&shadow(&p)), c, epsilon = 1e-12);
+        }
+    }
+
+    #[test]
+    fn composition_matches_dcm_product() {
+        let p1 = Vector3::new(0.2, -0.1, 0.05);
+        let p2 = Vector3::new(-0.3, 0.4, 0.6);
+        let p = compose(&p2, &p1);
+        assert_relative_eq!(dcm(&p), dcm(&p2) * dcm(&p1), epsilon = 1e-12);
+        assert!(p.norm() <= 1.0);
+    }
+
+    #[test]
+    fn partials_match_finite_differences() {
+        let p = Vector3::new(0.3, -0.2, 0.1);
+        let d = dcm_partials(&p);
+        let h = 1e-6;
+        for i in 0..3 {
+            let mut pp = p;
+            pp[i] += h;
+            let mut pm = p;
+            pm[i] -= h;
+            let fd = (dcm(&pp) - dcm(&pm)) / (2.0 * h);
+            assert_relative_eq!(d[i], fd, epsilon = 1e-8);
+        }
+    }
+
+    #[test]
+    fn f32_works() {
+        let p = Vector3::new(0.001f32, 0.002, 0.001);
+        let c = dcm(&p);
+        assert!((c.determinant() - 1.0).abs() < 1e-6);
+    }
+}
