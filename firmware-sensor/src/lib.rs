@@ -1,2 +1,7 @@
-//! Firmware logic (host-testable). Filled by its issue.
-#![no_std]
+//! Sensor-board firmware logic (host-testable, `no_std`): the NorthStar link, the PC
+//! link, flash storage of the constellation and calibration, and the on-chip pose.
+//! `main.rs` only wires these to the STM32F103C8's peripherals.
+#![cfg_attr(not(feature = "std"), no_std)]
+
+pub mod northstar;
+pub mod storage;

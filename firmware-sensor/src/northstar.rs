@@ -1,0 +1,400 @@
+//! The NorthStar link: the byte protocol between the sensor board and the NorthStar
+//! detector, isolated here so that the real protocol can replace it in this one module.
+//!
+//! # The assumed frame format
+//!
+//! Evolution Robotics never published the NorthStar's byte-level protocol (REFERENCE.md
+//! section 4). What is known: it tracks up to 20 IR spots (10 beacon pairs) modulated at
+//! preset frequencies, reports per spot `x`, `y` as signed 16-bit counts, a magnitude
+//! (signal strength 0..65535) and an ID, at a typical 10 Hz, with four light-sensitivity
+//! settings. This module *assumes* the following framing, which carries exactly that
+//! information; everything else in the firmware sees only [`SpotFrame`] and
+//! [`NsCommand`], so the real format replaces this file and nothing else.
+//!
+//! All multi-byte fields little-endian. A frame is
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 2 | sync `0xA5 0x5A` |
+//! | 2 | 1 | kind (`0x01` spot report; `0x81` command acknowledge) |
+//! | 3 | 1 | length `n` of the body that follows, in bytes |
+//! | 4 | n | body |
+//! | 4+n | 2 | CRC-16/XMODEM over bytes 2 .. 4+n (kind, length, body) |
+//!
+//! Spot report body (`kind = 0x01`): `seq: u8` (the detector's frame counter, wraps),
+//! `sensitivity: u8` (1..=4, the setting in force), `count: u8` (0..=20), then `count`
+//! spots of 7 bytes: `x: i16`, `y: i16`, `magnitude: u16`, `id: u8`. The ID is the
+//! frequency channel 0..=19; channel `2k` and `2k + 1` are the two frequencies of
+//! Rovio-style beacon `k` (REFERENCE.md section 4). The body length must equal
+//! `3 + 7 count`.
+//!
+//! Command frames (board to detector) use the same envelope: kind `0x10` set sensitivity
+//! (body: one byte 1..=4), kind `0x11` set update rate (body: one byte, Hz, 1..=50). The
+//! detector answers a command with kind `0x81` (body: the command kind and a status byte,
+//! 0 = accepted), which the decoder reports as [`NsEvent::Ack`].
+//!
+//! # Robustness
+//!
+//! The decoder holds at most one maximal frame ([`MAX_FRAME`] bytes). Whatever arrives —
+//! line noise, truncated frames, a sync pattern inside a payload — it never panics and
+//! resynchronises on the next valid frame: on any inconsistency (bad kind, impossible
+//! length, CRC mismatch) it discards one byte and searches for the next sync pattern in
+//! what it already holds, so a valid frame that follows garbage is still found.
+
+use cta_core::pose::Spot;
+use heapless::Vec;
+
+/// Most spots the NorthStar reports in one frame (10 beacon pairs).
+pub const MAX_SPOTS: usize = 20;
+/// Bytes per spot in a report body.
+const SPOT_BYTES: usize = 7;
+/// Frame sync pattern.
+const SYNC: [u8; 2] = [0xA5, 0x5A];
+/// Largest body (a report with 20 spots).
+const MAX_BODY: usize = 3 + SPOT_BYTES * MAX_SPOTS;
+/// Largest frame on the wire, the decoder's buffer size.
+pub const MAX_FRAME: usize = 4 + MAX_BODY + 2;
+
+const KIND_REPORT: u8 = 0x01;
+const KIND_ACK: u8 = 0x81;
+const KIND_SET_SENSITIVITY: u8 = 0x10;
+const KIND_SET_RATE: u8 = 0x11;
+
+const CRC16: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_XMODEM);
+
+/// One report from the detector: every spot it currently tracks.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct SpotFrame {
+    /// The detector's own frame counter (wraps at 256).
+    pub seq: u8,
+    /// Sensitivity setting in force, 1..=4.
+    pub sensitivity: u8,
+    /// The spots (at most [`MAX_SPOTS`]).
+    pub spots: Vec<Spot, MAX_SPOTS>,
+}
+
+/// A command to the detector.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NsCommand {
+    /// Light sensitivity setting, 1 (least) ..= 4 (most sensitive).
+    SetSensitivity(u8),
+    /// Report rate in Hz, 1..=50 (the NorthStar's typical rate is 10 Hz).
+    SetRate(u8),
+}
+
+/// What the decoder found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum NsEvent {
+    /// A spot report.
+    Report(SpotFrame),
+    /// The detector acknowledged a command: `(command kind, status)`, status 0 = accepted.
+    Ack { kind: u8, status: u8 },
+}
+
+/// Decoder error counters (reported in the board status).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct NsStats {
+    /// Frames decoded.
+    pub frames: u32,
+    /// Frames that failed the CRC.
+    pub crc_errors: u32,
+    /// Bytes discarded while hunting for a frame (noise, broken headers).
+    pub discarded: u32,
+}
+
+/// Encode a command frame; returns the bytes used in `out`.
+pub fn encode_command(cmd: NsCommand, out: &mut [u8; 7]) -> usize {
+    let (kind, arg) = match cmd {
+        NsCommand::SetSensitivity(s) => (KIND_SET_SENSITIVITY, s),
+        NsCommand::SetRate(r) => (KIND_SET_RATE, r),
+    };
+    let body = [kind, 1, arg];
+    out[..2].copy_from_slice(&SYNC);
+    out[2..5].copy_from_slice(&body);
+    out[5..7].copy_from_slice(&CRC16.checksum(&body).to_le_bytes());
+    7
+}
+
+/// Decode a command frame (the simulated detector's side). `None` if `bytes` is not one.
+pub fn decode_command(bytes: &[u8]) -> Option<NsCommand> {
+    if bytes.len() != 7 || bytes[..2] != SYNC || bytes[3] != 1 {
+        return None;
+    }
+    if CRC16.checksum(&bytes[2..5]).to_le_bytes() != [bytes[5], bytes[6]] {
+        return None;
+    }
+    match bytes[2] {
+        KIND_SET_SENSITIVITY => Some(NsCommand::SetSensitivity(bytes[4])),
+        KIND_SET_RATE => Some(NsCommand::SetRate(bytes[4])),
+        _ => None,
+    }
+}
+
+/// Encode a spot report (used by the simulated detector and the tests). Returns the
+/// number of bytes written into `out`.
+pub fn encode_report(frame: &SpotFrame, out: &mut [u8; MAX_FRAME]) -> usize {
+    let n = frame.spots.len();
+    let body_len = 3 + SPOT_BYTES * n;
+    out[..2].copy_from_slice(&SYNC);
+    out[2] = KIND_REPORT;
+    out[3] = body_len as u8;
+    out[4] = frame.seq;
+    out[5] = frame.sensitivity;
+    out[6] = n as u8;
+    for (i, s) in frame.spots.iter().enumerate() {
+        let o = 7 + SPOT_BYTES * i;
+        out[o..o + 2].copy_from_slice(&s.x.to_le_bytes());
+        out[o + 2..o + 4].copy_from_slice(&s.y.to_le_bytes());
+        out[o + 4..o + 6].copy_from_slice(&s.magnitude.to_le_bytes());
+        out[o + 6] = s.id;
+    }
+    let end = 4 + body_len;
+    let crc = CRC16.checksum(&out[2..end]);
+    out[end..end + 2].copy_from_slice(&crc.to_le_bytes());
+    end + 2
+}
+
+/// Encode a command acknowledgement (simulated detector side).
+pub fn encode_ack(kind: u8, status: u8, out: &mut [u8; 8]) -> usize {
+    let body = [KIND_ACK, 2, kind, status];
+    out[..2].copy_from_slice(&SYNC);
+    out[2..6].copy_from_slice(&body);
+    out[6..8].copy_from_slice(&CRC16.checksum(&body).to_le_bytes());
+    8
+}
+
+/// The bounded, resynchronising frame decoder.
+#[derive(Debug, Default)]
+pub struct NsDecoder {
+    buf: Vec<u8, MAX_FRAME>,
+    stats: NsStats,
+}
+
+/// Outcome of examining the buffered bytes.
+enum Scan {
+    /// Need more bytes.
+    More,
+    /// Discard one byte and look again.
+    Skip,
+    /// A CRC-valid frame of this total length is at the start of the buffer.
+    Frame(usize),
+    /// A complete frame with a wrong CRC.
+    BadCrc,
+}
+
+impl NsDecoder {
+    /// A decoder with an empty buffer.
+    pub const fn new() -> Self {
+        Self {
+            buf: Vec::new(),
+            stats: NsStats {
+                frames: 0,
+                crc_errors: 0,
+                discarded: 0,
+            },
+        }
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> NsStats {
+        self.stats
+    }
+
+    /// Feed received bytes; `on_event` is called for every complete valid frame.
+    pub fn feed(&mut self, bytes: &[u8], mut on_event: impl FnMut(NsEvent)) {
+        for &b in bytes {
+            if self.buf.push(b).is_err() {
+                // Cannot happen (every full buffer is resolved below), but never panic:
+                self.drop_front(1);
+                let _ = self.buf.push(b);
+            }
+            self.drain(&mut on_event);
+        }
+    }
+
+    fn drain(&mut self, on_event: &mut impl FnMut(NsEvent)) {
+        loop {
+            match self.scan() {
+                Scan::More => return,
+                Scan::Skip => {
+                    self.stats.discarded += 1;
+                    self.drop_front(1);
+                }
+                Scan::BadCrc => {
+                    self.stats.crc_errors += 1;
+                    self.stats.discarded += 1;
+                    self.drop_front(1);
+                }
+                Scan::Frame(len) => {
+                    if let Some(ev) = parse(&self.buf[..len]) {
+                        self.stats.frames += 1;
+                        on_event(ev);
+                    } else {
+                        self.stats.discarded += len as u32;
+                    }
+                    self.drop_front(len);
+                }
+            }
+        }
+    }
+
+    fn scan(&self) -> Scan {
+        let b = &self.buf;
+        if b.is_empty() {
+            return Scan::More;
+        }
+        if b[0] != SYNC[0] {
+            return Scan::Skip;
+        }
+        if b.len() < 2 {
+            return Scan::More;
+        }
+        if b[1] != SYNC[1] {
+            return Scan::Skip;
+        }
+        if b.len() < 4 {
+            return Scan::More;
+        }
+        let (kind, n) = (b[2], b[3] as usize);
+        let plausible = match kind {
+            KIND_REPORT => n >= 3 && n <= MAX_BODY && (n - 3) % SPOT_BYTES == 0,
+            KIND_ACK => n == 2,
+            _ => false,
+        };
+        if !plausible {
+            return Scan::Skip;
+        }
+        let total = 4 + n + 2;
+        if b.len() < total {
+            return Scan::More;
+        }
+        let crc = CRC16.checksum(&b[2..4 + n]).to_le_bytes();
+        if crc == [b[4 + n], b[5 + n]] {
+            Scan::Frame(total)
+        } else {
+            Scan::BadCrc
+        }
+    }
+
+    fn drop_front(&mut self, k: usize) {
+        let k = k.min(self.buf.len());
+        let len = self.buf.len();
+        self.buf.copy_within(k..len, 0);
+        self.buf.truncate(len - k);
+    }
+}
+
+/// Parse a CRC-valid frame; `None` if its contents are inconsistent.
+fn parse(f: &[u8]) -> Option<NsEvent> {
+    let body = &f[4..f.len() - 2];
+    match f[2] {
+        KIND_ACK => Some(NsEvent::Ack {
+            kind: body[0],
+            status: body[1],
+        }),
+        KIND_REPORT => {
+            let (seq, sensitivity, count) = (body[0], body[1], body[2] as usize);
+            if !(1..=4).contains(&sensitivity) || body.len() != 3 + SPOT_BYTES * count {
+                return None;
+            }
+            let mut spots = Vec::new();
+            for c in body[3..].chunks_exact(SPOT_BYTES) {
+                let spot = Spot {
+                    id: c[6],
+                    x: i16::from_le_bytes([c[0], c[1]]),
+                    y: i16::from_le_bytes([c[2], c[3]]),
+                    magnitude: u16::from_le_bytes([c[4], c[5]]),
+                };
+                spots.push(spot).ok()?;
+            }
+            Some(NsEvent::Report(SpotFrame {
+                seq,
+                sensitivity,
+                spots,
+            }))
+        }
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    extern crate std;
+    use std::vec::Vec as StdVec;
+
+    fn frame(seq: u8, n: usize) -> SpotFrame {
+        let mut spots = Vec::new();
+        for i in 0..n {
+            spots
+                .push(Spot {
+                    id: i as u8,
+                    x: (i as i16 - 7) * 1000,
+                    y: -(i as i16) * 999,
+                    magnitude: 40000 + i as u16,
+                })
+                .unwrap();
+        }
+        SpotFrame {
+            seq,
+            sensitivity: 3,
+            spots,
+        }
+    }
+
+    fn decode_all(bytes: &[u8]) -> StdVec<NsEvent> {
+        let mut d = NsDecoder::new();
+        let mut out = StdVec::new();
+        d.feed(bytes, |e| out.push(e));
+        out
+    }
+
+    #[test]
+    fn round_trip_every_size() {
+        for n in 0..=MAX_SPOTS {
+            let f = frame(n as u8, n);
+            let mut buf = [0; MAX_FRAME];
+            let len = encode_report(&f, &mut buf);
+            assert_eq!(decode_all(&buf[..len]), [NsEvent::Report(f)]);
+        }
+    }
+
+    #[test]
+    fn resyncs_after_garbage_and_partial_frames() {
+        let mut stream = StdVec::new();
+        stream.extend_from_slice(&[0x00, 0xA5, 0xA5, 0x5A, 0x01, 0xFF, 0x13]);
+        let mut buf = [0; MAX_FRAME];
+        // A truncated frame, then a whole one, then a corrupted one, then a whole one.
+        let len = encode_report(&frame(1, 5), &mut buf);
+        stream.extend_from_slice(&buf[..len - 4]);
+        let len = encode_report(&frame(2, 20), &mut buf);
+        stream.extend_from_slice(&buf[..len]);
+        let len = encode_report(&frame(3, 4), &mut buf);
+        buf[10] ^= 0x40;
+        stream.extend_from_slice(&buf[..len]);
+        let len = encode_report(&frame(4, 4), &mut buf);
+        stream.extend_from_slice(&buf[..len]);
+        let seqs: StdVec<u8> = decode_all(&stream)
+            .into_iter()
+            .map(|e| match e {
+                NsEvent::Report(f) => f.seq,
+                _ => panic!("unexpected {e:?}"),
+            })
+            .collect();
+        assert_eq!(seqs, [2, 4]);
+    }
+
+    #[test]
+    fn commands_and_acks() {
+        let mut c = [0; 7];
+        for cmd in [NsCommand::SetSensitivity(4), NsCommand::SetRate(10)] {
+            encode_command(cmd, &mut c);
+            assert_eq!(decode_command(&c), Some(cmd));
+        }
+        c[4] ^= 1;
+        assert_eq!(decode_command(&c), None);
+        let mut a = [0; 8];
+        encode_ack(0x10, 0, &mut a);
+        assert_eq!(decode_all(&a), [NsEvent::Ack { kind: 0x10, status: 0 }]);
+    }
+}
