@@ -1,1 +1,372 @@
-//! (being written)
+//! The 3-D NorthStar emulator (thesis Ch V, eqs 60-63), every near-field effect switchable,
+//! plus the parametric effects of CTA's analysis vocabulary.
+//!
+//! Conventions (REFERENCE.md section 1):
+//! - Cell k has normal `n_k` and centre `o_k` in the head frame O (eqs 60, 61), convex
+//!   pyramid as printed: `n1 = [sin a, 0, cos a]` at `[+s, 0, 0]`, `n2 = [-sin a, 0, cos a]` at
+//!   `[-s, 0, 0]`, `n3 = [0, sin a, cos a]` at `[0, +s, 0]`, `n4 = [0, -sin a, cos a]` at
+//!   `[0, -s, 0]`, `a = 30 deg`, `s = 0.175 in`.
+//! - The cells are fixed in the head: in N they sit at `d + C^T o_k` with normals `C^T n_k`.
+//! - A beacon at `r` (N) reaches cell k along `b_k = r - d - C^T o_k`; cosine response
+//!   `V_k = (C^T n_k) . b_k / |b_k|` (eq 62; 0 in shadow), intensity `I_k = 1/|b_k|^2`,
+//!   beacon pattern `c_k = P(g_k)` with `g_k` the angle between the LED boresight (default
+//!   `-z` of N: the grid faces the board) and the ray beacon -> cell k.
+//! - Output (eq 63): `X = beta (S1 - S2)/(S1 + S2)`, `Y = beta (S3 - S4)/(S3 + S4)` with
+//!   `S_k = c_k I_k V_k`, `beta = 32768`; the NorthStar reports signed 16-bit counts.
+//!
+//! Far field (proximity and intensity off, uniform beacon) this is exactly the collinearity
+//! model of eq 65 with `H = beta tan a` (tested).
+//!
+//! Beyond the thesis, [`Effects`] carries the parametric effects the analysis
+//! (`cta analyze`) knows by name; each is documented on its field.
+
+use crate::mrp;
+use crate::pattern::Pattern;
+use crate::real::rad;
+use crate::Real;
+use nalgebra::{Matrix3, Vector3};
+
+/// NorthStar full-scale factor `beta` of eq 63.
+pub const BETA: f64 = 32768.0;
+
+/// The sensor head geometry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Head<T> {
+    /// Face angle of the X pair (cells 1, 2), radians (30 deg nominal).
+    pub alpha_x: T,
+    /// Face angle of the Y pair (cells 3, 4), radians (30 deg nominal).
+    pub alpha_y: T,
+    /// Cell-centre offset from the head centre `s`, inches (eq 61: 0.175).
+    pub s: T,
+    /// Output scale `beta` (eq 63: 32768).
+    pub beta: T,
+}
+
+impl<T: Real> Head<T> {
+    /// The thesis's NorthStar: `a = 30 deg`, `s = 0.175 in`, `beta = 32768`.
+    pub fn northstar() -> Self {
+        Head {
+            alpha_x: rad(T::lit(30.0)),
+            alpha_y: rad(T::lit(30.0)),
+            s: T::lit(0.175),
+            beta: T::lit(BETA),
+        }
+    }
+
+    /// The far-field scale height `H = beta tan a` (18918.6 for the NorthStar).
+    pub fn h(&self) -> T {
+        self.beta * self.alpha_x.tan()
+    }
+
+    /// Cell normals in O (eq 60).
+    pub fn normals(&self) -> [Vector3<T>; 4] {
+        let (sx, cx) = (self.alpha_x.sin(), self.alpha_x.cos());
+        let (sy, cy) = (self.alpha_y.sin(), self.alpha_y.cos());
+        let z = T::zero();
+        [
+            Vector3::new(sx, z, cx),
+            Vector3::new(-sx, z, cx),
+            Vector3::new(z, sy, cy),
+            Vector3::new(z, -sy, cy),
+        ]
+    }
+
+    /// Cell centres in O (eq 61) for a cell offset `s`.
+    pub fn centres(s: T) -> [Vector3<T>; 4] {
+        let z = T::zero();
+        [
+            Vector3::new(s, z, z),
+            Vector3::new(-s, z, z),
+            Vector3::new(z, s, z),
+            Vector3::new(z, -s, z),
+        ]
+    }
+}
+
+/// The sensor-head pose relative to the board: `d` (N origin -> O origin, in N, inches) and
+/// the MRP `p` of `C` (N -> O).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose<T: Real> {
+    /// Offset of the head centre, inches, N components.
+    pub d: Vector3<T>,
+    /// MRP of the DCM `C` mapping N to O.
+    pub p: Vector3<T>,
+}
+
+impl<T: Real> Pose<T> {
+    /// The true pose used for Table 3: `d = (0.6, 0.1, 0.062) in`, `p = (0.001, 0.002, 0.001)`.
+    pub fn table3() -> Self {
+        Pose {
+            d: Vector3::new(T::lit(0.6), T::lit(0.1), T::lit(0.062)),
+            p: Vector3::new(T::lit(0.001), T::lit(0.002), T::lit(0.001)),
+        }
+    }
+}
+
+/// Which near-field physics is on, and the parametric effects of the analysis vocabulary.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Effects<T> {
+    /// `proximity`: the cells sit at `+/- s` from the head centre (parallax). Off: every
+    /// cell sees the beacon from the head centre.
+    pub proximity: bool,
+    /// `intensity`: inverse-square intensity `1/|b_k|^2` per cell. Off: `I_k = 1`.
+    pub intensity: bool,
+    /// `beacon_pattern`: the LED radiation pattern (default Lambertian, 60 deg half angle).
+    pub pattern: Pattern<T>,
+    /// `beacon_tilt`: LED boresight tilt from `-z` of N, radians.
+    pub tilt: T,
+    /// `beacon_tilt` azimuth: the boresight tilts toward this azimuth (radians, 0 = +x of N).
+    pub tilt_az: T,
+    /// `cell_gain`: cell k's signal is multiplied by `gain[k]` (the vocabulary's `GX` scales
+    /// cell 1 by `1 + GX`, `GY` cell 3 by `1 + GY`: responsivity mismatch within a pair).
+    pub gain: [T; 4],
+    /// `cell_bias`: added to cell k's signal, in the signal's units (1/in^2): ambient light
+    /// or dark current (the vocabulary's `BX` on cell 1, `BY` on cell 3).
+    pub bias: [T; 4],
+    /// `saturation`: each cell's signal is clipped at this value (1/in^2): the cells saturate
+    /// close to the beacon. `None`: no clipping.
+    pub saturation: Option<T>,
+    /// Cross-talk between the pairs: each cell's signal picks up this fraction of the
+    /// signal of the matching cell of the other pair (1<->3, 2<->4). *Not* in the analysis
+    /// vocabulary: it exists so tests can check that unexplained structure is reported.
+    pub crosstalk: T,
+}
+
+impl<T: Real> Default for Effects<T> {
+    /// The thesis's physics: proximity, intensity and the Lambertian 60 deg beacon, nothing
+    /// else.
+    fn default() -> Self {
+        Effects {
+            proximity: true,
+            intensity: true,
+            pattern: Pattern::vsml3710(),
+            tilt: T::zero(),
+            tilt_az: T::zero(),
+            gain: [T::one(); 4],
+            bias: [T::zero(); 4],
+            saturation: None,
+            crosstalk: T::zero(),
+        }
+    }
+}
+
+impl<T: Real> Effects<T> {
+    /// Far field: no proximity, no intensity, uniform beacon (equals eq 65).
+    pub fn far_field() -> Self {
+        Effects {
+            proximity: false,
+            intensity: false,
+            pattern: Pattern::Uniform,
+            ..Default::default()
+        }
+    }
+
+    /// The LED boresight unit vector in N.
+    pub fn boresight(&self) -> Vector3<T> {
+        let st = self.tilt.sin();
+        Vector3::new(
+            st * self.tilt_az.cos(),
+            st * self.tilt_az.sin(),
+            -self.tilt.cos(),
+        )
+    }
+}
+
+/// A NorthStar on a board, seeing beacons through the physics of eq 63.
+#[derive(Debug, Clone, Copy)]
+pub struct Emulator<T: Real> {
+    /// Head geometry.
+    pub head: Head<T>,
+    /// Pose of the head on the board.
+    pub pose: Pose<T>,
+    /// Physics switches and effects.
+    pub effects: Effects<T>,
+    // Cached: normals and centres in N.
+    n_n: [Vector3<T>; 4],
+    o_n: [Vector3<T>; 4],
+}
+
+impl<T: Real> Emulator<T> {
+    /// Build an emulator (caches the cell geometry in N).
+    pub fn new(head: Head<T>, pose: Pose<T>, effects: Effects<T>) -> Self {
+        let c: Matrix3<T> = mrp::dcm(&pose.p);
+        let ct = c.transpose();
+        let s = if effects.proximity { head.s } else { T::zero() };
+        let n_o = head.normals();
+        let o_o = Head::centres(s);
+        let n_n = core::array::from_fn(|k| ct * n_o[k]);
+        let o_n = core::array::from_fn(|k| pose.d + ct * o_o[k]);
+        Emulator {
+            head,
+            pose,
+            effects,
+            n_n,
+            o_n,
+        }
+    }
+
+    /// The cell signals `S_k` (after gain, bias, cross-talk and saturation) for a beacon at
+    /// `r` (N, inches). Cells in shadow give 0 before bias.
+    pub fn signals(&self, r: &Vector3<T>) -> [T; 4] {
+        let e = &self.effects;
+        let bore = e.boresight();
+        let mut raw = [T::zero(); 4];
+        for k in 0..4 {
+            let b = r - self.o_n[k];
+            let len2 = b.norm_squared();
+            let len = len2.sqrt();
+            let v = (self.n_n[k].dot(&b) / len).max(T::zero());
+            let i = if e.intensity {
+                T::one() / len2
+            } else {
+                T::one()
+            };
+            // Angle between the LED boresight and the ray beacon -> cell (-b).
+            let cosg = (-b.dot(&bore) / len).max(-T::one()).min(T::one());
+            let c = match e.pattern {
+                Pattern::Uniform => T::one(),
+                Pattern::Lambertian { m } if m == T::one() => cosg.max(T::zero()),
+                p => p.eval(cosg.acos()),
+            };
+            raw[k] = c * i * v;
+        }
+        let x = e.crosstalk;
+        let mixed = if x == T::zero() {
+            raw
+        } else {
+            [
+                raw[0] + x * raw[2],
+                raw[1] + x * raw[3],
+                raw[2] + x * raw[0],
+                raw[3] + x * raw[1],
+            ]
+        };
+        core::array::from_fn(|k| {
+            let s = mixed[k] * e.gain[k] + e.bias[k];
+            match e.saturation {
+                Some(sat) => s.min(sat),
+                None => s,
+            }
+        })
+    }
+
+    /// The output `(X, Y)` of eq 63 in counts, unclipped. `None` when a pair has no signal.
+    pub fn output(&self, r: &Vector3<T>) -> Option<[T; 2]> {
+        let s = self.signals(r);
+        let b = self.head.beta;
+        let dx = s[0] + s[1];
+        let dy = s[2] + s[3];
+        if !(dx > T::zero() && dy > T::zero()) {
+            return None;
+        }
+        Some([b * (s[0] - s[1]) / dx, b * (s[2] - s[3]) / dy])
+    }
+
+    /// The output as the NorthStar reports it: saturated to signed 16 bits
+    /// (-32768..=32767) and rounded to whole counts.
+    pub fn counts(&self, r: &Vector3<T>) -> Option<[i16; 2]> {
+        self.output(r).map(|o| o.map(saturate_i16))
+    }
+
+    /// Signal magnitude: the sum of the four cell signals (1/in^2), a proxy for the
+    /// NorthStar's reported spot magnitude.
+    pub fn magnitude(&self, r: &Vector3<T>) -> T {
+        self.signals(r).iter().fold(T::zero(), |a, &b| a + b)
+    }
+}
+
+/// Round and saturate a count to the NorthStar's signed 16-bit range.
+#[inline]
+pub fn saturate_i16<T: Real>(v: T) -> i16 {
+    let f = v.to_f64();
+    if !(f.is_finite()) {
+        return if f > 0.0 { i16::MAX } else { i16::MIN };
+    }
+    let r = libm::round(f);
+    if r >= 32767.0 {
+        i16::MAX
+    } else if r <= -32768.0 {
+        i16::MIN
+    } else {
+        r as i16
+    }
+}
+
+/// The CTA beacon grid of Ch V: `n x n` beacons at `pitch` inches, centred on the N origin,
+/// the plate at `z = separation`. Beacon `i` is at column `i % n`, row `i / n`.
+pub fn grid_position<T: Real>(n: usize, pitch: T, separation: T, i: usize) -> Vector3<T> {
+    let half = T::lit((n as f64 - 1.0) / 2.0);
+    let col = T::lit((i % n) as f64);
+    let row = T::lit((i / n) as f64);
+    Vector3::new((col - half) * pitch, (row - half) * pitch, separation)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::collinearity::{self, ParamsExt};
+
+    #[test]
+    fn far_field_equals_eq65() {
+        let head = Head::<f64>::northstar();
+        let pose = Pose::table3();
+        let em = Emulator::new(head, pose, Effects::far_field());
+        let x = collinearity::Params::from_pose(&pose, head.h());
+        for sep in [1.0, 3.0, 10.0, 30.0] {
+            for i in 0..100 {
+                let r = grid_position(10, 1.0, sep, i);
+                // Only inside the field of view (every cell lit): past 60 deg off boresight
+                // a cell is in shadow and the output pins at +/- beta, where eq 65 does not.
+                if em.signals(&r).iter().any(|&s| s <= 0.0) {
+                    continue;
+                }
+                let a = em.output(&r).unwrap();
+                let b = collinearity::predict(&x, &r).unwrap();
+                assert!(
+                    (a[0] - b[0]).abs() < 1e-8 && (a[1] - b[1]).abs() < 1e-8,
+                    "{a:?} {b:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn convex_pairing_pushes_beacons_off_boresight() {
+        let head = Head::<f64>::northstar();
+        let pose = Pose {
+            d: Vector3::zeros(),
+            p: Vector3::zeros(),
+        };
+        let near = Emulator::new(head, pose, Effects::default());
+        let far = Emulator::new(head, pose, Effects::far_field());
+        let r = Vector3::new(1.0, 0.5, 5.0);
+        let a = near.output(&r).unwrap();
+        let b = far.output(&r).unwrap();
+        assert!(a[0] > b[0] && a[1] > b[1]);
+    }
+
+    #[test]
+    fn saturates_to_i16() {
+        assert_eq!(saturate_i16(40000.0f64), i16::MAX);
+        assert_eq!(saturate_i16(-40000.0f64), i16::MIN);
+        assert_eq!(saturate_i16(12.4f64), 12);
+        assert_eq!(saturate_i16(f64::NAN), i16::MIN);
+    }
+
+    #[test]
+    fn effects_change_the_output() {
+        let head = Head::<f64>::northstar();
+        let pose = Pose::table3();
+        let base = Emulator::new(head, pose, Effects::default());
+        let r = Vector3::new(2.0, -1.0, 6.0);
+        let o0 = base.output(&r).unwrap();
+        let mut e = Effects::default();
+        e.gain[0] = 1.05;
+        let g = Emulator::new(head, pose, e).output(&r).unwrap();
+        assert!(g[0] > o0[0] && (g[1] - o0[1]).abs() < 1e-9);
+        let mut e = Effects::default();
+        e.tilt = rad(5.0);
+        let t = Emulator::new(head, pose, e).output(&r).unwrap();
+        assert!((t[0] - o0[0]).abs() > 1.0);
+    }
+}

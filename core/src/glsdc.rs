@@ -1,1 +1,699 @@
-//! (being written)
+//! Gaussian Least Squares Differential Correction (GLSDC), thesis eqs 56-59, generic over
+//! the model.
+//!
+//! Minimises `J = 1/2 (dy - G dx)^T W (dy - G dx)` (eq 56) by repeating the normal-equation
+//! step `dx = P G^T W dy`, `P = (G^T W G)^-1` (eqs 57, 58) and `x <- x + dx` (eq 59), with:
+//! - a diagonal weighting `W` given per residual row (eq 56's `W`);
+//! - the normal equations accumulated row by row, so a problem never stores its Jacobian
+//!   (20,000 residuals cost 7x7 memory; on the chip, 6x6);
+//! - Jacobi column scaling (so millimetres, milliradians and counts-per-unit parameters mix);
+//! - a damped (Levenberg) step whenever a Gauss-Newton step raises the cost;
+//! - stopping on a small step, a small cost change, or an iteration cap;
+//! - the covariance `P = (G^T W G)^-1`, scaled by the residual variance
+//!   `sum w r^2 / (m - n)` unless the weights are absolute (`W = R^-1`);
+//! - 1-sigma per parameter, residual RMS, iterations and the condition number of the scaled,
+//!   weighted Jacobian;
+//! - rank deficiency reported by naming the unobservable parameter combination (the null
+//!   direction of the scaled normal matrix), never NaN parameters.
+//!
+//! Works with fixed-size dimensions without allocation (the chip) and, with the `alloc`
+//! feature, with `nalgebra::Dyn` (the host's extended models).
+
+use crate::Real;
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, U1};
+
+/// Error raised by a model that cannot be evaluated at a point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelError {
+    /// A prediction or Jacobian element was NaN or infinite (e.g. a beacon behind the head).
+    NonFinite,
+    /// The model has no usable rows at this point (e.g. every cell in shadow).
+    NoData,
+}
+
+/// A least-squares problem for GLSDC.
+pub trait Problem<T: Real> {
+    /// Dimension of the parameter vector (`U7`, `U6`, or `Dyn`).
+    type D: Dim;
+    /// The dimension value (for `Dyn`, the run-time size).
+    fn dim(&self) -> Self::D;
+    /// Number of scalar residual rows (`m`).
+    fn n_rows(&self) -> usize;
+    /// Visit every residual row at `x`: call `sink(residual, weight, jacobian_row)` with
+    /// `residual = measured - predicted`, its weight (the diagonal of `W`), and, when `jac` is
+    /// true, `d predicted / d x` (length `n`; an empty slice otherwise).
+    fn rows(
+        &self,
+        x: &OVector<T, Self::D>,
+        jac: bool,
+        sink: &mut dyn FnMut(T, T, &[T]),
+    ) -> Result<(), ModelError>
+    where
+        DefaultAllocator: Allocator<Self::D>;
+    /// Write the name of parameter `i` (used to name unobservable combinations).
+    fn param_name(&self, i: usize, w: &mut dyn core::fmt::Write) -> core::fmt::Result {
+        write!(w, "x{}", i + 1)
+    }
+}
+
+/// GLSDC settings.
+#[derive(Debug, Clone, Copy)]
+pub struct Settings<T> {
+    /// Iteration cap.
+    pub max_iter: usize,
+    /// Stop when every `|dx_i| <= step_tol * (|x_i| + step_tol)`.
+    pub step_tol: T,
+    /// Stop when an accepted step changes the cost by less than `cost_tol * cost`.
+    pub cost_tol: T,
+    /// `true` when the weights are absolute (`W = R^-1`, inverse measurement variances):
+    /// then `P` is not rescaled by the residual variance.
+    pub weights_absolute: bool,
+    /// Smallest acceptable ratio of the scaled normal matrix's extreme eigenvalues; below it
+    /// the problem is reported rank deficient.
+    pub rank_tol: T,
+    /// How many times the damping may grow within one iteration before giving up.
+    pub max_damping: usize,
+}
+
+impl<T: Real> Default for Settings<T> {
+    fn default() -> Self {
+        let eps = T::default_epsilon();
+        Settings {
+            max_iter: 100,
+            step_tol: eps.sqrt() * T::lit(1e-2),
+            cost_tol: eps * T::lit(16.0),
+            weights_absolute: false,
+            rank_tol: eps * T::lit(1e4),
+            max_damping: 30,
+        }
+    }
+}
+
+/// Why GLSDC stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stop {
+    /// The step fell below `step_tol`.
+    SmallStep,
+    /// The cost changed by less than `cost_tol`.
+    SmallCostChange,
+    /// The residuals are zero.
+    ZeroCost,
+    /// No damped step lowers the cost any more: a minimum to working precision.
+    NoFurtherDecrease,
+}
+
+/// A converged GLSDC solution.
+#[derive(Debug, Clone)]
+pub struct Solution<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    /// Estimated parameters.
+    pub x: OVector<T, D>,
+    /// Covariance `P` (eq 58), scaled by the residual variance unless weights are absolute.
+    pub covariance: OMatrix<T, D, D>,
+    /// Parameter 1-sigma: `sqrt(diag P)`.
+    pub sigma: OVector<T, D>,
+    /// Final cost `J = 1/2 sum w r^2`.
+    pub cost: T,
+    /// Unweighted residual RMS `sqrt(sum r^2 / m)`.
+    pub rms: T,
+    /// Residual variance factor `sum w r^2 / (m - n)` (chi-square per degree of freedom when
+    /// the weights are absolute).
+    pub variance_factor: T,
+    /// Number of residual rows.
+    pub m: usize,
+    /// Iterations taken.
+    pub iterations: usize,
+    /// Condition number of the column-scaled, weighted Jacobian.
+    pub condition: T,
+    /// Why it stopped.
+    pub stop: Stop,
+}
+
+/// Why GLSDC failed. Every variant carries the last good estimate (never NaN).
+#[derive(Debug, Clone)]
+pub enum Error<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// Fewer residual rows than parameters.
+    TooFewRows {
+        /// Rows available.
+        m: usize,
+        /// Parameters.
+        n: usize,
+    },
+    /// The model could not be evaluated at the starting point.
+    Model(ModelError),
+    /// The normal matrix is (numerically) singular: the parameters along `null` cannot be
+    /// told apart from the data. `null` is a unit direction in parameter space scaled by
+    /// the parameters' information scale; its large components name the combination.
+    RankDeficient {
+        /// Last good estimate.
+        x: OVector<T, D>,
+        /// Unobservable direction (unit length in scaled coordinates).
+        null: OVector<T, D>,
+        /// Ratio of the extreme eigenvalues of the scaled normal matrix.
+        ratio: T,
+    },
+    /// The iteration cap was reached before convergence.
+    NotConverged {
+        /// Last good estimate.
+        x: OVector<T, D>,
+        /// Its cost.
+        cost: T,
+        /// Iterations taken.
+        iterations: usize,
+    },
+}
+
+struct Normal<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    n: OMatrix<T, D, D>,
+    g: OVector<T, D>,
+    wss: T,
+    ss: T,
+}
+
+fn cost_at<T: Real, P: Problem<T>>(prob: &P, x: &OVector<T, P::D>) -> Result<(T, T), ModelError>
+where
+    DefaultAllocator: Allocator<P::D>,
+{
+    let mut wss = T::zero();
+    let mut ss = T::zero();
+    prob.rows(x, false, &mut |r, w, _| {
+        wss += w * r * r;
+        ss += r * r;
+    })?;
+    if !(wss.is_finite()) {
+        return Err(ModelError::NonFinite);
+    }
+    Ok((wss, ss))
+}
+
+fn accumulate<T: Real, P: Problem<T>>(
+    prob: &P,
+    x: &OVector<T, P::D>,
+) -> Result<Normal<T, P::D>, ModelError>
+where
+    DefaultAllocator: Allocator<P::D> + Allocator<P::D, P::D>,
+{
+    let d = prob.dim();
+    let nn = d.value();
+    let mut n = OMatrix::<T, P::D, P::D>::zeros_generic(d, d);
+    let mut g = OVector::<T, P::D>::zeros_generic(d, U1);
+    let mut wss = T::zero();
+    let mut ss = T::zero();
+    prob.rows(x, true, &mut |r, w, j| {
+        debug_assert_eq!(j.len(), nn);
+        wss += w * r * r;
+        ss += r * r;
+        for a in 0..nn {
+            let wja = w * j[a];
+            if wja == T::zero() {
+                continue;
+            }
+            g[a] += wja * r;
+            for b in a..nn {
+                n[(a, b)] += wja * j[b];
+            }
+        }
+    })?;
+    for a in 0..nn {
+        for b in 0..a {
+            n[(a, b)] = n[(b, a)];
+        }
+    }
+    if !(wss.is_finite() && n.iter().all(|v| v.is_finite())) {
+        return Err(ModelError::NonFinite);
+    }
+    Ok(Normal { n, g, wss, ss })
+}
+
+/// Extreme eigenvalues of a symmetric positive semi-definite matrix and the eigenvector of
+/// the smallest, by power and inverse iteration (no eigen-decomposition: small code on the
+/// chip). Returns `(lambda_max, lambda_min, v_min)`.
+fn extreme_eigen<T: Real, D: Dim>(a: &OMatrix<T, D, D>, shift: T) -> (T, T, OVector<T, D>)
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let (dim, _) = a.shape_generic();
+    let n = dim.value();
+    // Power iteration for lambda_max.
+    let mut v = OVector::<T, D>::from_element_generic(dim, U1, T::one());
+    v /= v.norm();
+    let mut lmax = T::zero();
+    for _ in 0..60 {
+        let w = a * &v;
+        let nw = w.norm();
+        if nw == T::zero() {
+            break;
+        }
+        lmax = v.dot(&w);
+        v = w / nw;
+    }
+    // Inverse iteration on (A + shift I) for lambda_min.
+    let mut shifted = a.clone();
+    for i in 0..n {
+        shifted[(i, i)] += shift;
+    }
+    let mut u =
+        OVector::<T, D>::from_fn_generic(dim, U1, |i, _| T::one() + T::lit(0.1) * T::lit(i as f64));
+    u /= u.norm();
+    let mut lmin = lmax;
+    if let Some(ch) = shifted.cholesky() {
+        for _ in 0..60 {
+            let w = ch.solve(&u);
+            let nw = w.norm();
+            if !(nw.is_finite()) || nw == T::zero() {
+                break;
+            }
+            u = w / nw;
+        }
+        lmin = u.dot(&(a * &u)).max(T::zero());
+    }
+    (lmax, lmin, u)
+}
+
+/// Run GLSDC from `x0`.
+pub fn solve<T: Real, P: Problem<T>>(
+    prob: &P,
+    x0: OVector<T, P::D>,
+    settings: &Settings<T>,
+) -> Result<Solution<T, P::D>, Error<T, P::D>>
+where
+    DefaultAllocator: Allocator<P::D> + Allocator<P::D, P::D>,
+{
+    let d = prob.dim();
+    let n = d.value();
+    let m = prob.n_rows();
+    if m < n {
+        return Err(Error::TooFewRows { m, n });
+    }
+    let half = T::lit(0.5);
+    let mut x = x0;
+    let (mut wss, _) = cost_at(prob, &x).map_err(Error::Model)?;
+    let mut lambda = T::zero();
+    let mut iterations = 0;
+    let mut stop = None;
+    while iterations < settings.max_iter {
+        iterations += 1;
+        let ne = accumulate(prob, &x).map_err(Error::Model)?;
+        // Jacobi scaling: s_i = 1/sqrt(N_ii).
+        let mut scale = OVector::<T, P::D>::zeros_generic(d, U1);
+        for i in 0..n {
+            let nii = ne.n[(i, i)];
+            scale[i] = if nii > T::zero() {
+                T::one() / nii.sqrt()
+            } else {
+                T::zero()
+            };
+        }
+        let mut ns = ne.n.clone();
+        for a in 0..n {
+            for b in 0..n {
+                ns[(a, b)] *= scale[a] * scale[b];
+            }
+        }
+        let gs = ne.g.component_mul(&scale);
+        // Rank check on the scaled normal matrix.
+        if let Some(err) = rank_check(&ns, &scale, &x, settings) {
+            return Err(err);
+        }
+        // Gauss-Newton first, Levenberg damping when the cost rises.
+        let mut accepted = false;
+        for _ in 0..settings.max_damping {
+            let mut a = ns.clone();
+            for i in 0..n {
+                a[(i, i)] += lambda;
+            }
+            let step = match a.cholesky() {
+                Some(ch) => ch.solve(&gs).component_mul(&scale),
+                None => {
+                    lambda = if lambda == T::zero() {
+                        T::lit(1e-6)
+                    } else {
+                        lambda * T::lit(10.0)
+                    };
+                    continue;
+                }
+            };
+            let xn = &x + &step;
+            let trial = cost_at(prob, &xn);
+            match trial {
+                Ok((wn, _)) if wn <= wss => {
+                    let small_step = (0..n).all(|i| {
+                        step[i].abs() <= settings.step_tol * (x[i].abs() + settings.step_tol)
+                    });
+                    let small_cost = (wss - wn) <= settings.cost_tol * wss;
+                    x = xn;
+                    let prev = wss;
+                    wss = wn;
+                    accepted = true;
+                    lambda = if lambda <= T::lit(1e-7) {
+                        T::zero()
+                    } else {
+                        lambda / T::lit(10.0)
+                    };
+                    if wss == T::zero() {
+                        stop = Some(Stop::ZeroCost);
+                    } else if small_step {
+                        stop = Some(Stop::SmallStep);
+                    } else if small_cost && prev > T::zero() {
+                        stop = Some(Stop::SmallCostChange);
+                    }
+                    break;
+                }
+                _ => {
+                    lambda = if lambda == T::zero() {
+                        T::lit(1e-3)
+                    } else {
+                        lambda * T::lit(10.0)
+                    };
+                }
+            }
+        }
+        if !accepted {
+            stop = Some(Stop::NoFurtherDecrease);
+        }
+        if stop.is_some() {
+            break;
+        }
+    }
+    let Some(stop) = stop else {
+        return Err(Error::NotConverged {
+            x,
+            cost: half * wss,
+            iterations,
+        });
+    };
+    finish(prob, x, iterations, stop, settings)
+}
+
+fn rank_check<T: Real, D: Dim>(
+    ns: &OMatrix<T, D, D>,
+    scale: &OVector<T, D>,
+    x: &OVector<T, D>,
+    settings: &Settings<T>,
+) -> Option<Error<T, D>>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let (dim, _) = ns.shape_generic();
+    let n = dim.value();
+    // A parameter the data does not touch at all.
+    for i in 0..n {
+        if scale[i] == T::zero() {
+            let null = OVector::<T, D>::from_fn_generic(dim, U1, |k, _| {
+                if k == i {
+                    T::one()
+                } else {
+                    T::zero()
+                }
+            });
+            return Some(Error::RankDeficient {
+                x: x.clone(),
+                null,
+                ratio: T::zero(),
+            });
+        }
+    }
+    let (lmax, lmin, v) = extreme_eigen(ns, settings.rank_tol * T::lit(1e-3));
+    let ratio = if lmax > T::zero() {
+        lmin / lmax
+    } else {
+        T::zero()
+    };
+    if ratio < settings.rank_tol {
+        return Some(Error::RankDeficient {
+            x: x.clone(),
+            null: v,
+            ratio,
+        });
+    }
+    None
+}
+
+fn finish<T: Real, P: Problem<T>>(
+    prob: &P,
+    x: OVector<T, P::D>,
+    iterations: usize,
+    stop: Stop,
+    settings: &Settings<T>,
+) -> Result<Solution<T, P::D>, Error<T, P::D>>
+where
+    DefaultAllocator: Allocator<P::D> + Allocator<P::D, P::D>,
+{
+    let d = prob.dim();
+    let n = d.value();
+    let m = prob.n_rows();
+    let ne = accumulate(prob, &x).map_err(Error::Model)?;
+    let mut scale = OVector::<T, P::D>::zeros_generic(d, U1);
+    for i in 0..n {
+        let nii = ne.n[(i, i)];
+        scale[i] = if nii > T::zero() {
+            T::one() / nii.sqrt()
+        } else {
+            T::zero()
+        };
+    }
+    let mut ns = ne.n.clone();
+    for a in 0..n {
+        for b in 0..n {
+            ns[(a, b)] *= scale[a] * scale[b];
+        }
+    }
+    if let Some(err) = rank_check(&ns, &scale, &x, settings) {
+        return Err(err);
+    }
+    let (lmax, lmin, _) = extreme_eigen(&ns, T::zero());
+    let condition = if lmin > T::zero() {
+        (lmax / lmin).sqrt()
+    } else {
+        T::max_value().unwrap_or(T::lit(1e300))
+    };
+    let inv = match ns.clone().cholesky() {
+        Some(ch) => ch.inverse(),
+        None => {
+            let (_, _, v) = extreme_eigen(&ns, settings.rank_tol);
+            return Err(Error::RankDeficient {
+                x,
+                null: v,
+                ratio: T::zero(),
+            });
+        }
+    };
+    let dof = if m > n { m - n } else { 1 };
+    let variance_factor = ne.wss / T::lit(dof as f64);
+    let mut cov = inv;
+    for a in 0..n {
+        for b in 0..n {
+            cov[(a, b)] *= scale[a] * scale[b];
+        }
+    }
+    if !settings.weights_absolute {
+        cov *= variance_factor;
+    }
+    let sigma =
+        OVector::<T, P::D>::from_fn_generic(d, U1, |i, _| cov[(i, i)].max(T::zero()).sqrt());
+    Ok(Solution {
+        x,
+        covariance: cov,
+        sigma,
+        cost: T::lit(0.5) * ne.wss,
+        rms: (ne.ss / T::lit(m as f64)).sqrt(),
+        variance_factor,
+        m,
+        iterations,
+        condition,
+        stop,
+    })
+}
+
+/// Describe an unobservable direction in words: the parameters whose components exceed
+/// 0.25 (of a unit vector), with signs, e.g. `d3 - H` meaning "d3 up with H down".
+pub fn describe_null<T: Real, P: Problem<T>>(
+    prob: &P,
+    null: &OVector<T, P::D>,
+    w: &mut dyn core::fmt::Write,
+) -> core::fmt::Result
+where
+    DefaultAllocator: Allocator<P::D>,
+{
+    let mut first = true;
+    // Largest component first.
+    let n = null.len();
+    let mut order: [usize; 64] = [0; 64];
+    let k = n.min(64);
+    for (i, o) in order.iter_mut().enumerate().take(k) {
+        *o = i;
+    }
+    order[..k].sort_by(|&a, &b| {
+        null[b]
+            .abs()
+            .partial_cmp(&null[a].abs())
+            .unwrap_or(core::cmp::Ordering::Equal)
+    });
+    let sign0 = if null[order[0]] < T::zero() {
+        -T::one()
+    } else {
+        T::one()
+    };
+    for &i in &order[..k] {
+        let c = null[i] * sign0;
+        if c.abs() < T::lit(0.25) {
+            continue;
+        }
+        if first {
+            if c < T::zero() {
+                w.write_str("-")?;
+            }
+        } else {
+            w.write_str(if c < T::zero() { " - " } else { " + " })?;
+        }
+        write!(w, "{:.2} ", c.abs().to_f64())?;
+        prob.param_name(i, w)?;
+        first = false;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Vector2, U2};
+
+    /// y = a exp(b t): a small nonlinear problem.
+    struct Exp<'a> {
+        t: &'a [f64],
+        y: &'a [f64],
+    }
+    impl Problem<f64> for Exp<'_> {
+        type D = U2;
+        fn dim(&self) -> U2 {
+            U2
+        }
+        fn n_rows(&self) -> usize {
+            self.t.len()
+        }
+        fn rows(
+            &self,
+            x: &Vector2<f64>,
+            jac: bool,
+            sink: &mut dyn FnMut(f64, f64, &[f64]),
+        ) -> Result<(), ModelError> {
+            for (&t, &y) in self.t.iter().zip(self.y) {
+                let e = (x[1] * t).exp();
+                let f = x[0] * e;
+                if jac {
+                    sink(y - f, 1.0, &[e, x[0] * t * e]);
+                } else {
+                    sink(y - f, 1.0, &[]);
+                }
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn recovers_exponential() {
+        let t: [f64; 8] = [0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5];
+        let y: [f64; 8] = core::array::from_fn(|i| 2.0 * (-0.7 * t[i]).exp());
+        let p = Exp { t: &t, y: &y };
+        // A poor start: the GN step overshoots, so damping is exercised.
+        let s = solve(&p, Vector2::new(10.0, 1.0), &Settings::default()).unwrap();
+        assert!(
+            (s.x[0] - 2.0).abs() < 1e-9 && (s.x[1] + 0.7).abs() < 1e-9,
+            "{:?}",
+            s.x
+        );
+        assert!(s.rms < 1e-9);
+    }
+
+    /// y = (a + b) t: a and b cannot be told apart.
+    struct Degenerate;
+    impl Problem<f64> for Degenerate {
+        type D = U2;
+        fn dim(&self) -> U2 {
+            U2
+        }
+        fn n_rows(&self) -> usize {
+            4
+        }
+        fn rows(
+            &self,
+            x: &Vector2<f64>,
+            _jac: bool,
+            sink: &mut dyn FnMut(f64, f64, &[f64]),
+        ) -> Result<(), ModelError> {
+            for t in 1..5 {
+                let t = t as f64;
+                sink(3.0 * t - (x[0] + x[1]) * t, 1.0, &[t, t]);
+            }
+            Ok(())
+        }
+        fn param_name(&self, i: usize, w: &mut dyn core::fmt::Write) -> core::fmt::Result {
+            w.write_str(["a", "b"][i])
+        }
+    }
+
+    #[test]
+    fn rank_deficiency_names_the_combination() {
+        match solve(&Degenerate, Vector2::new(0.0, 0.0), &Settings::default()) {
+            Err(Error::RankDeficient { x, null, .. }) => {
+                assert!(x.iter().all(|v| v.is_finite()));
+                let mut s = heapless::String::<64>::new();
+                describe_null(&Degenerate, &null, &mut s).unwrap();
+                assert_eq!(s.as_str(), "0.71 a - 0.71 b");
+            }
+            other => panic!("expected rank deficiency, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn covariance_scaled_by_residual_variance() {
+        // Linear fit y = a + b t with known residuals: P = s^2 (G^T G)^-1.
+        struct Lin;
+        impl Problem<f64> for Lin {
+            type D = U2;
+            fn dim(&self) -> U2 {
+                U2
+            }
+            fn n_rows(&self) -> usize {
+                4
+            }
+            fn rows(
+                &self,
+                x: &Vector2<f64>,
+                _j: bool,
+                sink: &mut dyn FnMut(f64, f64, &[f64]),
+            ) -> Result<(), ModelError> {
+                let y = [1.1, 1.9, 3.2, 3.8];
+                for (i, yi) in y.iter().enumerate() {
+                    let t = i as f64;
+                    sink(yi - (x[0] + x[1] * t), 1.0, &[1.0, t]);
+                }
+                Ok(())
+            }
+        }
+        let s = solve(&Lin, Vector2::new(0.0, 0.0), &Settings::default()).unwrap();
+        // Ordinary least squares by hand.
+        let (b, a) = (0.94, 1.09);
+        assert!((s.x[0] - a).abs() < 1e-12 && (s.x[1] - b).abs() < 1e-12);
+        let rss: f64 = [1.1, 1.9, 3.2, 3.8]
+            .iter()
+            .enumerate()
+            .map(|(i, y)| (y - (a + b * i as f64)).powi(2))
+            .sum();
+        let s2 = rss / 2.0;
+        // (G^T G)^-1 for t = 0..3: [[0.7, -0.3], [-0.3, 0.2]].
+        assert!((s.covariance[(0, 0)] - 0.7 * s2).abs() < 1e-12);
+        assert!((s.covariance[(0, 1)] + 0.3 * s2).abs() < 1e-12);
+        assert!((s.sigma[1] - (0.2 * s2).sqrt()).abs() < 1e-12);
+        assert!(s.condition > 1.0);
+    }
+}
