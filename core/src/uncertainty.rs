@@ -1,1 +1,178 @@
-//! (being written)
+//! The CTA uncertainty analysis (thesis Ch IV, eqs 23-40).
+//!
+//! - A budget of independent items, each with plus/minus uncertainties in X, Y and Z
+//!   (mils), combined per direction by root-sum-square (eq 26; Table 2 is the default).
+//! - The angle uncertainty in 3-D (eq 36). The thesis's sensitivities (eqs 34/35) assume equal
+//!   perturbations in x, y and z and are singular at `x = y = z` (REFERENCE.md 2.4); the
+//!   correct first-order sensitivity of the angle to a displacement along x is
+//!   `|d theta/d x| = sqrt(y^2 + z^2) / |b|^2` (likewise for y and z), about 1.4x larger.
+//!   Both are provided; [`angle_3d`] uses the corrected one.
+//! - The angle uncertainty in 2-D (eq 40): `u = sqrt((z u_x)^2 + (x u_z)^2) / (x^2 + z^2)`.
+
+use crate::Real;
+use nalgebra::Vector3;
+
+/// One line of an uncertainty budget, in mils (1/1000 in).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Item<'a> {
+    /// What is uncertain.
+    pub name: &'a str,
+    /// `[x+, x-, y+, y-, z+, z-]` in mils.
+    pub mils: [f64; 6],
+}
+
+/// Thesis Table 2: uncertainties in the X, Y and Z directions (mils).
+pub const TABLE2: [Item<'static>; 13] = [
+    Item {
+        name: "NS sensor board hole placement",
+        mils: [5.0, 5.0, 5.0, 5.0, 0.0, 0.0],
+    },
+    Item {
+        name: "NS standoff height",
+        mils: [0.0, 0.0, 0.0, 0.0, 0.5, 0.5],
+    },
+    Item {
+        name: "Plate hole locations",
+        mils: [5.0, 5.0, 5.0, 5.0, 0.0, 0.0],
+    },
+    Item {
+        name: "Plate levelness",
+        mils: [0.0, 0.0, 0.0, 0.0, 5.0, 5.0],
+    },
+    Item {
+        name: "Plate offset",
+        mils: [21.25, 21.25, 21.25, 21.25, 0.0, 0.0],
+    },
+    Item {
+        name: "Plate separation distance",
+        mils: [0.0, 0.0, 0.0, 0.0, 0.5, 0.5],
+    },
+    Item {
+        name: "Array stand-off height",
+        mils: [0.0, 0.0, 0.0, 0.0, 0.5, 0.5],
+    },
+    Item {
+        name: "Array board thickness",
+        mils: [0.0, 0.0, 0.0, 0.0, 0.5, 0.5],
+    },
+    Item {
+        name: "Array pad location uncertainties",
+        mils: [5.0, 5.0, 5.0, 5.0, 0.0, 0.0],
+    },
+    Item {
+        name: "Plate to array hole tolerance",
+        mils: [5.0, 5.0, 5.0, 5.0, 0.0, 0.0],
+    },
+    Item {
+        name: "Upper plate deflection",
+        mils: [0.0, 0.0, 0.0, 0.0, 5.0, 5.0],
+    },
+    Item {
+        name: "LED placement on solder pads",
+        mils: [21.0, 21.0, 6.5, 6.5, 0.0, 0.0],
+    },
+    Item {
+        name: "Light emitter placement in LED",
+        mils: [0.0, 0.0, 0.0, 0.0, 16.0, 16.0],
+    },
+];
+
+/// Root-sum-square of a budget per direction and sign (eq 26): `[x+, x-, y+, y-, z+, z-]`.
+pub fn rss(items: &[Item<'_>]) -> [f64; 6] {
+    let mut acc = [0.0f64; 6];
+    for it in items {
+        for (a, m) in acc.iter_mut().zip(it.mils) {
+            *a += m * m;
+        }
+    }
+    acc.map(libm::sqrt)
+}
+
+/// The per-direction uncertainty (the larger of plus and minus), in inches.
+pub fn rss_inches(items: &[Item<'_>]) -> [f64; 3] {
+    let r = rss(items);
+    [
+        r[0].max(r[1]) / 1000.0,
+        r[2].max(r[3]) / 1000.0,
+        r[4].max(r[5]) / 1000.0,
+    ]
+}
+
+/// Corrected first-order sensitivities `|d theta / d x_i|` (rad per unit length) of the
+/// angle of `b` to a displacement of its tip along each axis.
+pub fn sensitivities_3d<T: Real>(b: &Vector3<T>) -> [T; 3] {
+    let n2 = b.norm_squared();
+    [
+        (b.y * b.y + b.z * b.z).sqrt() / n2,
+        (b.x * b.x + b.z * b.z).sqrt() / n2,
+        (b.x * b.x + b.y * b.y).sqrt() / n2,
+    ]
+}
+
+/// The thesis's printed sensitivities, eqs 34/35 (equal perturbations assumed; singular at
+/// `x = y = z`, where this returns non-finite values). Kept for comparison only.
+pub fn sensitivities_3d_thesis<T: Real>(b: &Vector3<T>) -> [T; 3] {
+    let (x, y, z) = (b.x, b.y, b.z);
+    let den = ((x - y) * (x - y) + (x - z) * (x - z) + (y - z) * (y - z)).sqrt() * b.norm_squared();
+    [
+        (y * (y - x) + z * (z - x)) / den,
+        (x * (x - y) + z * (z - y)) / den,
+        (x * (x - z) + y * (y - z)) / den,
+    ]
+}
+
+/// Angle uncertainty (rad) of the vector `b` (inches) given per-axis uncertainties `u`
+/// (inches), eq 36 with the corrected sensitivities.
+pub fn angle_3d<T: Real>(b: &Vector3<T>, u: [T; 3]) -> T {
+    let s = sensitivities_3d(b);
+    ((s[0] * u[0]) * (s[0] * u[0]) + (s[1] * u[1]) * (s[1] * u[1]) + (s[2] * u[2]) * (s[2] * u[2]))
+        .sqrt()
+}
+
+/// Angle uncertainty (rad) in 2-D, eq 40, for a beacon at `(x, z)` with uncertainties
+/// `u_x`, `u_z` (same length unit).
+pub fn angle_2d<T: Real>(x: T, z: T, ux: T, uz: T) -> T {
+    let r2 = x * x + z * z;
+    ((z * ux) * (z * ux) + (x * uz) * (x * uz)).sqrt() / r2
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table2_rss() {
+        let r = rss(&TABLE2);
+        assert!((r[0] - 31.54).abs() < 0.05, "{r:?}");
+        assert!((r[2] - 24.41).abs() < 0.05);
+        assert!((r[4] - 17.52).abs() < 0.05);
+        assert_eq!(r[0], r[1]);
+    }
+
+    #[test]
+    fn eq40_reference() {
+        let [ux, _, uz] = rss_inches(&TABLE2);
+        for (theta, want) in [(6.0f64, 1.800), (18.0, 1.746)] {
+            let t = theta.to_radians();
+            // u_theta x R at R = 1 in, in deg in.
+            let u = angle_2d(t.sin(), t.cos(), ux, uz).to_degrees();
+            assert!((u - want).abs() < 0.005 * want, "{theta}: {u}");
+        }
+    }
+
+    #[test]
+    fn corrected_sensitivity_matches_finite_difference() {
+        let b = Vector3::new(1.0f64, 2.0, 10.0);
+        let s = sensitivities_3d(&b);
+        let h = 1e-6;
+        for i in 0..3 {
+            let mut bp = b;
+            bp[i] += h;
+            let ang = b.cross(&bp).norm().atan2(b.dot(&bp));
+            assert!((ang / h - s[i]).abs() < 1e-4 * s[i], "{i}");
+        }
+        // The thesis's form is singular at x = y = z.
+        let t = sensitivities_3d_thesis(&Vector3::new(1.0f64, 1.0, 1.0));
+        assert!(!t[0].is_finite());
+    }
+}
