@@ -1,0 +1,1 @@
+//! Sensor-board messages (firmware-sensor issue).
