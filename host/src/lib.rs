@@ -6,3 +6,10 @@ pub mod beacon_cmd;
 pub mod link;
 /// `cta sensor ...` and the pose-accuracy table (firmware-sensor issue).
 pub mod sensor_cmd;
+
+/// The effect vocabulary shared by `simulate` and `analyze`.
+pub mod effects;
+/// The measurement file format (`host/MEASUREMENTS.md`).
+pub mod measurement;
+/// Emulated CTA data with injectable effects and a truth sidecar.
+pub mod simulate;

@@ -1,0 +1,283 @@
+//! The effect vocabulary: named, parametric departures from the thesis physics that CTA can
+//! inject into simulated data (`cta simulate --effect NAME=VALUE`) and look for in measured
+//! data (`cta analyze`). Each effect's physics is documented on its variant; the signal of
+//! cell k is `c_k I_k V_k` of eq 63 (units 1/in^2).
+
+use cta_core::emulator::Effects;
+use cta_core::pattern::Pattern;
+use cta_core::real::rad;
+use std::fmt;
+
+/// One effect with its parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Effect {
+    /// `proximity=S`: the cells sit at +/-S in from the head's centre (parallax between the
+    /// cells). Part of the `thesis` model (S = 0.175 in); a candidate from `pinhole`.
+    Proximity(f64),
+    /// `intensity` (or `intensity=1`/`0`): inverse-square intensity per cell, `1/|b_k|^2`.
+    /// Part of `thesis`; a candidate from `pinhole`.
+    Intensity(bool),
+    /// `beacon_pattern=H`: the LED is Lambertian with half-intensity angle H deg (default 60,
+    /// `cos^m`, `m = ln 0.5 / ln cos H`).
+    BeaconPattern(f64),
+    /// `beacon_tilt=T[,AZ]`: every LED boresight tilted T deg from -z of N toward azimuth AZ
+    /// deg (0 = +x of N): a warped or tilted beacon plate.
+    BeaconTilt(f64, f64),
+    /// `cell_gain=GX[,GY]`: cell 1's signal times (1+GX), cell 3's times (1+GY):
+    /// responsivity mismatch within a pair.
+    CellGain(f64, f64),
+    /// `cell_bias=BX[,BY]`: BX added to cell 1's signal and BY to cell 3's (1/in^2): ambient
+    /// light or dark current.
+    CellBias(f64, f64),
+    /// `face_angle=DX[,DY]`: the pyramid face angle of the X pair is 30+DX deg, of the Y pair
+    /// 30+DY deg.
+    FaceAngle(f64, f64),
+    /// `saturation=S`: each cell's signal is clipped at S (1/in^2): the cells saturate close
+    /// to the beacon.
+    Saturation(f64),
+    /// `plate_offset=SIGMA`: at each separation the plate sits laterally off its nominal place
+    /// by an (x, y) drawn with standard deviation SIGMA in (seeded); analysis estimates one
+    /// offset per separation.
+    PlateOffset(f64),
+    /// `separation_error=SIGMA`: at each separation the recorded separation is off by a value
+    /// drawn with standard deviation SIGMA in; analysis estimates one correction per
+    /// separation.
+    SeparationError(f64),
+    /// `crosstalk=K`: each cell picks up K times the signal of the matching cell of the other
+    /// pair. NOT in the analysis vocabulary: simulation only, to test that `analyze` reports
+    /// unexplained structure instead of a false name.
+    Crosstalk(f64),
+}
+
+/// The names `cta analyze` can report (every effect but `crosstalk`).
+pub const VOCABULARY: [&str; 10] = [
+    "proximity",
+    "intensity",
+    "beacon_pattern",
+    "beacon_tilt",
+    "cell_gain",
+    "cell_bias",
+    "face_angle",
+    "saturation",
+    "plate_offset",
+    "separation_error",
+];
+
+impl Effect {
+    /// The effect's name as it appears in output.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Effect::Proximity(_) => "proximity",
+            Effect::Intensity(_) => "intensity",
+            Effect::BeaconPattern(_) => "beacon_pattern",
+            Effect::BeaconTilt(..) => "beacon_tilt",
+            Effect::CellGain(..) => "cell_gain",
+            Effect::CellBias(..) => "cell_bias",
+            Effect::FaceAngle(..) => "face_angle",
+            Effect::Saturation(_) => "saturation",
+            Effect::PlateOffset(_) => "plate_offset",
+            Effect::SeparationError(_) => "separation_error",
+            Effect::Crosstalk(_) => "crosstalk",
+        }
+    }
+
+    /// Parse `NAME=VALUE[,VALUE]` (or a bare `intensity`).
+    pub fn parse(s: &str) -> Result<Effect, String> {
+        let (name, val) = match s.split_once('=') {
+            Some((n, v)) => (n.trim(), Some(v.trim())),
+            None => (s.trim(), None),
+        };
+        let nums = |min: usize, max: usize| -> Result<Vec<f64>, String> {
+            let v = val.ok_or_else(|| format!("effect `{name}` needs a value: {}", usage(name)))?;
+            let parts: Result<Vec<f64>, _> =
+                v.split(',').map(|p| p.trim().parse::<f64>()).collect();
+            let parts = parts.map_err(|_| {
+                format!(
+                    "effect `{name}`: `{v}` is not a number list ({})",
+                    usage(name)
+                )
+            })?;
+            if parts.len() < min || parts.len() > max || parts.iter().any(|p| !p.is_finite()) {
+                return Err(format!("effect `{name}`: expected {}", usage(name)));
+            }
+            Ok(parts)
+        };
+        let e = match name {
+            "proximity" => {
+                let v = nums(1, 1)?;
+                if v[0] < 0.0 {
+                    return Err("effect `proximity`: S must be >= 0 in".into());
+                }
+                Effect::Proximity(v[0])
+            }
+            "intensity" => match val {
+                None | Some("1") | Some("on") | Some("true") => Effect::Intensity(true),
+                Some("0") | Some("off") | Some("false") => Effect::Intensity(false),
+                Some(v) => return Err(format!("effect `intensity`: `{v}` is not on/off")),
+            },
+            "beacon_pattern" => {
+                let v = nums(1, 1)?;
+                if !(v[0] > 0.0 && v[0] < 90.0) {
+                    return Err("effect `beacon_pattern`: H must be in (0, 90) deg".into());
+                }
+                Effect::BeaconPattern(v[0])
+            }
+            "beacon_tilt" => {
+                let v = nums(1, 2)?;
+                Effect::BeaconTilt(v[0], v.get(1).copied().unwrap_or(0.0))
+            }
+            "cell_gain" => {
+                let v = nums(1, 2)?;
+                Effect::CellGain(v[0], v.get(1).copied().unwrap_or(0.0))
+            }
+            "cell_bias" => {
+                let v = nums(1, 2)?;
+                Effect::CellBias(v[0], v.get(1).copied().unwrap_or(0.0))
+            }
+            "face_angle" => {
+                let v = nums(1, 2)?;
+                Effect::FaceAngle(v[0], v.get(1).copied().unwrap_or(0.0))
+            }
+            "saturation" => {
+                let v = nums(1, 1)?;
+                if !(v[0] > 0.0) {
+                    return Err("effect `saturation`: S must be > 0 (1/in^2)".into());
+                }
+                Effect::Saturation(v[0])
+            }
+            "plate_offset" => Effect::PlateOffset(nonneg(name, nums(1, 1)?[0])?),
+            "separation_error" => Effect::SeparationError(nonneg(name, nums(1, 1)?[0])?),
+            "crosstalk" => Effect::Crosstalk(nums(1, 1)?[0]),
+            other => {
+                return Err(format!(
+                    "unknown effect `{other}`; known: {}, crosstalk (simulation only)",
+                    VOCABULARY.join(", ")
+                ))
+            }
+        };
+        Ok(e)
+    }
+
+    /// Apply a physics effect to the emulator's head/effects. Plate offsets and separation
+    /// errors act on the geometry instead (see `simulate`), so they are no-ops here.
+    pub fn apply(&self, head: &mut cta_core::emulator::Head<f64>, fx: &mut Effects<f64>) {
+        match *self {
+            Effect::Proximity(s) => {
+                fx.proximity = true;
+                head.s = s;
+            }
+            Effect::Intensity(on) => fx.intensity = on,
+            Effect::BeaconPattern(h) => fx.pattern = Pattern::lambertian_half_angle(h),
+            Effect::BeaconTilt(t, az) => {
+                fx.tilt = rad(t);
+                fx.tilt_az = rad(az);
+            }
+            Effect::CellGain(gx, gy) => {
+                fx.gain[0] = 1.0 + gx;
+                fx.gain[2] = 1.0 + gy;
+            }
+            Effect::CellBias(bx, by) => {
+                fx.bias[0] = bx;
+                fx.bias[2] = by;
+            }
+            Effect::FaceAngle(dx, dy) => {
+                head.alpha_x = rad(30.0 + dx);
+                head.alpha_y = rad(30.0 + dy);
+            }
+            Effect::Saturation(s) => fx.saturation = Some(s),
+            Effect::Crosstalk(k) => fx.crosstalk = k,
+            Effect::PlateOffset(_) | Effect::SeparationError(_) => {}
+        }
+    }
+}
+
+fn nonneg(name: &str, v: f64) -> Result<f64, String> {
+    if v < 0.0 {
+        Err(format!("effect `{name}`: SIGMA must be >= 0 in"))
+    } else {
+        Ok(v)
+    }
+}
+
+fn usage(name: &str) -> &'static str {
+    match name {
+        "proximity" => "proximity=S (cell offset, in)",
+        "beacon_pattern" => "beacon_pattern=H (half-intensity angle, deg)",
+        "beacon_tilt" => "beacon_tilt=T[,AZ] (deg)",
+        "cell_gain" => "cell_gain=GX[,GY] (fractions)",
+        "cell_bias" => "cell_bias=BX[,BY] (1/in^2)",
+        "face_angle" => "face_angle=DX[,DY] (deg)",
+        "saturation" => "saturation=S (1/in^2)",
+        "plate_offset" => "plate_offset=SIGMA (in)",
+        "separation_error" => "separation_error=SIGMA (in)",
+        "crosstalk" => "crosstalk=K (fraction)",
+        _ => "NAME=VALUE",
+    }
+}
+
+impl fmt::Display for Effect {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Effect::Proximity(v) | Effect::BeaconPattern(v) | Effect::Saturation(v) => {
+                write!(f, "{}={v}", self.name())
+            }
+            Effect::PlateOffset(v) | Effect::SeparationError(v) | Effect::Crosstalk(v) => {
+                write!(f, "{}={v}", self.name())
+            }
+            Effect::Intensity(on) => write!(f, "intensity={}", if on { 1 } else { 0 }),
+            Effect::BeaconTilt(a, b)
+            | Effect::CellGain(a, b)
+            | Effect::CellBias(a, b)
+            | Effect::FaceAngle(a, b) => {
+                write!(f, "{}={a},{b}", self.name())
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_every_effect_and_round_trips() {
+        for s in [
+            "proximity=0.2",
+            "intensity=1",
+            "beacon_pattern=45",
+            "beacon_tilt=3,45",
+            "cell_gain=0.02,-0.01",
+            "cell_bias=0.0001,0",
+            "face_angle=1,0.5",
+            "saturation=0.1",
+            "plate_offset=0.05",
+            "separation_error=0.05",
+            "crosstalk=0.02",
+        ] {
+            let e = Effect::parse(s).unwrap();
+            assert_eq!(Effect::parse(&e.to_string()).unwrap(), e, "{s}");
+        }
+        assert_eq!(
+            Effect::parse("beacon_tilt=3").unwrap(),
+            Effect::BeaconTilt(3.0, 0.0)
+        );
+        assert_eq!(Effect::parse("intensity").unwrap(), Effect::Intensity(true));
+    }
+
+    #[test]
+    fn bad_effects_say_why() {
+        assert!(Effect::parse("glare=1")
+            .unwrap_err()
+            .contains("unknown effect `glare`"));
+        assert!(Effect::parse("cell_gain")
+            .unwrap_err()
+            .contains("needs a value"));
+        assert!(Effect::parse("cell_gain=x")
+            .unwrap_err()
+            .contains("not a number"));
+        assert!(Effect::parse("beacon_pattern=95")
+            .unwrap_err()
+            .contains("(0, 90)"));
+        assert!(Effect::parse("saturation=-1").is_err());
+    }
+}
