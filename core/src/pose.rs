@@ -1,6 +1,67 @@
-//! On-chip 6-dof pose solution (being written by the firmware-sensor issue).
+//! On-chip 6-dof pose: the relative position and attitude of a beacon constellation (the
+//! target) from the NorthStar's spot reports, by GLSDC (thesis eqs 56-59) over the position
+//! and the MRP attitude (eqs 54/55), with either the pinhole model (eq 53/65) or the
+//! near-field model (the eq 60-63 emulator). The thesis leaves this as future work (Ch VI,
+//! "a real-time 6-dof solution (using a GLSDC ...) can be programmed onto the NorthStar
+//! sensor board microprocessor"); VISNAV showed the approach for LED beacons.
+//!
+//! # Frames and unknowns
+//!
+//! - T: the target frame, in which the constellation's beacon positions `r_T` are given
+//!   (inches), each beacon with its NorthStar frequency channel (the spot ID).
+//! - N: the sensor-board frame; O: the head frame. The *calibration* gives the head on the
+//!   board: `d`, `p` (MRP of `C`, N -> O) and `H` (eq 65), and for the near-field model the
+//!   head geometry (face angle `a`, cell offset `s`, scale `beta`) and the beacon pattern.
+//! - Unknowns `x = [t, q]`: `t` = position of the T origin in N (inches), `q` = MRP of the
+//!   DCM `C(q)` mapping N components to T components. A beacon is at
+//!   `r_N = t + C(q)^T r_T`, and the LEDs' boresight (in T) turns with the target:
+//!   `b_N = C(q)^T b_T`. On the CTA the plate faces the board: `t = (0, 0, separation)`,
+//!   `q = 0`, `b_T = -z`.
+//!
+//! # Models
+//!
+//! - [`ModelKind::Pinhole`]: eq 65 through [`collinearity::Linearisation`] with the
+//!   calibration's `d, p, H` (analytic Jacobian: `dy/dt = -dy/dd`, and
+//!   `dy/dq_i = dy/dr . (dC/dq_i)^T r_T` with [`mrp::dcm_partials`]).
+//! - [`ModelKind::NearField`]: the eq 60-63 emulator ([`Emulator`]) with the calibration's
+//!   near-field parameters; Jacobian by forward differences.
+//!
+//! # Solve
+//!
+//! Spots are matched to beacons by ID; spots at the 16-bit rails (saturated) are not used.
+//! With fewer than [`MIN_BEACONS`] matched beacons the status is
+//! [`PoseStatus::TooFewBeacons`]. Otherwise GLSDC starts from the previous good solution
+//! (warm start) or, without one, from the *cold start*: assume the target faces the sensor
+//! (`q = 0`), turn each spot into a pinhole line of sight `u_N = C^T (x/H, y/H, 1)` from
+//! the head at `d`, and solve the linear least-squares problem `(t + r_T - d) x u_N = 0`
+//! (3 unknowns, 2 independent equations per beacon) for `t`. The residual weights are
+//! `1 / noise^2` (noise from the calibration) and the covariance is scaled by the
+//! residual variance, so model misfit shows in the 1-sigma.
+//!
+//! Status: [`PoseStatus::Ok`]; [`PoseStatus::IllConditioned`] when GLSDC reports a rank
+//! deficiency or the condition number exceeds the limit; [`PoseStatus::Diverged`] when the
+//! iteration does not converge, leaves the model's domain, ends behind the sensor or with a
+//! residual RMS above the limit (a false minimum). The pose is never NaN: a failed solve
+//! reports the last finite estimate, its sigmas are `-1`, and the next solve cold-starts.
 
+use crate::collinearity::{Linearisation, Params, ParamsExt};
+use crate::emulator::{Effects, Emulator, Head, Pose as HeadPose};
+use crate::glsdc::{self, ModelError, Problem, Settings};
+use crate::mrp;
+use crate::pattern::Pattern;
+use crate::real::{deg, rad};
+use crate::Real;
+use core::fmt;
+use heapless::Vec;
+use nalgebra::{Matrix3, SVector, Vector3, U6};
 use serde::{Deserialize, Serialize};
+
+/// Most beacons in a constellation (the NorthStar tracks at most 20 spots).
+pub const MAX_BEACONS: usize = 20;
+/// Fewest matched beacons for a 6-dof solution (4 beacons give 8 equations for 6 unknowns).
+pub const MIN_BEACONS: usize = 4;
+/// Highest NorthStar frequency channel (spot ID).
+pub const MAX_CHANNEL: u8 = 19;
 
 /// One IR spot as the NorthStar reports it.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -13,4 +74,982 @@ pub struct Spot {
     pub y: i16,
     /// Signal strength 0..65535 (about 5000 is the noise floor, above 47000 is strong).
     pub magnitude: u16,
+}
+
+/// A beacon of the constellation.
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Default)]
+pub struct Beacon {
+    /// Its NorthStar frequency channel (the ID of its spot), 0..=19.
+    pub id: u8,
+    /// Position in the target frame T, inches.
+    pub r: [f32; 3],
+}
+
+/// The beacon constellation: positions in the target frame and the LED boresight.
+#[derive(Serialize, Deserialize, Debug, Clone, PartialEq, Default)]
+pub struct Constellation {
+    /// The beacons (IDs unique).
+    pub beacons: Vec<Beacon, MAX_BEACONS>,
+    /// LED boresight in T (unit vector; the CTA plate's LEDs point along `-z`).
+    pub boresight: [f32; 3],
+}
+
+/// The near-field part of the sensor calibration (the eq 60-63 physics).
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
+pub struct NearField {
+    /// Cell face angle `a`, degrees (30 nominal).
+    pub alpha_deg: f32,
+    /// Cell-centre offset `s`, inches (0.175 nominal).
+    pub s: f32,
+    /// Output scale `beta`, counts (32768 nominal).
+    pub beta: f32,
+    /// Beacon pattern exponent `m` of `cos^m` (1 for the VSML3710's 60 deg half angle).
+    pub pattern_m: f32,
+}
+
+impl NearField {
+    /// The thesis's NorthStar and VSML3710 (REFERENCE.md section 1).
+    pub fn nominal() -> Self {
+        NearField {
+            alpha_deg: 30.0,
+            s: 0.175,
+            beta: 32768.0,
+            pattern_m: 1.0,
+        }
+    }
+}
+
+/// The sensor calibration: the head on the board (eq 65's `d, p, H`), the measurement
+/// noise, and optionally the near-field parameters.
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
+pub struct Calibration {
+    /// N origin -> head centre, in N, inches.
+    pub d: [f32; 3],
+    /// MRP of `C` (N -> O).
+    pub p: [f32; 3],
+    /// Scale height `H`, counts (18918.6 nominal).
+    pub h: f32,
+    /// 1-sigma noise of a spot coordinate, counts (the residual weight is `1/noise^2`).
+    pub noise: f32,
+    /// Near-field parameters (when calibrated with the eq 63 physics).
+    pub near_field: Option<NearField>,
+}
+
+impl Calibration {
+    /// The Table 3 truth (`d = (0.6, 0.1, 0.062)`, `p = (0.001, 0.002, 0.001)`,
+    /// `H = beta tan 30 deg`), noise 0.1 % of beta, nominal near-field parameters.
+    pub fn table3() -> Self {
+        Calibration {
+            d: [0.6, 0.1, 0.062],
+            p: [0.001, 0.002, 0.001],
+            h: 18918.6,
+            noise: 32.768,
+            near_field: Some(NearField::nominal()),
+        }
+    }
+}
+
+/// A calibration field, named in [`ConfigError::CalibrationOutOfRange`].
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CalField {
+    /// `d`: finite, each component within +/-12 in.
+    D,
+    /// `p`: finite, `|p| <= 1`.
+    P,
+    /// `H`: 1000 ..= 200000 counts.
+    H,
+    /// `noise`: 0.01 ..= 10000 counts.
+    Noise,
+    /// Near-field face angle: 5 ..= 85 deg.
+    Alpha,
+    /// Near-field cell offset: 0 ..= 2 in.
+    S,
+    /// Near-field beta: 1000 ..= 100000 counts.
+    Beta,
+    /// Near-field pattern exponent: 0 ..= 50.
+    PatternM,
+}
+
+impl CalField {
+    /// Name and allowed range, for messages.
+    pub fn describe(self) -> &'static str {
+        match self {
+            CalField::D => "d (each component finite, within +/-12 in)",
+            CalField::P => "p (MRP, finite, |p| <= 1)",
+            CalField::H => "H (1000 ..= 200000 counts)",
+            CalField::Noise => "noise (0.01 ..= 10000 counts)",
+            CalField::Alpha => "near-field face angle (5 ..= 85 deg)",
+            CalField::S => "near-field cell offset s (0 ..= 2 in)",
+            CalField::Beta => "near-field beta (1000 ..= 100000 counts)",
+            CalField::PatternM => "near-field pattern exponent m (0 ..= 50)",
+        }
+    }
+}
+
+/// A constellation or calibration the board refuses.
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConfigError {
+    /// Fewer beacons than a 6-dof solution needs.
+    TooFewBeacons {
+        /// Beacons given.
+        count: u8,
+        /// Minimum ([`MIN_BEACONS`]).
+        min: u8,
+    },
+    /// Two beacons share a frequency channel.
+    DuplicateId {
+        /// The repeated ID.
+        id: u8,
+    },
+    /// A beacon ID beyond the NorthStar's channels (0..=19).
+    IdOutOfRange {
+        /// The ID.
+        id: u8,
+    },
+    /// A beacon position that is not finite or farther than 1000 in from the T origin.
+    BeaconOutOfRange {
+        /// The beacon's ID.
+        id: u8,
+    },
+    /// The boresight is not a finite non-zero vector.
+    Boresight,
+    /// A calibration value outside its range.
+    CalibrationOutOfRange {
+        /// Which one.
+        field: CalField,
+    },
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            ConfigError::TooFewBeacons { count, min } => {
+                write!(
+                    f,
+                    "constellation has {count} beacons, at least {min} are needed"
+                )
+            }
+            ConfigError::DuplicateId { id } => write!(f, "duplicate beacon ID {id}"),
+            ConfigError::IdOutOfRange { id } => {
+                write!(f, "beacon ID {id} out of range (0..={MAX_CHANNEL})")
+            }
+            ConfigError::BeaconOutOfRange { id } => {
+                write!(f, "beacon {id}: position not finite or beyond 1000 in")
+            }
+            ConfigError::Boresight => f.write_str("boresight must be a finite non-zero vector"),
+            ConfigError::CalibrationOutOfRange { field } => {
+                write!(f, "calibration out of range: {}", field.describe())
+            }
+        }
+    }
+}
+
+fn in_range(v: f32, lo: f32, hi: f32) -> bool {
+    v.is_finite() && v >= lo && v <= hi
+}
+
+impl Constellation {
+    /// Check count, IDs and positions.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let n = self.beacons.len();
+        if n < MIN_BEACONS {
+            return Err(ConfigError::TooFewBeacons {
+                count: n as u8,
+                min: MIN_BEACONS as u8,
+            });
+        }
+        for (i, b) in self.beacons.iter().enumerate() {
+            if b.id > MAX_CHANNEL {
+                return Err(ConfigError::IdOutOfRange { id: b.id });
+            }
+            if self.beacons[..i].iter().any(|o| o.id == b.id) {
+                return Err(ConfigError::DuplicateId { id: b.id });
+            }
+            if !b.r.iter().all(|&c| in_range(c, -1000.0, 1000.0)) {
+                return Err(ConfigError::BeaconOutOfRange { id: b.id });
+            }
+        }
+        let bs = self.boresight;
+        let n2 = bs[0] * bs[0] + bs[1] * bs[1] + bs[2] * bs[2];
+        if !(n2.is_finite() && n2 > 1e-12) {
+            return Err(ConfigError::Boresight);
+        }
+        Ok(())
+    }
+}
+
+impl Calibration {
+    /// Check every field against its documented range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let bad = |field| Err(ConfigError::CalibrationOutOfRange { field });
+        if !self.d.iter().all(|&v| in_range(v, -12.0, 12.0)) {
+            return bad(CalField::D);
+        }
+        let p2 = self.p.iter().map(|v| v * v).sum::<f32>();
+        if !(self.p.iter().all(|v| v.is_finite()) && p2 <= 1.0) {
+            return bad(CalField::P);
+        }
+        if !in_range(self.h, 1000.0, 200_000.0) {
+            return bad(CalField::H);
+        }
+        if !in_range(self.noise, 0.01, 10_000.0) {
+            return bad(CalField::Noise);
+        }
+        if let Some(nf) = &self.near_field {
+            if !in_range(nf.alpha_deg, 5.0, 85.0) {
+                return bad(CalField::Alpha);
+            }
+            if !in_range(nf.s, 0.0, 2.0) {
+                return bad(CalField::S);
+            }
+            if !in_range(nf.beta, 1000.0, 100_000.0) {
+                return bad(CalField::Beta);
+            }
+            if !in_range(nf.pattern_m, 0.0, 50.0) {
+                return bad(CalField::PatternM);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Which measurement model the solver uses.
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelKind {
+    /// Eq 65 (far-field collinearity) with the calibration's `d, p, H`.
+    Pinhole,
+    /// The eq 60-63 physics with the calibration's near-field parameters.
+    NearField,
+}
+
+/// Outcome of a solve.
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PoseStatus {
+    /// Converged; pose and 1-sigma valid.
+    Ok,
+    /// Fewer than [`MIN_BEACONS`] beacons of the constellation were seen.
+    TooFewBeacons,
+    /// No convergence, left the model's domain, or a false minimum (residual too large).
+    Diverged,
+    /// The geometry does not determine the pose (rank deficient or condition too large).
+    IllConditioned,
+}
+
+/// Solver settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverSettings {
+    /// Measurement model.
+    pub model: ModelKind,
+    /// GLSDC iteration cap.
+    pub max_iter: usize,
+    /// Largest acceptable condition number of the scaled Jacobian.
+    pub max_condition: f64,
+    /// Largest acceptable residual RMS, counts (larger: a false minimum, reported diverged).
+    pub max_rms: f64,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        SolverSettings {
+            model: ModelKind::NearField,
+            max_iter: 20,
+            max_condition: 1e4,
+            max_rms: 2000.0,
+        }
+    }
+}
+
+/// A pose solution.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseSolution<T: Real> {
+    /// Status.
+    pub status: PoseStatus,
+    /// Target origin in N, inches (never NaN).
+    pub position: Vector3<T>,
+    /// MRP of `C(q)` (N -> T), `|q| <= 1` (never NaN).
+    pub mrp: Vector3<T>,
+    /// 1-sigma of the position, inches (`-1` unless the status is Ok or IllConditioned
+    /// with a covariance).
+    pub sigma_position: Vector3<T>,
+    /// 1-sigma of the attitude about the three axes, degrees (small-angle: `4 sigma_q`).
+    pub sigma_attitude_deg: Vector3<T>,
+    /// Residual RMS, counts.
+    pub rms: T,
+    /// GLSDC iterations.
+    pub iterations: u8,
+    /// Beacons used.
+    pub beacons: u8,
+    /// Condition number of the scaled, weighted Jacobian (0 when not computed).
+    pub condition: T,
+    /// Whether this solve started from the cold start.
+    pub cold_start: bool,
+}
+
+/// A matched observation: beacon position in T and the measured spot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Obs<T: Real> {
+    /// Beacon position, T frame, inches.
+    pub r: Vector3<T>,
+    /// Measured `(X, Y)`, counts.
+    pub y: [T; 2],
+}
+
+/// The pose solver: calibration and constellation converted to `T`, and the warm start.
+#[derive(Debug, Clone)]
+pub struct PoseSolver<T: Real> {
+    settings: SolverSettings,
+    cal: Params<T>,
+    lin: Linearisation<T>,
+    emulator: Option<Emulator<T>>,
+    beacons: Vec<(u8, Vector3<T>), MAX_BEACONS>,
+    boresight: Vector3<T>,
+    weight: T,
+    warm: Option<SVector<T, 6>>,
+}
+
+fn v3<T: Real>(a: &[f32; 3]) -> Vector3<T> {
+    Vector3::new(
+        T::lit(a[0] as f64),
+        T::lit(a[1] as f64),
+        T::lit(a[2] as f64),
+    )
+}
+
+impl<T: Real> PoseSolver<T> {
+    /// Build a solver; validates both inputs. `ModelKind::NearField` without near-field
+    /// parameters in the calibration uses the nominal ones ([`NearField::nominal`]).
+    pub fn new(
+        cal: &Calibration,
+        con: &Constellation,
+        settings: SolverSettings,
+    ) -> Result<Self, ConfigError> {
+        cal.validate()?;
+        con.validate()?;
+        let head_pose = HeadPose {
+            d: v3(&cal.d),
+            p: v3(&cal.p),
+        };
+        let params = Params::from_pose(&head_pose, T::lit(cal.h as f64));
+        let emulator = match settings.model {
+            ModelKind::Pinhole => None,
+            ModelKind::NearField => {
+                let nf = cal.near_field.unwrap_or(NearField::nominal());
+                let a = rad(T::lit(nf.alpha_deg as f64));
+                let head = Head {
+                    alpha_x: a,
+                    alpha_y: a,
+                    s: T::lit(nf.s as f64),
+                    beta: T::lit(nf.beta as f64),
+                };
+                let effects = Effects {
+                    pattern: Pattern::Lambertian {
+                        m: T::lit(nf.pattern_m as f64),
+                    },
+                    ..Effects::default()
+                };
+                Some(Emulator::new(head, head_pose, effects))
+            }
+        };
+        let mut beacons = Vec::new();
+        for b in &con.beacons {
+            // Cannot overflow: both hold MAX_BEACONS.
+            let _ = beacons.push((b.id, v3(&b.r)));
+        }
+        let noise = T::lit(cal.noise as f64);
+        Ok(PoseSolver {
+            settings,
+            cal: params,
+            lin: Linearisation::new(&params),
+            emulator,
+            beacons,
+            boresight: v3::<T>(&con.boresight).normalize(),
+            weight: T::one() / (noise * noise),
+            warm: None,
+        })
+    }
+
+    /// The settings in use.
+    pub fn settings(&self) -> &SolverSettings {
+        &self.settings
+    }
+
+    /// Forget the warm start (the next solve cold-starts).
+    pub fn reset(&mut self) {
+        self.warm = None;
+    }
+
+    /// Set the warm start explicitly (position in inches, MRP).
+    pub fn set_warm_start(&mut self, position: Vector3<T>, mrp: Vector3<T>) {
+        self.warm = Some(SVector::<T, 6>::new(
+            position.x, position.y, position.z, mrp.x, mrp.y, mrp.z,
+        ));
+    }
+
+    /// The warm start, if any.
+    pub fn warm_start(&self) -> Option<(Vector3<T>, Vector3<T>)> {
+        self.warm.map(|x| {
+            (
+                Vector3::new(x[0], x[1], x[2]),
+                Vector3::new(x[3], x[4], x[5]),
+            )
+        })
+    }
+
+    /// Match spots to beacons by ID (first spot of each ID; saturated spots skipped).
+    pub fn match_spots(&self, spots: &[Spot]) -> Vec<Obs<T>, MAX_BEACONS> {
+        let mut obs = Vec::new();
+        for (id, r) in &self.beacons {
+            let spot = spots.iter().find(|s| s.id == *id);
+            if let Some(s) = spot {
+                let rail = |v: i16| v == i16::MAX || v == i16::MIN;
+                if rail(s.x) || rail(s.y) {
+                    continue;
+                }
+                let _ = obs.push(Obs {
+                    r: *r,
+                    y: [T::lit(s.x as f64), T::lit(s.y as f64)],
+                });
+            }
+        }
+        obs
+    }
+
+    /// The documented cold start: `q = 0` and `t` from the linear pinhole lines of sight.
+    pub fn cold_start(&self, obs: &[Obs<T>]) -> Option<SVector<T, 6>> {
+        let d = Vector3::new(self.cal[0], self.cal[1], self.cal[2]);
+        let ct = mrp::dcm(&Vector3::new(self.cal[3], self.cal[4], self.cal[5])).transpose();
+        let h = self.cal.h();
+        let mut a = Matrix3::<T>::zeros();
+        let mut b = Vector3::<T>::zeros();
+        for o in obs {
+            let u = (ct * Vector3::new(o.y[0] / h, o.y[1] / h, T::one())).normalize();
+            // (t + r - d) x u = 0  <=>  [u x] t = (r - d) x u.
+            let s = mrp::skew(&u);
+            let st = s.transpose();
+            a += st * s;
+            b += st * (o.r - d).cross(&u);
+        }
+        let t = a.cholesky()?.solve(&b);
+        let x = SVector::<T, 6>::new(t.x, t.y, t.z, T::zero(), T::zero(), T::zero());
+        if !(t.iter().all(|v| v.is_finite()) && self.in_front(&x, obs)) {
+            return None;
+        }
+        Some(x)
+    }
+
+    /// Solve for the pose from one frame of spots.
+    pub fn solve(&mut self, spots: &[Spot]) -> PoseSolution<T> {
+        let obs = self.match_spots(spots);
+        self.solve_obs(&obs)
+    }
+
+    /// Solve for the pose from matched observations.
+    pub fn solve_obs(&mut self, obs: &[Obs<T>]) -> PoseSolution<T> {
+        let fallback = self.warm.unwrap_or_else(SVector::zeros);
+        let n = obs.len() as u8;
+        if obs.len() < MIN_BEACONS {
+            return failed(PoseStatus::TooFewBeacons, fallback, n, 0, false);
+        }
+        let (x0, cold) = match self.warm {
+            Some(x) => (x, false),
+            None => match self.cold_start(obs) {
+                Some(x) => (x, true),
+                None => return failed(PoseStatus::Diverged, fallback, n, 0, true),
+            },
+        };
+        let eps = T::default_epsilon();
+        let settings = Settings {
+            max_iter: self.settings.max_iter,
+            step_tol: eps.sqrt() * T::lit(0.1),
+            cost_tol: eps.sqrt() * T::lit(0.01),
+            weights_absolute: false,
+            rank_tol: T::lit(1.0 / (self.settings.max_condition * self.settings.max_condition)),
+            max_damping: 12,
+        };
+        let problem = PoseProblem { solver: self, obs };
+        let result = glsdc::solve(&problem, x0, &settings);
+        match result {
+            Ok(sol) => {
+                let x = canonical(sol.x);
+                let status = if !x.iter().all(|v| v.is_finite()) {
+                    return self.fail(PoseStatus::Diverged, x0, n, sol.iterations, cold);
+                } else if !self.in_front(&x, obs) || sol.rms.to_f64() > self.settings.max_rms {
+                    return self.fail(PoseStatus::Diverged, x, n, sol.iterations, cold);
+                } else if sol.condition.to_f64() > self.settings.max_condition {
+                    PoseStatus::IllConditioned
+                } else {
+                    PoseStatus::Ok
+                };
+                if status == PoseStatus::Ok {
+                    self.warm = Some(x);
+                }
+                let att = |i: usize| deg(T::lit(4.0) * sol.sigma[i]);
+                PoseSolution {
+                    status,
+                    position: Vector3::new(x[0], x[1], x[2]),
+                    mrp: Vector3::new(x[3], x[4], x[5]),
+                    sigma_position: Vector3::new(sol.sigma[0], sol.sigma[1], sol.sigma[2]),
+                    sigma_attitude_deg: Vector3::new(att(3), att(4), att(5)),
+                    rms: sol.rms,
+                    iterations: sol.iterations.min(255) as u8,
+                    beacons: n,
+                    condition: sol.condition,
+                    cold_start: cold,
+                }
+            }
+            Err(glsdc::Error::RankDeficient { x, .. }) => {
+                let x = if x.iter().all(|v| v.is_finite()) {
+                    x
+                } else {
+                    x0
+                };
+                failed(PoseStatus::IllConditioned, canonical(x), n, 0, cold)
+            }
+            Err(glsdc::Error::NotConverged { x, iterations, .. }) => {
+                let x = if x.iter().all(|v| v.is_finite()) {
+                    x
+                } else {
+                    x0
+                };
+                self.fail(PoseStatus::Diverged, canonical(x), n, iterations, cold)
+            }
+            Err(_) => self.fail(PoseStatus::Diverged, x0, n, 0, cold),
+        }
+    }
+
+    fn fail(
+        &mut self,
+        status: PoseStatus,
+        x: SVector<T, 6>,
+        n: u8,
+        iterations: usize,
+        cold: bool,
+    ) -> PoseSolution<T> {
+        self.warm = None;
+        failed(status, x, n, iterations, cold)
+    }
+
+    /// Every beacon in front of the head (positive depth along the head's boresight).
+    fn in_front(&self, x: &SVector<T, 6>, obs: &[Obs<T>]) -> bool {
+        let (t, ct) = split(x);
+        let c = mrp::dcm(&Vector3::new(self.cal[3], self.cal[4], self.cal[5]));
+        let d = Vector3::new(self.cal[0], self.cal[1], self.cal[2]);
+        obs.iter().all(|o| (c * (t + ct * o.r - d)).z > T::zero())
+    }
+
+    /// Predicted `(X, Y)` for a beacon at `r_T` with the target at `x = [t, q]`.
+    pub fn predict(&self, x: &SVector<T, 6>, r_t: &Vector3<T>) -> Option<[T; 2]> {
+        let (t, ct) = split(x);
+        let rn = t + ct * r_t;
+        match &self.emulator {
+            None => self.lin.eval(&rn).map(|(y, _)| y),
+            Some(em) => with_boresight(em, &(ct * self.boresight)).output(&rn),
+        }
+    }
+}
+
+fn split<T: Real>(x: &SVector<T, 6>) -> (Vector3<T>, Matrix3<T>) {
+    let t = Vector3::new(x[0], x[1], x[2]);
+    let ct = mrp::dcm(&Vector3::new(x[3], x[4], x[5])).transpose();
+    (t, ct)
+}
+
+fn canonical<T: Real>(mut x: SVector<T, 6>) -> SVector<T, 6> {
+    let q = mrp::canonical(&Vector3::new(x[3], x[4], x[5]));
+    x[3] = q.x;
+    x[4] = q.y;
+    x[5] = q.z;
+    x
+}
+
+fn failed<T: Real>(
+    status: PoseStatus,
+    x: SVector<T, 6>,
+    n: u8,
+    iterations: usize,
+    cold: bool,
+) -> PoseSolution<T> {
+    let m1 = Vector3::repeat(-T::one());
+    PoseSolution {
+        status,
+        position: Vector3::new(x[0], x[1], x[2]),
+        mrp: Vector3::new(x[3], x[4], x[5]),
+        sigma_position: m1,
+        sigma_attitude_deg: m1,
+        rms: -T::one(),
+        iterations: iterations.min(255) as u8,
+        beacons: n,
+        condition: T::zero(),
+        cold_start: cold,
+    }
+}
+
+/// The emulator with the LEDs' boresight set to the unit vector `b` (in N).
+fn with_boresight<T: Real>(em: &Emulator<T>, b: &Vector3<T>) -> Emulator<T> {
+    let mut e = *em;
+    // Effects::boresight() = (sin t cos az, sin t sin az, -cos t).
+    e.effects.tilt = (-b.z).max(-T::one()).min(T::one()).acos();
+    e.effects.tilt_az = if b.x == T::zero() && b.y == T::zero() {
+        T::zero()
+    } else {
+        b.y.atan2(b.x)
+    };
+    e
+}
+
+/// The pose as a GLSDC problem over `x = [t, q]`.
+struct PoseProblem<'a, T: Real> {
+    solver: &'a PoseSolver<T>,
+    obs: &'a [Obs<T>],
+}
+
+const NAMES: [&str; 6] = ["t1", "t2", "t3", "q1", "q2", "q3"];
+
+impl<T: Real> Problem<T> for PoseProblem<'_, T> {
+    type D = U6;
+    fn dim(&self) -> U6 {
+        U6
+    }
+    fn n_rows(&self) -> usize {
+        2 * self.obs.len()
+    }
+    fn rows(
+        &self,
+        x: &SVector<T, 6>,
+        jac: bool,
+        sink: &mut dyn FnMut(T, T, &[T]),
+    ) -> Result<(), ModelError> {
+        let s = self.solver;
+        let w = s.weight;
+        let (t, ct) = split(x);
+        match &s.emulator {
+            None => {
+                let dc = if jac {
+                    mrp::dcm_partials(&Vector3::new(x[3], x[4], x[5]))
+                } else {
+                    [Matrix3::zeros(); 3]
+                };
+                for o in self.obs {
+                    let rn = t + ct * o.r;
+                    let (y, j) = s.lin.eval(&rn).ok_or(ModelError::NonFinite)?;
+                    if !jac {
+                        sink(o.y[0] - y[0], w, &[]);
+                        sink(o.y[1] - y[1], w, &[]);
+                        continue;
+                    }
+                    // dr_N/dq_i = (dC/dq_i)^T r_T.
+                    let drdq = [dc[0].tr_mul(&o.r), dc[1].tr_mul(&o.r), dc[2].tr_mul(&o.r)];
+                    for a in 0..2 {
+                        // Columns 0..3 of eq 66 are dy/dd = -dy/dr.
+                        let dydr = Vector3::new(-j[a][0], -j[a][1], -j[a][2]);
+                        let row = [
+                            dydr.x,
+                            dydr.y,
+                            dydr.z,
+                            dydr.dot(&drdq[0]),
+                            dydr.dot(&drdq[1]),
+                            dydr.dot(&drdq[2]),
+                        ];
+                        sink(o.y[a] - y[a], w, &row);
+                    }
+                }
+            }
+            Some(em) => {
+                let em0 = with_boresight(em, &(ct * s.boresight));
+                if !jac {
+                    for o in self.obs {
+                        let y = em0.output(&(t + ct * o.r)).ok_or(ModelError::NoData)?;
+                        sink(o.y[0] - y[0], w, &[]);
+                        sink(o.y[1] - y[1], w, &[]);
+                    }
+                    return Ok(());
+                }
+                // Forward differences: steps scaled to the range (inches) and to the MRP.
+                let ht = T::lit(1e-3) * (T::one() + t.norm());
+                let hq = T::lit(2e-4);
+                let mut cq = [Matrix3::zeros(); 3];
+                let mut emq = [em0; 3];
+                for i in 0..3 {
+                    let mut xq = *x;
+                    xq[3 + i] += hq;
+                    let (_, c) = split(&xq);
+                    cq[i] = c;
+                    emq[i] = with_boresight(em, &(c * s.boresight));
+                }
+                for o in self.obs {
+                    let rn = t + ct * o.r;
+                    let y = em0.output(&rn).ok_or(ModelError::NoData)?;
+                    let mut cols = [[T::zero(); 2]; 6];
+                    for k in 0..3 {
+                        let mut rp = rn;
+                        rp[k] += ht;
+                        let yp = em0.output(&rp).ok_or(ModelError::NoData)?;
+                        cols[k] = [(yp[0] - y[0]) / ht, (yp[1] - y[1]) / ht];
+                        let yq = emq[k]
+                            .output(&(t + cq[k] * o.r))
+                            .ok_or(ModelError::NoData)?;
+                        cols[3 + k] = [(yq[0] - y[0]) / hq, (yq[1] - y[1]) / hq];
+                    }
+                    for a in 0..2 {
+                        let row: [T; 6] = core::array::from_fn(|k| cols[k][a]);
+                        sink(o.y[a] - y[a], w, &row);
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+    fn param_name(&self, i: usize, w: &mut dyn fmt::Write) -> fmt::Result {
+        w.write_str(NAMES[i])
+    }
+}
+
+/// Spots a NorthStar with the physics of `em` (the head on the board) would report for
+/// the constellation at pose `(t, q)`: beacons whose both cell pairs see light, outputs
+/// rounded and saturated to 16 bits, with `noise(k)` (counts) added to coordinate `k`
+/// (0, 1 for the first spot, ...). The magnitude is the summed cell signal scaled so that
+/// a beacon 1 in away on boresight reads about 60000. Used by the simulated board, the
+/// accuracy table and the tests.
+pub fn simulate_spots<T: Real>(
+    em: &Emulator<T>,
+    con: &Constellation,
+    t: &Vector3<T>,
+    q: &Vector3<T>,
+    mut noise: impl FnMut(usize) -> T,
+) -> Vec<Spot, MAX_BEACONS> {
+    let ct = mrp::dcm(q).transpose();
+    let em = with_boresight(em, &(ct * v3::<T>(&con.boresight).normalize()));
+    let mut out = Vec::new();
+    for b in &con.beacons {
+        let rn = t + ct * v3::<T>(&b.r);
+        let Some(y) = em.output(&rn) else { continue };
+        let k = out.len() * 2;
+        let x = y[0] + noise(k);
+        let yy = y[1] + noise(k + 1);
+        let mag = (em.magnitude(&rn) * T::lit(15000.0))
+            .to_f64()
+            .clamp(0.0, 65535.0) as u16;
+        let _ = out.push(Spot {
+            id: b.id,
+            x: crate::emulator::saturate_i16(x),
+            y: crate::emulator::saturate_i16(yy),
+            magnitude: mag,
+        });
+    }
+    out
+}
+
+/// A 10-beacon constellation on the CTA's 1 in grid (channels 0..=9): five beacons within
+/// about 2 in of the centre (seen down to 2 in separation) and five out to 4.5 in (lever
+/// arm at range). LEDs along `-z` of T (the plate faces the board).
+pub fn cta_constellation() -> Constellation {
+    const R: [[f32; 2]; 10] = [
+        [-1.5, -0.5],
+        [1.5, 0.5],
+        [-0.5, 1.5],
+        [0.5, -1.5],
+        [0.5, 0.5],
+        [-3.5, -2.5],
+        [3.5, 2.5],
+        [-2.5, 3.5],
+        [2.5, -3.5],
+        [4.5, -0.5],
+    ];
+    let mut beacons = Vec::new();
+    for (i, r) in R.iter().enumerate() {
+        let _ = beacons.push(Beacon {
+            id: i as u8,
+            r: [r[0], r[1], 0.0],
+        });
+    }
+    Constellation {
+        beacons,
+        boresight: [0.0, 0.0, -1.0],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn truth_emulator() -> Emulator<f64> {
+        let cal = Calibration::table3();
+        let head_pose = HeadPose {
+            d: v3(&cal.d),
+            p: v3(&cal.p),
+        };
+        Emulator::new(Head::northstar(), head_pose, Effects::default())
+    }
+
+    fn target() -> (Vector3<f64>, Vector3<f64>) {
+        (
+            Vector3::new(0.3, -0.2, 8.0),
+            mrp::from_axis_angle(&Vector3::new(0.3, -0.5, 1.0), rad(3.0)),
+        )
+    }
+
+    #[test]
+    fn validation_names_the_problem() {
+        let mut con = cta_constellation();
+        assert_eq!(con.validate(), Ok(()));
+        con.beacons[3].id = 1;
+        assert_eq!(con.validate(), Err(ConfigError::DuplicateId { id: 1 }));
+        con.beacons.truncate(3);
+        assert_eq!(
+            con.validate(),
+            Err(ConfigError::TooFewBeacons { count: 3, min: 4 })
+        );
+        let mut cal = Calibration::table3();
+        cal.h = f32::NAN;
+        assert_eq!(
+            cal.validate(),
+            Err(ConfigError::CalibrationOutOfRange { field: CalField::H })
+        );
+        cal = Calibration::table3();
+        cal.near_field.as_mut().unwrap().alpha_deg = 90.0;
+        assert_eq!(
+            cal.validate(),
+            Err(ConfigError::CalibrationOutOfRange {
+                field: CalField::Alpha
+            })
+        );
+    }
+
+    #[test]
+    fn pinhole_jacobian_matches_finite_differences() {
+        let cal = Calibration::table3();
+        let con = cta_constellation();
+        let settings = SolverSettings {
+            model: ModelKind::Pinhole,
+            ..Default::default()
+        };
+        let s = PoseSolver::<f64>::new(&cal, &con, settings).unwrap();
+        let obs: [Obs<f64>; 2] = [
+            Obs {
+                r: Vector3::new(1.0, 2.0, 0.0),
+                y: [0.0; 2],
+            },
+            Obs {
+                r: Vector3::new(-2.0, 0.5, 0.3),
+                y: [0.0; 2],
+            },
+        ];
+        let p = PoseProblem {
+            solver: &s,
+            obs: &obs,
+        };
+        let (t, q) = target();
+        let x = SVector::<f64, 6>::new(t.x, t.y, t.z, q.x, q.y, q.z);
+        let mut rows = std::vec::Vec::new();
+        p.rows(&x, true, &mut |r, _, j| rows.push((r, j.to_vec())))
+            .unwrap();
+        for k in 0..6 {
+            let h = 1e-6;
+            let (mut xp, mut xm) = (x, x);
+            xp[k] += h;
+            xm[k] -= h;
+            let mut rp = std::vec::Vec::new();
+            let mut rm = std::vec::Vec::new();
+            p.rows(&xp, false, &mut |r, _, _| rp.push(r)).unwrap();
+            p.rows(&xm, false, &mut |r, _, _| rm.push(r)).unwrap();
+            for i in 0..rows.len() {
+                // residual = y - f, so df/dx = -(r+ - r-)/2h.
+                let fd = -(rp[i] - rm[i]) / (2.0 * h);
+                let an = rows[i].1[k];
+                assert!((fd - an).abs() < 1e-4 * (1.0 + an.abs()), "{k} {fd} {an}");
+            }
+        }
+    }
+
+    fn solve_case<T: Real>(
+        model: ModelKind,
+        noise: f64,
+    ) -> (PoseSolution<T>, Vector3<f64>, Vector3<f64>) {
+        let em = truth_emulator();
+        let con = cta_constellation();
+        let (t, q) = target();
+        let mut seed = 12345u32;
+        let spots = simulate_spots(&em, &con, &t, &q, |_| {
+            seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+            noise * ((seed >> 8) as f64 / (1u32 << 24) as f64 - 0.5) * 3.46
+        });
+        let settings = SolverSettings {
+            model,
+            ..Default::default()
+        };
+        let mut s = PoseSolver::<T>::new(&Calibration::table3(), &con, settings).unwrap();
+        (s.solve(&spots), t, q)
+    }
+
+    #[test]
+    fn near_field_cold_start_recovers_pose_f64_and_f32() {
+        let (sol, t, q) = solve_case::<f64>(ModelKind::NearField, 0.0);
+        assert_eq!(sol.status, PoseStatus::Ok, "{sol:?}");
+        assert!(sol.cold_start);
+        // Only the rounding of the outputs to whole counts perturbs the data.
+        assert!((sol.position - t).norm() < 2e-4, "{sol:?}");
+        assert!((sol.mrp - q).norm() < 1e-4, "{sol:?}");
+        let (sol, t, q) = solve_case::<f32>(ModelKind::NearField, 0.0);
+        assert_eq!(sol.status, PoseStatus::Ok, "{sol:?}");
+        let p = Vector3::new(
+            sol.position.x as f64,
+            sol.position.y as f64,
+            sol.position.z as f64,
+        );
+        let m = Vector3::new(sol.mrp.x as f64, sol.mrp.y as f64, sol.mrp.z as f64);
+        assert!((p - t).norm() < 2e-3, "{sol:?}");
+        assert!((m - q).norm() < 1e-4, "{sol:?}");
+    }
+
+    #[test]
+    fn pinhole_is_biased_in_the_near_field() {
+        let (nf, t, _) = solve_case::<f64>(ModelKind::NearField, 30.0);
+        let (ph, _, _) = solve_case::<f64>(ModelKind::Pinhole, 30.0);
+        assert_eq!(nf.status, PoseStatus::Ok);
+        assert!((ph.position - t).norm() > 3.0 * (nf.position - t).norm());
+        assert!(nf.sigma_position.iter().all(|s| *s > 0.0));
+    }
+
+    #[test]
+    fn too_few_beacons_and_warm_start() {
+        let em = truth_emulator();
+        let con = cta_constellation();
+        let (t, q) = target();
+        let spots = simulate_spots(&em, &con, &t, &q, |_| 0.0);
+        let mut s = PoseSolver::<f32>::new(&Calibration::table3(), &con, SolverSettings::default())
+            .unwrap();
+        let sol = s.solve(&spots[..3]);
+        assert_eq!(sol.status, PoseStatus::TooFewBeacons);
+        assert!(sol.position.iter().all(|v| v.is_finite()));
+        let first = s.solve(&spots);
+        assert!(first.cold_start && first.status == PoseStatus::Ok);
+        let second = s.solve(&spots);
+        assert!(!second.cold_start && second.status == PoseStatus::Ok);
+        assert!(second.iterations <= first.iterations);
+    }
+
+    #[test]
+    fn garbage_spots_never_give_nan() {
+        let con = cta_constellation();
+        let mut s = PoseSolver::<f32>::new(&Calibration::table3(), &con, SolverSettings::default())
+            .unwrap();
+        let mut seed = 7u32;
+        for _ in 0..200 {
+            let mut spots = [Spot::default(); 10];
+            for (i, sp) in spots.iter_mut().enumerate() {
+                seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+                sp.id = (i as u8 + (seed >> 30) as u8) % 12;
+                sp.x = (seed >> 8) as i16;
+                sp.y = (seed >> 3) as i16;
+            }
+            let sol = s.solve(&spots);
+            assert!(
+                sol.position
+                    .iter()
+                    .chain(sol.mrp.iter())
+                    .all(|v| v.is_finite()),
+                "{sol:?}"
+            );
+        }
+    }
 }

@@ -395,6 +395,12 @@ mod tests {
         assert_eq!(decode_command(&c), None);
         let mut a = [0; 8];
         encode_ack(0x10, 0, &mut a);
-        assert_eq!(decode_all(&a), [NsEvent::Ack { kind: 0x10, status: 0 }]);
+        assert_eq!(
+            decode_all(&a),
+            [NsEvent::Ack {
+                kind: 0x10,
+                status: 0
+            }]
+        );
     }
 }

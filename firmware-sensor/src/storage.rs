@@ -183,9 +183,18 @@ mod tests {
     #[test]
     fn newest_wins_and_torn_write_keeps_previous() {
         let mut f = RamFlash::default();
-        let c1 = Cfg { a: [1.0, 2.0, 3.0], n: 1 };
-        let c2 = Cfg { a: [4.0, 5.0, 6.0], n: 2 };
-        let c3 = Cfg { a: [7.0, 8.0, 9.0], n: 3 };
+        let c1 = Cfg {
+            a: [1.0, 2.0, 3.0],
+            n: 1,
+        };
+        let c2 = Cfg {
+            a: [4.0, 5.0, 6.0],
+            n: 2,
+        };
+        let c3 = Cfg {
+            a: [7.0, 8.0, 9.0],
+            n: 3,
+        };
         assert_eq!(save(&mut f, &c1), Ok(1));
         assert_eq!(save(&mut f, &c2), Ok(2));
         assert_eq!(load::<Cfg, _>(&f), Some((2, c2)));
