@@ -1,1 +1,730 @@
-//! (being written)
+//! Beacon modulation schedule: which pins change on which tick (firmware-beacon issue).
+//!
+//! The beacon board (thesis Ch IV, Table 1; REFERENCE.md section 4) square-wave modulates
+//! each of its 100 LEDs at frequencies of a table (default: the 10 NorthStar ID pairs,
+//! [`NORTHSTAR_TABLE_MHZ`]). This module is the whole modulation logic, host-testable and
+//! `no_std`; the firmware's timer interrupt only calls [`Modulator::tick`] and writes the
+//! GPIO `BSRR` words it is handed, and the simulated board runs the very same code.
+//!
+//! # Algorithm: a timing wheel of half-period edges
+//!
+//! A timer interrupt runs at [`TICK_HZ`]. Each table frequency `f` toggles its square wave
+//! every half period `h = TICK_HZ / (2 f)` ticks, kept in fixed point (Q8.24, so the mean
+//! frequency is exact to ~1e-8 and edges fall on the tick at or just after the ideal time:
+//! the edge jitter is below one tick, 8 us). The next toggle of every frequency is
+//! recorded in a 256-slot wheel (`wheel[slot]` = bit mask of the frequencies toggling on
+//! that tick), so a tick only touches the frequencies due on it: ~1.6 on average with the 20
+//! NorthStar frequencies, instead of scanning all 20 every tick. On a toggle of `f`:
+//!
+//! * every LED modulated at `f` alone flips: one XOR of a precomputed mask per GPIO port;
+//! * every LED modulated at several frequencies (OR of their square waves) is recomputed
+//!   from the current levels (rare; kept in a separate list);
+//! * the changed ports are written with one `BSRR` word each (set and reset halves), which
+//!   touches only LED pins, never the USART / SWD / crystal pins sharing the port.
+//!
+//! [`Modulator::levels_from_scratch`] recomputes the outputs without the incremental XORs;
+//! the tests check that both agree on every tick.
+//!
+//! # Pin map
+//!
+//! [`BEACON_PINS`] maps LED id `row * 10 + column` to a GPIO of the STM32F103ZET6
+//! (see [`grid_position`] for the board coordinates); [`RESERVED_PINS`] lists the pins it
+//! leaves free.
+
+use crate::wire::beacon::{LedMode, FREQ_MAX_MHZ, FREQ_MIN_MHZ, LED_COUNT, MAX_FREQS};
+
+/// Modulator tick rate, Hz: TIM2 update interrupt at 72 MHz / 576 (8 us per tick).
+pub const TICK_HZ: u32 = 125_000;
+/// GPIO ports A..G of the STM32F103ZET6 (LQFP144).
+pub const PORTS: usize = 7;
+/// Slots of the timing wheel; every half period must be shorter than this many ticks.
+pub const WHEEL: usize = 256;
+
+/// The default frequency table, millihertz: the 10 NorthStar beacon ID pairs as measured by
+/// Rovio hobbyists (REFERENCE.md section 4; not an official table). Entry `2k` is the first
+/// LED of ID `k`, entry `2k + 1` the second: ID 0 = 3040 / 2010 Hz; ID k = 1..9 =
+/// 4050 + 120 (k - 1) / 3090 + 120 (k - 1) Hz.
+pub const NORTHSTAR_TABLE_MHZ: [u32; 20] = northstar_table();
+
+const fn northstar_table() -> [u32; 20] {
+    let mut t = [0u32; 20];
+    t[0] = 3_040_000;
+    t[1] = 2_010_000;
+    let mut k = 1;
+    while k < 10 {
+        t[2 * k] = (4050 + 120 * (k as u32 - 1)) * 1000;
+        t[2 * k + 1] = (3090 + 120 * (k as u32 - 1)) * 1000;
+        k += 1;
+    }
+    t
+}
+
+/// A GPIO pin: port (0 = A .. 6 = G) and bit (0..16).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Pin {
+    /// Port index, 0 = GPIOA .. 6 = GPIOG.
+    pub port: u8,
+    /// Pin number within the port, 0..16.
+    pub bit: u8,
+}
+
+impl Pin {
+    /// Pin `P<port><bit>`.
+    pub const fn new(port: u8, bit: u8) -> Self {
+        Pin { port, bit }
+    }
+    /// Port letter, `'A'..='G'`.
+    pub fn port_letter(self) -> char {
+        (b'A' + self.port) as char
+    }
+}
+
+impl core::fmt::Display for Pin {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "P{}{}", self.port_letter(), self.bit)
+    }
+}
+
+/// Pins the LEDs must not use, with the reason: the RS-232 USART, the debug header
+/// (SWD, and the rest of JTAG so a JTAG probe also works), the 32 kHz crystal, the
+/// tamper pin (3 mA drive only) and BOOT1. The 8 MHz crystal has dedicated OSC_IN / OSC_OUT
+/// pins on the LQFP144 package.
+pub const RESERVED_PINS: [(Pin, &str); 11] = [
+    (Pin::new(0, 9), "USART1 TX (RS-232 to the PC)"),
+    (Pin::new(0, 10), "USART1 RX (RS-232 from the PC)"),
+    (Pin::new(0, 13), "SWDIO / JTMS"),
+    (Pin::new(0, 14), "SWCLK / JTCK"),
+    (Pin::new(0, 15), "JTDI"),
+    (Pin::new(1, 2), "BOOT1"),
+    (Pin::new(1, 3), "JTDO / TRACESWO"),
+    (Pin::new(1, 4), "NJTRST"),
+    (Pin::new(2, 13), "TAMPER-RTC (3 mA drive)"),
+    (Pin::new(2, 14), "OSC32_IN (32.768 kHz crystal)"),
+    (Pin::new(2, 15), "OSC32_OUT (32.768 kHz crystal)"),
+];
+
+/// The one GPIO left over after the 100 LEDs and the reserved pins (PG15: spare).
+pub const SPARE_PIN: Pin = Pin::new(6, 15);
+
+/// LED id -> GPIO. LED `id = row * 10 + column` (row, column 0..10; see [`grid_position`])
+/// takes the `id`-th free pin in port order PA0.. PG14, skipping [`RESERVED_PINS`]:
+/// PA0-8, PA11-12 (ids 0-10), PB0-1, PB5-15 (11-23), PC0-12 (24-36), PD0-15 (37-52),
+/// PE0-15 (53-68), PF0-15 (69-84), PG0-14 (85-99).
+pub const BEACON_PINS: [Pin; LED_COUNT] = beacon_pins();
+
+const fn is_reserved(p: Pin) -> bool {
+    let mut i = 0;
+    while i < RESERVED_PINS.len() {
+        if RESERVED_PINS[i].0.port == p.port && RESERVED_PINS[i].0.bit == p.bit {
+            return true;
+        }
+        i += 1;
+    }
+    false
+}
+
+const fn beacon_pins() -> [Pin; LED_COUNT] {
+    let mut pins = [Pin::new(0, 0); LED_COUNT];
+    let mut n = 0;
+    let mut port = 0;
+    while port < PORTS as u8 {
+        let mut bit = 0;
+        while bit < 16 {
+            let p = Pin::new(port, bit);
+            if n < LED_COUNT && !is_reserved(p) {
+                pins[n] = p;
+                n += 1;
+            }
+            bit += 1;
+        }
+        port += 1;
+    }
+    pins
+}
+
+/// Grid cell and board position of LED `id`: `(row, column, x, y)` with x, y in inches in
+/// the beacon-plate frame, 1 in pitch, centred on the plate (x, y in -4.5..=4.5;
+/// REFERENCE.md section 1): `x = column - 4.5`, `y = row - 4.5`.
+pub fn grid_position(id: u8) -> (u8, u8, f64, f64) {
+    let (row, col) = (id / 10, id % 10);
+    (row, col, col as f64 - 4.5, row as f64 - 4.5)
+}
+
+/// Half period of `mhz` in ticks, Q8.24 fixed point; `None` outside the wheel's range.
+pub fn half_period_q24(mhz: u32) -> Option<u32> {
+    if !(FREQ_MIN_MHZ..=FREQ_MAX_MHZ).contains(&mhz) {
+        return None;
+    }
+    // TICK_HZ / (2 f) ticks, f = mhz / 1000, scaled by 2^24, rounded.
+    let num = (TICK_HZ as u64 * 1000) << 23;
+    let hp = (num + mhz as u64 / 2) / mhz as u64;
+    (hp < ((WHEEL as u64) << 24) && hp >= (2 << 24)).then_some(hp as u32)
+}
+
+/// An LED modulated at several frequencies (lit while any is high).
+#[derive(Debug, Clone, Copy)]
+struct Combo {
+    port: u8,
+    bit: u16,
+    freqs: u32,
+}
+
+/// The modulator: frequency table, LED assignment and the tick state.
+///
+/// About 2.5 KiB; the firmware keeps one in a static and swaps configurations under a
+/// critical section.
+#[derive(Clone)]
+pub struct Modulator {
+    /// Half period per table entry, ticks, Q8.24.
+    half_period: [u32; MAX_FREQS],
+    /// Fractional part (Q0.24) of the next edge time of each frequency.
+    frac: [u32; MAX_FREQS],
+    table_len: u8,
+    /// Bit f of `wheel[s]`: frequency f toggles on the next tick whose number is s (mod 256).
+    wheel: [u32; WHEEL],
+    /// Ticks since the table was loaded (wrapping).
+    now: u32,
+    /// Bit f: square wave f is in its "on" half.
+    high: u32,
+    /// Pins of LEDs modulated at exactly one frequency f, per port.
+    xor: [[u16; PORTS]; MAX_FREQS],
+    /// Ports touched by frequency f (bit p), single-frequency LEDs and combos together.
+    touches: [u8; MAX_FREQS],
+    /// Steadily lit pins per port.
+    steady: [u16; PORTS],
+    combos: heapless::Vec<Combo, LED_COUNT>,
+    /// Frequencies used by combos.
+    combo_freqs: u32,
+    /// LED id -> pin.
+    pins: [Pin; LED_COUNT],
+    /// All LED pins per port (the only bits ever written).
+    owned: [u16; PORTS],
+    /// Current output level per port.
+    out: [u16; PORTS],
+}
+
+/// Why [`Modulator::new`] or [`Modulator::set_table`] refused a table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TableError {
+    /// No entries.
+    Empty,
+    /// More than [`MAX_FREQS`] entries.
+    TooLong,
+    /// Entry `index` is outside the supported range.
+    OutOfRange {
+        /// Table index.
+        index: u8,
+        /// The frequency, millihertz.
+        mhz: u32,
+    },
+}
+
+impl Modulator {
+    /// All LEDs off, frequency table `table_mhz`, LED pins `pins` (normally [`BEACON_PINS`]).
+    pub fn new(table_mhz: &[u32], pins: &[Pin; LED_COUNT]) -> Result<Self, TableError> {
+        let mut owned = [0u16; PORTS];
+        for p in pins {
+            owned[p.port as usize % PORTS] |= 1 << (p.bit & 15);
+        }
+        let mut m = Modulator {
+            half_period: [0; MAX_FREQS],
+            frac: [0; MAX_FREQS],
+            table_len: 0,
+            wheel: [0; WHEEL],
+            now: 0,
+            high: 0,
+            xor: [[0; PORTS]; MAX_FREQS],
+            touches: [0; MAX_FREQS],
+            steady: [0; PORTS],
+            combos: heapless::Vec::new(),
+            combo_freqs: 0,
+            pins: *pins,
+            owned,
+            out: [0; PORTS],
+        };
+        m.set_table(table_mhz)?;
+        Ok(m)
+    }
+
+    /// Load a new frequency table; all LEDs go off and every wave restarts low.
+    pub fn set_table(&mut self, table_mhz: &[u32]) -> Result<(), TableError> {
+        if table_mhz.is_empty() {
+            return Err(TableError::Empty);
+        }
+        if table_mhz.len() > MAX_FREQS {
+            return Err(TableError::TooLong);
+        }
+        let mut hp = [0u32; MAX_FREQS];
+        for (i, &mhz) in table_mhz.iter().enumerate() {
+            hp[i] = half_period_q24(mhz).ok_or(TableError::OutOfRange {
+                index: i as u8,
+                mhz,
+            })?;
+        }
+        self.half_period = hp;
+        self.table_len = table_mhz.len() as u8;
+        self.frac = [0; MAX_FREQS];
+        self.wheel = [0; WHEEL];
+        self.now = 0;
+        self.high = 0;
+        // Stagger the first edges so the waves do not all toggle on the same tick.
+        for (f, &h) in hp.iter().enumerate().take(table_mhz.len()) {
+            let first = 1 + (f as u32 * 37) % (h >> 24);
+            self.wheel[first as usize % WHEEL] |= 1 << f;
+        }
+        self.clear_assignment();
+        Ok(())
+    }
+
+    /// Entries in the frequency table.
+    pub fn table_len(&self) -> u8 {
+        self.table_len
+    }
+
+    /// Ticks since the table was loaded (wrapping).
+    pub fn now(&self) -> u32 {
+        self.now
+    }
+
+    /// Assign every LED its mode (`modes[id]`, LED `id` on the pin given to [`Modulator::new`]). The caller has
+    /// validated the modes (frequency indices within the table); unknown indices are ignored.
+    /// The outputs are recomputed from the current wave levels, so modulated LEDs join their
+    /// wave in phase.
+    pub fn configure(&mut self, modes: &[LedMode; LED_COUNT]) {
+        self.clear_assignment();
+        let valid = if self.table_len as usize >= 32 {
+            u32::MAX
+        } else {
+            (1u32 << self.table_len) - 1
+        };
+        let pins = self.pins;
+        for (mode, pin) in modes.iter().zip(pins.iter()) {
+            let (port, bit) = (pin.port as usize % PORTS, 1u16 << (pin.bit & 15));
+            match *mode {
+                LedMode::Off => {}
+                LedMode::On => self.steady[port] |= bit,
+                LedMode::Modulated(set) => {
+                    let freqs = set.0 & valid;
+                    if freqs == 0 {
+                        continue;
+                    }
+                    if freqs.is_power_of_two() {
+                        let f = freqs.trailing_zeros() as usize;
+                        self.xor[f][port] |= bit;
+                        self.touches[f] |= 1 << port;
+                    } else {
+                        // Capacity is LED_COUNT: cannot overflow.
+                        let _ = self.combos.push(Combo {
+                            port: port as u8,
+                            bit,
+                            freqs,
+                        });
+                        self.combo_freqs |= freqs;
+                        for f in 0..MAX_FREQS {
+                            if freqs & (1 << f) != 0 {
+                                self.touches[f] |= 1 << port;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        self.out = self.levels_from_scratch();
+    }
+
+    /// Every LED off (the waves keep running).
+    fn clear_assignment(&mut self) {
+        self.xor = [[0; PORTS]; MAX_FREQS];
+        self.touches = [0; MAX_FREQS];
+        self.steady = [0; PORTS];
+        self.combos.clear();
+        self.combo_freqs = 0;
+        self.out = self.levels_from_scratch();
+    }
+
+    /// Output levels recomputed from the wave levels alone (no incremental state).
+    pub fn levels_from_scratch(&self) -> [u16; PORTS] {
+        let mut out = self.steady;
+        for f in 0..MAX_FREQS {
+            if self.high & (1 << f) != 0 {
+                for (o, x) in out.iter_mut().zip(self.xor[f].iter()) {
+                    *o |= *x;
+                }
+            }
+        }
+        for c in &self.combos {
+            if self.high & c.freqs != 0 {
+                out[c.port as usize] |= c.bit;
+            }
+        }
+        out
+    }
+
+    /// Current output level of every port (bit set = LED lit).
+    pub fn levels(&self) -> &[u16; PORTS] {
+        &self.out
+    }
+
+    /// `BSRR` word that drives port `port` to the current levels (LED pins only).
+    #[inline(always)]
+    fn bsrr(&self, port: usize) -> u32 {
+        let owned = self.owned[port];
+        let o = self.out[port];
+        (o & owned) as u32 | (((!o & owned) as u32) << 16)
+    }
+
+    /// `BSRR` words for every port (used once after a reconfiguration).
+    pub fn all_bsrr(&self) -> [u32; PORTS] {
+        let mut w = [0u32; PORTS];
+        for (p, w) in w.iter_mut().enumerate() {
+            *w = self.bsrr(p);
+        }
+        w
+    }
+
+    /// One tick: advance the waves due on this tick and call `write(port, bsrr)` for every
+    /// port whose LEDs changed. This is the body of the firmware's timer interrupt.
+    #[inline]
+    pub fn tick(&mut self, mut write: impl FnMut(usize, u32)) {
+        let slot = self.now as usize % WHEEL;
+        self.now = self.now.wrapping_add(1);
+        let due = core::mem::take(&mut self.wheel[slot]);
+        if due == 0 {
+            return;
+        }
+        self.high ^= due;
+        let mut dirty = 0u8;
+        let mut pending = due;
+        while pending != 0 {
+            let f = pending.trailing_zeros() as usize;
+            pending &= pending - 1;
+            // Schedule the next edge of f: fractional time accumulates in Q0.24.
+            let t = self.frac[f] + self.half_period[f];
+            self.frac[f] = t & 0x00ff_ffff;
+            let next = (slot + (t >> 24) as usize) % WHEEL;
+            self.wheel[next] |= 1 << f;
+            let x = &self.xor[f];
+            for p in 0..PORTS {
+                self.out[p] ^= x[p];
+            }
+            dirty |= self.touches[f];
+        }
+        if due & self.combo_freqs != 0 {
+            for c in &self.combos {
+                if due & c.freqs != 0 {
+                    let p = c.port as usize;
+                    if self.high & c.freqs != 0 {
+                        self.out[p] |= c.bit;
+                    } else {
+                        self.out[p] &= !c.bit;
+                    }
+                }
+            }
+        }
+        while dirty != 0 {
+            let p = dirty.trailing_zeros() as usize;
+            dirty &= dirty - 1;
+            write(p, self.bsrr(p));
+        }
+    }
+}
+
+/// Frequency and jitter measured from the simulated tick stream (host side).
+#[cfg(feature = "alloc")]
+pub mod measure {
+    use alloc::vec::Vec;
+
+    use super::{Modulator, PORTS, TICK_HZ};
+    use crate::wire::beacon::{LedMode, LED_COUNT};
+
+    /// What the tick stream of one LED modulated at a single frequency showed.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub struct WaveStats {
+        /// LED id.
+        pub led: u8,
+        /// Table index.
+        pub index: u8,
+        /// Table frequency, Hz.
+        pub nominal_hz: f64,
+        /// Mean frequency, Hz: from the least-squares slope of edge time against edge number.
+        pub mean_hz: f64,
+        /// `(mean_hz - nominal_hz) / nominal_hz`.
+        pub rel_error: f64,
+        /// Peak-to-peak deviation of the edge times from that best-fit ideal square wave, us.
+        pub jitter_pp_us: f64,
+        /// RMS of the same deviations, us.
+        pub jitter_rms_us: f64,
+        /// Edges observed (rising and falling).
+        pub edges: usize,
+    }
+
+    /// Per-tick work seen while measuring.
+    #[derive(Debug, Clone, Copy, PartialEq, Default)]
+    pub struct TickLoad {
+        /// Ticks run.
+        pub ticks: u64,
+        /// Mean port writes per tick.
+        pub mean_writes: f64,
+        /// Most port writes in one tick.
+        pub max_writes: u32,
+    }
+
+    /// Run `m` for `ticks` ticks, following every pin through the `BSRR` words it writes, and
+    /// return the statistics of every LED modulated at exactly one frequency (with
+    /// `table_mhz[i]` the frequency of index `i`), plus the write load. The caller has
+    /// configured `m` with `modes`. Also checks on every tick that the incremental outputs
+    /// equal [`Modulator::levels_from_scratch`]; returns `Err(tick)` at the first mismatch.
+    pub fn run(
+        m: &mut Modulator,
+        modes: &[LedMode; LED_COUNT],
+        table_mhz: &[u32],
+        ticks: u32,
+    ) -> Result<(Vec<WaveStats>, TickLoad), u32> {
+        let mut led_at = [[u8::MAX; 16]; PORTS];
+        for (id, p) in m.pins.iter().enumerate() {
+            led_at[p.port as usize][p.bit as usize] = id as u8;
+        }
+        let mut level = *m.levels();
+        let mut edges: Vec<Vec<u32>> = (0..LED_COUNT).map(|_| Vec::new()).collect();
+        let mut load = TickLoad::default();
+        let mut writes_total = 0u64;
+        for n in 0..ticks {
+            let mut writes = 0u32;
+            m.tick(|p, w| {
+                writes += 1;
+                let old = level[p];
+                let new = (old | (w as u16)) & !((w >> 16) as u16);
+                level[p] = new;
+                let mut changed = old ^ new;
+                while changed != 0 {
+                    let b = changed.trailing_zeros() as usize;
+                    changed &= changed - 1;
+                    let id = led_at[p][b];
+                    if (id as usize) < LED_COUNT {
+                        // The write happens during tick n (time n / TICK_HZ).
+                        edges[id as usize].push(n);
+                    }
+                }
+            });
+            if level != m.levels_from_scratch() {
+                return Err(n);
+            }
+            writes_total += writes as u64;
+            load.max_writes = load.max_writes.max(writes);
+        }
+        load.ticks = ticks as u64;
+        load.mean_writes = writes_total as f64 / ticks.max(1) as f64;
+        let mut out = Vec::new();
+        for (id, mode) in modes.iter().enumerate() {
+            let LedMode::Modulated(set) = *mode else {
+                continue;
+            };
+            if !set.0.is_power_of_two() {
+                continue;
+            }
+            let index = set.0.trailing_zeros() as u8;
+            let Some(&mhz) = table_mhz.get(index as usize) else {
+                continue;
+            };
+            if let Some(s) = wave_stats(&edges[id], mhz) {
+                out.push(WaveStats {
+                    led: id as u8,
+                    index,
+                    ..s
+                });
+            }
+        }
+        Ok((out, load))
+    }
+
+    /// Least-squares fit `t_j = a + b j` of the edge ticks (both edges, j = 0, 1, ...).
+    fn wave_stats(edges: &[u32], mhz: u32) -> Option<WaveStats> {
+        let n = edges.len();
+        if n < 3 {
+            return None;
+        }
+        let nf = n as f64;
+        let jm = (nf - 1.0) / 2.0;
+        let tm = edges.iter().map(|&t| t as f64).sum::<f64>() / nf;
+        let (mut sjt, mut sjj) = (0.0, 0.0);
+        for (j, &t) in edges.iter().enumerate() {
+            let dj = j as f64 - jm;
+            sjt += dj * (t as f64 - tm);
+            sjj += dj * dj;
+        }
+        let b = sjt / sjj;
+        let (mut lo, mut hi, mut ss) = (f64::MAX, f64::MIN, 0.0);
+        for (j, &t) in edges.iter().enumerate() {
+            let r = t as f64 - (tm + b * (j as f64 - jm));
+            lo = lo.min(r);
+            hi = hi.max(r);
+            ss += r * r;
+        }
+        let us_per_tick = 1e6 / TICK_HZ as f64;
+        let nominal_hz = mhz as f64 / 1000.0;
+        let mean_hz = TICK_HZ as f64 / (2.0 * b);
+        Some(WaveStats {
+            led: 0,
+            index: 0,
+            nominal_hz,
+            mean_hz,
+            rel_error: (mean_hz - nominal_hz) / nominal_hz,
+            jitter_pp_us: (hi - lo) * us_per_tick,
+            jitter_rms_us: libm::sqrt(ss / nf) * us_per_tick,
+            edges: n,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::beacon::FreqSet;
+
+    #[test]
+    fn northstar_table_matches_reference() {
+        let t = NORTHSTAR_TABLE_MHZ;
+        assert_eq!((t[0], t[1]), (3_040_000, 2_010_000));
+        assert_eq!((t[2], t[3]), (4_050_000, 3_090_000));
+        assert_eq!((t[18], t[19]), (5_010_000, 4_050_000));
+        for k in 1..10 {
+            assert_eq!(
+                t[2 * k] - t[2 * k + 1],
+                960_000,
+                "ID {k} pair differs by 960 Hz"
+            );
+        }
+    }
+
+    #[test]
+    fn pin_map_has_100_distinct_unreserved_pins() {
+        let mut seen = [[false; 16]; PORTS];
+        for p in BEACON_PINS {
+            assert!((p.port as usize) < PORTS && p.bit < 16, "{p}");
+            assert!(!seen[p.port as usize][p.bit as usize], "{p} used twice");
+            seen[p.port as usize][p.bit as usize] = true;
+            assert!(
+                RESERVED_PINS.iter().all(|(r, _)| *r != p),
+                "{p} is reserved"
+            );
+            assert_ne!(p, SPARE_PIN);
+        }
+        // Every pin of the 7 ports is an LED, reserved or the spare.
+        let free = PORTS * 16 - LED_COUNT - RESERVED_PINS.len();
+        assert_eq!(free, 1);
+        assert_eq!(BEACON_PINS[0], Pin::new(0, 0));
+        assert_eq!(BEACON_PINS[9], Pin::new(0, 11));
+        assert_eq!(BEACON_PINS[99], Pin::new(6, 14));
+    }
+
+    #[test]
+    fn grid_positions_are_centred() {
+        assert_eq!(grid_position(0), (0, 0, -4.5, -4.5));
+        assert_eq!(grid_position(99), (9, 9, 4.5, 4.5));
+        assert_eq!(grid_position(37), (3, 7, 2.5, -1.5));
+    }
+
+    #[test]
+    fn table_validation() {
+        assert_eq!(
+            Modulator::new(&[], &BEACON_PINS).err(),
+            Some(TableError::Empty)
+        );
+        assert_eq!(
+            Modulator::new(&[1_000_000, 100_000], &BEACON_PINS).err(),
+            Some(TableError::OutOfRange {
+                index: 1,
+                mhz: 100_000
+            })
+        );
+        assert!(Modulator::new(&[FREQ_MIN_MHZ, FREQ_MAX_MHZ], &BEACON_PINS).is_ok());
+        assert_eq!(
+            Modulator::new(&[1_000_000; 33], &BEACON_PINS).err(),
+            Some(TableError::TooLong)
+        );
+    }
+
+    fn all_modulated() -> [LedMode; LED_COUNT] {
+        core::array::from_fn(|i| LedMode::Modulated(FreqSet::single((i % 20) as u8)))
+    }
+
+    #[test]
+    fn off_and_steady_leds_never_change() {
+        let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+        let mut modes = [LedMode::Off; LED_COUNT];
+        modes[5] = LedMode::On;
+        modes[50] = LedMode::On;
+        m.configure(&modes);
+        let want = m.all_bsrr();
+        let lvl = *m.levels();
+        for _ in 0..10_000 {
+            m.tick(|_, _| panic!("nothing is modulated, nothing may be written"));
+        }
+        assert_eq!(*m.levels(), lvl);
+        let p5 = BEACON_PINS[5];
+        assert_ne!(want[p5.port as usize] & (1 << p5.bit), 0);
+    }
+
+    #[test]
+    fn every_table_frequency_is_exact_and_jitter_is_below_one_tick() {
+        let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+        let modes = all_modulated();
+        m.configure(&modes);
+        // One simulated second.
+        let (stats, load) = measure::run(&mut m, &modes, &NORTHSTAR_TABLE_MHZ, TICK_HZ).unwrap();
+        assert_eq!(stats.len(), 100);
+        for s in &stats {
+            assert!(s.rel_error.abs() < 5e-4 / 10.0, "{s:?}");
+            assert!(s.jitter_pp_us < 10.0, "{s:?}");
+            // Edge count matches the frequency: 2 f edges per second (+-1).
+            assert!((s.edges as f64 - 2.0 * s.nominal_hz).abs() <= 1.5, "{s:?}");
+        }
+        assert!(load.mean_writes > 0.0);
+    }
+
+    #[test]
+    fn several_frequencies_on_one_led_and_reconfiguration_stay_consistent() {
+        let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+        let mut modes = all_modulated();
+        modes[3] = LedMode::Modulated(FreqSet(0b11));
+        modes[4] = LedMode::Modulated(FreqSet((1 << 19) | (1 << 7) | 1));
+        modes[5] = LedMode::On;
+        modes[6] = LedMode::Off;
+        m.configure(&modes);
+        measure::run(&mut m, &modes, &NORTHSTAR_TABLE_MHZ, 20_000).unwrap();
+        // Reconfigure mid-stream: outputs must follow the running waves.
+        modes[10] = LedMode::Modulated(FreqSet(0b1100));
+        modes[11] = LedMode::Off;
+        m.configure(&modes);
+        assert_eq!(*m.levels(), m.levels_from_scratch());
+        let (stats, _) = measure::run(&mut m, &modes, &NORTHSTAR_TABLE_MHZ, 30_000).unwrap();
+        assert!(stats.iter().all(|s| s.led != 3 && s.led != 4));
+        // A new table restarts with everything dark.
+        m.set_table(&[1_000_000]).unwrap();
+        assert_eq!(*m.levels(), [0; PORTS]);
+    }
+
+    #[test]
+    fn duty_cycle_is_half() {
+        let table = [2_010_000, 5_130_000, FREQ_MAX_MHZ, FREQ_MIN_MHZ];
+        let mut m = Modulator::new(&table, &BEACON_PINS).unwrap();
+        let modes: [LedMode; LED_COUNT] =
+            core::array::from_fn(|i| LedMode::Modulated(FreqSet::single((i % 4) as u8)));
+        m.configure(&modes);
+        let mut on = [0u32; 4];
+        let n = 200_000;
+        for _ in 0..n {
+            m.tick(|_, _| {});
+            for (f, c) in on.iter_mut().enumerate() {
+                let p = BEACON_PINS[f];
+                if m.levels()[p.port as usize] & (1 << p.bit) != 0 {
+                    *c += 1;
+                }
+            }
+        }
+        for c in on {
+            let duty = c as f64 / n as f64;
+            assert!((duty - 0.5).abs() < 0.01, "duty {duty}");
+        }
+    }
+}

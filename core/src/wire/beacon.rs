@@ -18,8 +18,8 @@ pub const LED_COUNT: usize = 100;
 pub const MAX_FREQS: usize = 32;
 /// Lowest table frequency accepted, in millihertz (the modulator's half period must stay
 /// under its 256-tick wheel: see [`crate::schedule`]).
-pub const FREQ_MIN_MHZ: u32 = 200_000;
-/// Highest table frequency accepted, in millihertz (at least 8 ticks per period).
+pub const FREQ_MIN_MHZ: u32 = 250_000;
+/// Highest table frequency accepted, in millihertz (at least 10 ticks per period).
 pub const FREQ_MAX_MHZ: u32 = 12_500_000;
 /// Shortest dead-man timeout accepted, ms.
 pub const DEADMAN_MIN_MS: u32 = 100;
