@@ -514,6 +514,43 @@ where
     })
 }
 
+/// The most poorly determined parameter direction at `x`: the eigenvector of the smallest
+/// eigenvalue of the column-scaled normal matrix, and the ratio of its extreme eigenvalues
+/// (`1 / condition^2`). Used to name what an ill-conditioned fit cannot pin down.
+pub fn weakest_direction<T: Real, P: Problem<T>>(
+    prob: &P,
+    x: &OVector<T, P::D>,
+) -> Result<(OVector<T, P::D>, T), ModelError>
+where
+    DefaultAllocator: Allocator<P::D> + Allocator<P::D, P::D>,
+{
+    let ne = accumulate(prob, x)?;
+    let n = prob.dim().value();
+    let mut ns = ne.n.clone();
+    for a in 0..n {
+        for b in 0..n {
+            let (na, nb) = (ne.n[(a, a)], ne.n[(b, b)]);
+            ns[(a, b)] = if na > T::zero() && nb > T::zero() {
+                ns[(a, b)] / (na * nb).sqrt()
+            } else {
+                T::zero()
+            };
+        }
+    }
+    let (lmax, lmin, v) = extreme_eigen(&ns, lmax_guard::<T>());
+    let ratio = if lmax > T::zero() {
+        lmin / lmax
+    } else {
+        T::zero()
+    };
+    Ok((v, ratio))
+}
+
+#[inline]
+fn lmax_guard<T: Real>() -> T {
+    T::default_epsilon() * T::lit(1e-2)
+}
+
 /// Describe an unobservable direction in words: the parameters whose components exceed
 /// 0.25 (of a unit vector), with signs, e.g. `d3 - H` meaning "d3 up with H down".
 pub fn describe_null<T: Real, P: Problem<T>>(

@@ -7,9 +7,15 @@ pub mod link;
 /// `cta sensor ...` and the pose-accuracy table (firmware-sensor issue).
 pub mod sensor_cmd;
 
+/// The thesis subcommands.
+pub mod commands;
 /// The effect vocabulary shared by `simulate` and `analyze`.
 pub mod effects;
+/// The Ch V calibration fit and its evaluation.
+pub mod fit;
 /// The measurement file format (`host/MEASUREMENTS.md`).
 pub mod measurement;
+/// SVG charts.
+pub mod plot;
 /// Emulated CTA data with injectable effects and a truth sidecar.
 pub mod simulate;

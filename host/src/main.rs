@@ -1,1 +1,58 @@
-fn main() {}
+//! `cta`: the command-line tool of the NorthStar characterization test apparatus.
+
+use clap::{Parser, Subcommand};
+use cta_host::commands;
+
+#[derive(Parser)]
+#[command(
+    name = "cta",
+    version,
+    about = "Characterize a NorthStar coarse sun sensor in the near field: simulate, fit, evaluate, analyze",
+    long_about = "CTA turns the NorthStar IR coarse sun sensor (four photocells in a pyramid) into a 6-dof \
+relative-navigation sensor. Close to a beacon the sun-sensor assumptions break: the cells see the beacon from \
+different places (proximity), at different distances (intensity), through a non-uniform LED pattern. `cta` \
+quantifies those near-field errors (thesis Ch II), the apparatus uncertainty (Ch IV), emulates the sensor and \
+fits its calibration model (Ch V), and analyzes measured data for what the model gets wrong.\n\n\
+Conventions: inches and degrees at every interface; N = sensor-board frame, O = sensor-head frame; \
+d = N origin -> head centre (in N); C(p) maps N to O (MRP p). Equation numbers are those of Stancliffe (2010).\n\n\
+Start with:  cta simulate --out sim.csv --separations 20,25 && cta fit sim.csv --save fit.json && \
+cta evaluate fit.json sim.csv"
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Ch II: how far away each near-field effect (proximity, intensity, beacon pattern)
+    /// falls below the sensor noise, in sensor diameters (2-D model, eqs 1-22).
+    Nearfield(commands::NearfieldArgs),
+    /// Ch IV: the apparatus uncertainty budget (root-sum-square, eq 26; default Table 2)
+    /// and the angle uncertainty it causes (eqs 36, 40) against the near-field error.
+    Uncertainty(commands::UncertaintyArgs),
+    /// Ch V: emulated NorthStar reports of the CTA beacon grid (eqs 60-63), optionally with
+    /// noise and hidden effects; the truth is written next to the data.
+    Simulate(commands::SimulateArgs),
+    /// Ch V: fit the 7-parameter collinearity model (d, MRP p, scale height H; eq 65) by
+    /// GLSDC (eqs 56-59): parameters, 1-sigma, residual RMS, condition number.
+    Fit(commands::FitArgs),
+    /// Ch V: the error in angle of a saved fit per separation (eq 67), the Figure 57 curve,
+    /// against the truth when the data carries it.
+    Evaluate(commands::EvaluateArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let r = match &cli.cmd {
+        Cmd::Nearfield(a) => commands::nearfield(a),
+        Cmd::Uncertainty(a) => commands::uncertainty_cmd(a),
+        Cmd::Simulate(a) => commands::simulate(a),
+        Cmd::Fit(a) => commands::fit_cmd(a),
+        Cmd::Evaluate(a) => commands::evaluate_cmd(a),
+    };
+    if let Err(e) = r {
+        eprintln!("cta: error: {e:#}");
+        std::process::exit(1);
+    }
+}

@@ -1,0 +1,717 @@
+//! The thesis subcommands: `nearfield`, `uncertainty`, `simulate`, `fit`, `evaluate`.
+
+use crate::effects::Effect;
+use crate::fit::{self, FitReport, Weights};
+use crate::measurement::{fmt_list, parse_separations, Dataset};
+use crate::plot::{write_svg, Panel, Series};
+use crate::simulate::{describe_pattern, parse_grid, SimConfig, Truth};
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, ValueEnum};
+use cta_core::nearfield2d::{Effect as NfEffect, Model2d};
+use cta_core::pattern::{Pattern, QUARTIC_VALID_DEG};
+use cta_core::real::rad;
+use cta_core::uncertainty::{self, Item};
+use serde::Deserialize;
+use serde_json::json;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Beacon radiation profile choices.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Profile {
+    /// Generalized Lambertian cos^m from the half-intensity angle (default 60 deg: m = 1).
+    Lambertian,
+    /// The thesis's printed eq 17 quartic (reproduction only; not a radiation pattern past ~31 deg).
+    Quartic,
+    /// An isotropic beacon (no pattern effect).
+    Uniform,
+}
+
+impl Profile {
+    /// The pattern, given a half-intensity angle for the Lambertian.
+    pub fn pattern(self, half_deg: f64) -> Pattern<f64> {
+        match self {
+            Profile::Lambertian => Pattern::lambertian_half_angle(half_deg),
+            Profile::Quartic => Pattern::Quartic,
+            Profile::Uniform => Pattern::Uniform,
+        }
+    }
+}
+
+fn parse_list(s: &str) -> Result<Vec<f64>> {
+    s.split(',')
+        .map(|p| {
+            p.trim()
+                .parse::<f64>()
+                .map_err(|_| anyhow!("`{p}` is not a number"))
+        })
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------------
+// nearfield
+
+/// Ch II: where near-field errors fall below the sensor noise (2-D model, eqs 1-22).
+#[derive(Debug, Args)]
+pub struct NearfieldArgs {
+    /// Pyramid face angle a, degrees (eq 2).
+    #[arg(long, default_value_t = 30.0)]
+    pub alpha: f64,
+    /// Off-boresight angles theta of the beacon, degrees, comma-separated.
+    #[arg(long, default_value = "6,18,30,45")]
+    pub theta: String,
+    /// Sensor noise the errors are compared with, degrees (the thesis assumes 0.1).
+    #[arg(long = "noise-deg", default_value_t = 0.1)]
+    pub noise_deg: f64,
+    /// Beacon radiation profile for the non-uniform-beacon error.
+    #[arg(long, value_enum, default_value_t = Profile::Lambertian)]
+    pub profile: Profile,
+    /// Half-intensity angle of the Lambertian profile, degrees (VSML3710: 60).
+    #[arg(long = "half-angle", default_value_t = 60.0)]
+    pub half_angle: f64,
+    /// Sensor diameter D in inches, to also give distances in inches (NorthStar: 2 s = 0.35).
+    #[arg(long = "diameter-in", default_value_t = 0.35)]
+    pub diameter_in: f64,
+    /// Draw the error-versus-distance curves (Figures 14-24) to this SVG file.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run `cta nearfield`.
+pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
+    if !(a.alpha > 0.0 && a.alpha < 90.0) {
+        bail!("--alpha {}: the face angle must be in (0, 90) deg", a.alpha);
+    }
+    if !(a.noise_deg > 0.0) {
+        bail!("--noise-deg must be > 0");
+    }
+    if !(a.half_angle > 0.0 && a.half_angle < 90.0) {
+        bail!("--half-angle must be in (0, 90) deg");
+    }
+    let thetas = parse_list(&a.theta).context("--theta")?;
+    let max_theta = 90.0 - a.alpha;
+    if let Some(t) = thetas.iter().find(|t| !(**t > 0.0 && **t < max_theta)) {
+        bail!("--theta {t}: must be in (0, {max_theta}) deg (the field of view ends where tan theta = cot a)");
+    }
+    let model = Model2d {
+        alpha: rad(a.alpha),
+        half_sep: 0.5,
+        pattern: a.profile.pattern(a.half_angle),
+    };
+    let mut warnings = Vec::new();
+    if a.profile == Profile::Quartic && thetas.iter().any(|t| *t > QUARTIC_VALID_DEG) {
+        warnings.push(format!(
+            "the printed eq 17 quartic is evaluated past {QUARTIC_VALID_DEG} deg, where it is no longer a radiation \
+             pattern (0 at 37.8 deg, -4.93 at 60 deg; REFERENCE.md 2.1): pattern errors there are not physical"
+        ));
+    }
+    let noise = rad(a.noise_deg);
+    let mut crossing = serde_json::Map::new();
+    for e in NfEffect::ALL {
+        let v: Vec<Option<f64>> = thetas
+            .iter()
+            .map(|t| model.crossing_distance(e, rad(*t), noise, 0.6))
+            .collect();
+        crossing.insert(e.name().into(), json!(v));
+    }
+    let mut coeff = serde_json::Map::new();
+    for e in [NfEffect::Proximity, NfEffect::Intensity, NfEffect::Pattern] {
+        let v: Vec<f64> = thetas
+            .iter()
+            .map(|t| model.far_field_coeff_deg(e, rad(*t)))
+            .collect();
+        coeff.insert(e.name().into(), json!(v));
+    }
+    if let Some(p) = &a.plot {
+        let panels: Vec<Panel> = NfEffect::ALL
+            .iter()
+            .map(|&e| {
+                let mut series: Vec<Series> = thetas
+                    .iter()
+                    .map(|&t| {
+                        let pts = (0..=120)
+                            .map(|k| {
+                                let r = 3.0 * 10f64.powf(k as f64 / 40.0);
+                                (r, model.error(e, rad(t), r).abs().to_degrees())
+                            })
+                            .collect();
+                        Series::new(format!("theta = {t} deg"), pts)
+                    })
+                    .collect();
+                series.push(Series::dashed(
+                    format!("noise {} deg", a.noise_deg),
+                    vec![(3.0, a.noise_deg), (3000.0, a.noise_deg)],
+                ));
+                Panel {
+                    title: format!("|error in angle|: {}", e.name()),
+                    x_desc: "beacon distance (sensor diameters D)".into(),
+                    y_desc: "|delta theta| (deg)".into(),
+                    log_x: true,
+                    log_y: true,
+                    series,
+                }
+            })
+            .collect();
+        write_svg(
+            p,
+            &format!(
+                "Near-field errors, a = {} deg (thesis Figures 14-24)",
+                a.alpha
+            ),
+            &panels,
+            2,
+        )?;
+    }
+    if a.json {
+        let out = json!({
+            "alpha_deg": a.alpha,
+            "noise_deg": a.noise_deg,
+            "profile": describe_pattern(&model.pattern),
+            "theta_deg": thetas,
+            "crossing_D": crossing,
+            "coeff_deg_D": coeff,
+            "diameter_in": a.diameter_in,
+            "sign": "all errors make the beacon appear farther off boresight (convex pairing)",
+            "warnings": warnings,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!(
+        "Near-field errors in angle (thesis Ch II, 2-D, a = {} deg, beacon: {}), noise {} deg, D = {} in",
+        a.alpha,
+        describe_pattern(&model.pattern),
+        a.noise_deg,
+        a.diameter_in
+    );
+    println!("Distance (sensor diameters D [inches]) beyond which each effect is below the noise:");
+    println!(
+        "{:>9} {:>18} {:>18} {:>18} {:>18}",
+        "theta", "proximity", "intensity", "pattern", "combined"
+    );
+    for (i, t) in thetas.iter().enumerate() {
+        let cell = |e: NfEffect| match crossing[e.name()][i].as_f64() {
+            Some(v) => format!("{v:.1} [{:.1}]", v * a.diameter_in),
+            None => "below noise".into(),
+        };
+        println!(
+            "{:>7} ° {:>18} {:>18} {:>18} {:>18}",
+            t,
+            cell(NfEffect::Proximity),
+            cell(NfEffect::Intensity),
+            cell(NfEffect::Pattern),
+            cell(NfEffect::Combined)
+        );
+    }
+    println!("Far-field coefficients R x |delta theta| (deg D; the error falls as coeff / R):");
+    for (i, t) in thetas.iter().enumerate() {
+        println!(
+            "{:>7} ° proximity {:>8.3}  intensity {:>8.3}  pattern {:>8.3}",
+            t,
+            coeff["proximity"][i].as_f64().unwrap_or(f64::NAN),
+            coeff["intensity"][i].as_f64().unwrap_or(f64::NAN),
+            coeff["pattern"][i].as_f64().unwrap_or(f64::NAN)
+        );
+    }
+    println!("All three errors make the beacon appear farther off boresight (convex pairing, REFERENCE.md 2.2).");
+    for w in warnings {
+        println!("warning: {w}");
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// uncertainty
+
+/// Ch IV: the CTA uncertainty budget (eq 26) and the angle uncertainty it implies (eqs 36, 40).
+#[derive(Debug, Args)]
+pub struct UncertaintyArgs {
+    /// Budget file (TOML, `[[item]]` tables with `name` and mils `x`, `y`, `z` or
+    /// `x_plus`/`x_minus`...); default: thesis Table 2.
+    #[arg(long)]
+    pub budget: Option<PathBuf>,
+    /// Sensor diameter D in inches, to compare with the Ch II near-field error.
+    #[arg(long = "diameter-in", default_value_t = 0.35)]
+    pub diameter_in: f64,
+    /// Draw Figure 40 (CTA angle uncertainty vs near-field error) to this SVG file.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BudgetFile {
+    item: Vec<BudgetItem>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BudgetItem {
+    name: String,
+    x: Option<f64>,
+    y: Option<f64>,
+    z: Option<f64>,
+    x_plus: Option<f64>,
+    x_minus: Option<f64>,
+    y_plus: Option<f64>,
+    y_minus: Option<f64>,
+    z_plus: Option<f64>,
+    z_minus: Option<f64>,
+}
+
+fn load_budget(path: &PathBuf) -> Result<Vec<(String, [f64; 6])>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
+    let b: BudgetFile = toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let mut out = Vec::new();
+    for it in b.item {
+        let pick = |sym: Option<f64>, side: Option<f64>| side.or(sym).unwrap_or(0.0);
+        let v = [
+            pick(it.x, it.x_plus),
+            pick(it.x, it.x_minus),
+            pick(it.y, it.y_plus),
+            pick(it.y, it.y_minus),
+            pick(it.z, it.z_plus),
+            pick(it.z, it.z_minus),
+        ];
+        if let Some(bad) = v.iter().find(|m| !(m.is_finite() && **m >= 0.0)) {
+            bail!(
+                "{}: item `{}`: uncertainty {bad} mils must be >= 0",
+                path.display(),
+                it.name
+            );
+        }
+        out.push((it.name, v));
+    }
+    if out.is_empty() {
+        bail!("{}: no [[item]] in the budget", path.display());
+    }
+    Ok(out)
+}
+
+/// Run `cta uncertainty`.
+pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
+    let owned: Vec<(String, [f64; 6])> = match &a.budget {
+        Some(p) => load_budget(p)?,
+        None => uncertainty::TABLE2
+            .iter()
+            .map(|i| (i.name.to_string(), i.mils))
+            .collect(),
+    };
+    let items: Vec<Item<'_>> = owned
+        .iter()
+        .map(|(n, m)| Item { name: n, mils: *m })
+        .collect();
+    let r = uncertainty::rss(&items);
+    let [ux, uy, uz] = uncertainty::rss_inches(&items);
+    // Eq 40 and the near-field comparison at the Ch IV angles.
+    let nf = Model2d::thesis(Pattern::vsml3710());
+    let nfq = Model2d::thesis(Pattern::Quartic);
+    let rows: Vec<_> = [6.0f64, 18.0]
+        .iter()
+        .map(|&t| {
+            let th = rad(t);
+            let u = uncertainty::angle_2d(th.sin(), th.cos(), ux, uz).to_degrees();
+            let e = nf.far_field_coeff_deg(NfEffect::Combined, th) * a.diameter_in;
+            let eq = nfq.far_field_coeff_deg(NfEffect::Combined, th) * a.diameter_in;
+            (t, u, e / u, eq / u)
+        })
+        .collect();
+    if let Some(p) = &a.plot {
+        let mut panels = Vec::new();
+        for &(t, _, _, _) in &rows {
+            let th = rad(t);
+            let range: Vec<f64> = (0..=60).map(|k| 10f64.powf(k as f64 / 30.0)).collect(); // 1..100 in
+            let cta: Vec<(f64, f64)> = range
+                .iter()
+                .map(|&r| {
+                    (
+                        r,
+                        uncertainty::angle_2d(r * th.sin(), r * th.cos(), ux, uz).to_degrees(),
+                    )
+                })
+                .collect();
+            let near: Vec<(f64, f64)> = range
+                .iter()
+                .map(|&r| {
+                    (
+                        r,
+                        nf.error(NfEffect::Combined, th, r / a.diameter_in)
+                            .abs()
+                            .to_degrees(),
+                    )
+                })
+                .collect();
+            panels.push(Panel {
+                title: format!("theta = {t} deg"),
+                x_desc: "separation (in)".into(),
+                y_desc: "angle (deg)".into(),
+                log_x: true,
+                log_y: true,
+                series: vec![
+                    Series::new("combined near-field error (Lambertian)", near),
+                    Series::dashed("CTA uncertainty (eq 40)", cta),
+                ],
+            });
+        }
+        write_svg(
+            p,
+            "CTA angle uncertainty vs near-field error (thesis Figure 40)",
+            &panels,
+            2,
+        )?;
+    }
+    if a.json {
+        let out = json!({
+            "items": owned.iter().map(|(n, m)| json!({"name": n, "mils": m})).collect::<Vec<_>>(),
+            "rss_mils": {"x": r[0].max(r[1]), "y": r[2].max(r[3]), "z": r[4].max(r[5]),
+                          "x_plus": r[0], "x_minus": r[1], "y_plus": r[2], "y_minus": r[3], "z_plus": r[4], "z_minus": r[5]},
+            "eq40_u_theta_times_R_deg_in": rows.iter().map(|r| json!({"theta_deg": r.0, "value": r.1})).collect::<Vec<_>>(),
+            "nearfield_over_cta": rows.iter().map(|r| json!({"theta_deg": r.0, "lambertian": r.2, "quartic": r.3})).collect::<Vec<_>>(),
+            "uy_in": uy,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!("CTA uncertainty budget (thesis Ch IV, eq 26), mils:");
+    println!(
+        "{:<36} {:>6} {:>6} {:>6} {:>6} {:>6} {:>6}",
+        "item", "X+", "X-", "Y+", "Y-", "Z+", "Z-"
+    );
+    for (n, m) in &owned {
+        println!(
+            "{:<36} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2}",
+            n, m[0], m[1], m[2], m[3], m[4], m[5]
+        );
+    }
+    println!(
+        "{:<36} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2}",
+        "root-sum-square", r[0], r[1], r[2], r[3], r[4], r[5]
+    );
+    println!("Angle uncertainty in 2-D (eq 40), u_theta x R, and the near-field error over it (D = {} in):", a.diameter_in);
+    for (t, u, l, q) in &rows {
+        println!("  theta {t:>4} deg: {u:.3} deg in; near-field / CTA = {l:.1} (Lambertian), {q:.1} (printed quartic)");
+    }
+    println!("Note: the thesis's 3-D sensitivities (eqs 34/35) are singular at x = y = z; CTA uses the corrected");
+    println!("|d theta/d x| = sqrt(y^2+z^2)/|b|^2 (REFERENCE.md 2.4), about 1.4x larger.");
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// simulate
+
+/// Ch V: emulated CTA data from the eq 60-63 NorthStar emulator.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// Output measurement file (CSV, see MEASUREMENTS.md); the truth goes to FILE.truth.json.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Plate separations in inches: a list `20,25`, a range `2..30` (1 in steps) or `2..30:2`.
+    #[arg(long, default_value = "2..30")]
+    pub separations: String,
+    /// Beacon grid, COLSxROWS at 1 in pitch, centred on the board origin.
+    #[arg(long, default_value = "10x10")]
+    pub grid: String,
+    /// Beacon radiation profile.
+    #[arg(long, value_enum, default_value_t = Profile::Lambertian)]
+    pub profile: Profile,
+    /// Half-intensity angle of the Lambertian profile, degrees.
+    #[arg(long = "half-angle", default_value_t = 60.0)]
+    pub half_angle: f64,
+    /// Far-field physics (proximity and intensity off, uniform beacon): eq 65 exactly.
+    #[arg(long = "far-field")]
+    pub far_field: bool,
+    /// Inject an effect of the vocabulary, NAME=VALUE (repeatable): proximity=S, intensity,
+    /// beacon_pattern=H, beacon_tilt=T[,AZ], cell_gain=GX[,GY], cell_bias=BX[,BY],
+    /// face_angle=DX[,DY], saturation=S, plate_offset=SIGMA, separation_error=SIGMA,
+    /// crosstalk=K (simulation only).
+    #[arg(long = "effect", value_name = "NAME=VALUE")]
+    pub effects: Vec<String>,
+    /// Gaussian noise, counts (1-sigma); 0 = noise-free as in the thesis. 0.1 % of beta is 32.8.
+    #[arg(long, default_value_t = 0.0)]
+    pub noise: f64,
+    /// Samples per point (repeated reports of one beacon).
+    #[arg(long, default_value_t = 1)]
+    pub samples: usize,
+    /// Round to whole counts like the sensor (always done when --noise > 0).
+    #[arg(long)]
+    pub round: bool,
+    /// Random seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// True head offset d (in), `d1,d2,d3`.
+    #[arg(long, default_value = "0.6,0.1,0.062")]
+    pub d: String,
+    /// True head attitude, MRP `p1,p2,p3`.
+    #[arg(long, default_value = "0.001,0.002,0.001")]
+    pub p: String,
+}
+
+/// Build a simulation config from the arguments.
+pub fn sim_config(a: &SimulateArgs) -> Result<SimConfig> {
+    let seps = parse_separations(&a.separations).map_err(|e| anyhow!("--separations: {e}"))?;
+    let grid = parse_grid(&a.grid).map_err(|e| anyhow!("--grid: {e}"))?;
+    let effects: Vec<Effect> = a
+        .effects
+        .iter()
+        .map(|s| Effect::parse(s).map_err(|e| anyhow!("--effect: {e}")))
+        .collect::<Result<_>>()?;
+    if !(a.noise >= 0.0 && a.noise.is_finite()) {
+        bail!("--noise must be >= 0 counts");
+    }
+    if a.samples == 0 {
+        bail!("--samples must be at least 1");
+    }
+    let v3 = |s: &str, what: &str| -> Result<nalgebra::Vector3<f64>> {
+        let v = parse_list(s).with_context(|| what.to_string())?;
+        if v.len() != 3 {
+            bail!("{what}: expected three comma-separated numbers");
+        }
+        Ok(nalgebra::Vector3::new(v[0], v[1], v[2]))
+    };
+    let d = v3(&a.d, "--d")?;
+    let p = v3(&a.p, "--p")?;
+    if seps.iter().any(|&s| s <= d.z) {
+        bail!(
+            "--separations: every separation must be above the head (d3 = {} in)",
+            d.z
+        );
+    }
+    Ok(SimConfig {
+        separations: seps,
+        grid,
+        pitch: 1.0,
+        pattern: a.profile.pattern(a.half_angle),
+        far_field: a.far_field,
+        pose: cta_core::emulator::Pose { d, p },
+        effects,
+        noise: a.noise,
+        samples: a.samples,
+        round: a.round,
+        seed: a.seed,
+    })
+}
+
+/// Run `cta simulate`.
+pub fn simulate(a: &SimulateArgs) -> Result<()> {
+    let cfg = sim_config(a)?;
+    let (ds, truth) = cfg.run();
+    let tmp = a.out.with_extension("csv.partial");
+    {
+        let f = std::fs::File::create(&tmp).with_context(|| format!("{}", tmp.display()))?;
+        let mut w = std::io::BufWriter::new(f);
+        let comments = vec![
+            format!(
+                "{} ; truth in {}",
+                truth.generator,
+                Truth::path_for(&a.out).display()
+            ),
+            format!(
+                "physics {} ; beacon {} ; effects [{}]",
+                truth.physics,
+                truth.pattern,
+                truth.effects.join(" ")
+            ),
+        ];
+        ds.write(&mut w, &comments)?;
+        w.flush()?;
+    }
+    std::fs::rename(&tmp, &a.out).with_context(|| format!("{}", a.out.display()))?;
+    let tp = Truth::path_for(&a.out);
+    std::fs::write(&tp, serde_json::to_string_pretty(&truth)?)
+        .with_context(|| format!("{}", tp.display()))?;
+    eprintln!(
+        "wrote {} reports ({} separations x {} beacons x {} samples, {} points outside the field of view) to {} (truth: {})",
+        ds.samples.len(),
+        cfg.separations.len(),
+        cfg.grid.0 * cfg.grid.1,
+        cfg.samples,
+        truth.skipped_points,
+        a.out.display(),
+        tp.display()
+    );
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// fit
+
+/// Ch V: fit the 7-parameter collinearity model (eq 65) by GLSDC.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Measurement file (CSV).
+    pub file: PathBuf,
+    /// Use only these separations (list or range, e.g. `25,30`); default: all in the file.
+    #[arg(long)]
+    pub separations: Option<String>,
+    /// Weighting: `none` (W = I, every report) or `repeat` (point means, 1/variance).
+    #[arg(long, value_enum, default_value_t = Weights::None)]
+    pub weights: Weights,
+    /// Save the fit (parameters, covariance) as JSON for `cta evaluate`.
+    #[arg(long)]
+    pub save: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Load and restrict a dataset.
+pub fn load(file: &PathBuf, separations: Option<&str>) -> Result<Dataset> {
+    let ds = Dataset::read(file).map_err(|e| anyhow!("{e}"))?;
+    match separations {
+        None => Ok(ds),
+        Some(s) => {
+            let seps = parse_separations(s).map_err(|e| anyhow!("--separations: {e}"))?;
+            ds.select(&seps).map_err(|e| anyhow!(e))
+        }
+    }
+}
+
+/// Run `cta fit`.
+pub fn fit_cmd(a: &FitArgs) -> Result<()> {
+    let ds = load(&a.file, a.separations.as_deref())?;
+    let rep = fit::fit(&ds, a.weights).map_err(|e| anyhow!(e))?;
+    if let Some(p) = &a.save {
+        std::fs::write(p, serde_json::to_string_pretty(&rep)?)
+            .with_context(|| format!("{}", p.display()))?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rep)?);
+        return Ok(());
+    }
+    println!(
+        "Collinearity model (eq 65) fitted by GLSDC to {} observations at {} in ({:?} weights):",
+        rep.observations,
+        fmt_list(&rep.separations),
+        rep.weights
+    );
+    let truth = Truth::load_for(&a.file).and_then(|t| t.ok());
+    for n in cta_core::collinearity::NAMES {
+        let t = truth.as_ref().map(|t| match n {
+            "d1" => t.d[0],
+            "d2" => t.d[1],
+            "d3" => t.d[2],
+            "p1" => t.p[0],
+            "p2" => t.p[1],
+            "p3" => t.p[2],
+            _ => t.h,
+        });
+        let unit = if n.starts_with('d') { " in" } else { "" };
+        match t {
+            Some(t) => println!(
+                "  {n:>2} = {:>12.6} ± {:<10.3e}{unit:3}  (truth {t:.6})",
+                rep.params[n], rep.sigma[n]
+            ),
+            None => println!(
+                "  {n:>2} = {:>12.6} ± {:<10.3e}{unit}",
+                rep.params[n], rep.sigma[n]
+            ),
+        }
+    }
+    println!(
+        "  residual RMS {:.3} counts, chi2/dof {:.3}, {} iterations ({}), condition {:.3e}",
+        rep.rms_counts, rep.chi2_dof, rep.iterations, rep.stop, rep.condition
+    );
+    for w in &rep.warnings {
+        println!("warning: {w}");
+    }
+    if let Some(p) = &a.save {
+        println!("saved to {}", p.display());
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// evaluate
+
+/// Ch V: the error in angle of a fit per separation (eq 67, Figure 57).
+#[derive(Debug, Args)]
+pub struct EvaluateArgs {
+    /// A fit saved by `cta fit --save`.
+    pub fit: PathBuf,
+    /// Measurement file to evaluate on.
+    pub file: PathBuf,
+    /// Only these separations.
+    #[arg(long)]
+    pub separations: Option<String>,
+    /// Draw Figure 57 (angle-error std and CTA uncertainty vs separation) to this SVG file.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run `cta evaluate`.
+pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
+    let rep = FitReport::load(&a.fit).map_err(|e| anyhow!(e))?;
+    let ds = load(&a.file, a.separations.as_deref())?;
+    let truth = match Truth::load_for(&a.file) {
+        Some(Ok(t)) => Some(t),
+        Some(Err(e)) => bail!("{e}"),
+        None => None,
+    };
+    let ev = fit::evaluate(&rep.x(), &ds, truth.as_ref().map(|t| t.pose().d));
+    if let Some(p) = &a.plot {
+        let pts = |v: &Vec<f64>| {
+            ev.separation_in
+                .iter()
+                .copied()
+                .zip(v.iter().copied())
+                .collect::<Vec<_>>()
+        };
+        write_svg(
+            p,
+            "Error in angle vs separation (thesis Figure 57)",
+            &[Panel {
+                title: format!(
+                    "fit on {} in; angle against the {}",
+                    fmt_list(&rep.separations),
+                    ev.reference
+                ),
+                x_desc: "separation (in)".into(),
+                y_desc: "deg".into(),
+                log_x: false,
+                log_y: true,
+                series: vec![
+                    Series::new("std of the error in angle", pts(&ev.angle_std_deg)),
+                    Series::dashed("mean CTA uncertainty (eq 36)", pts(&ev.cta_uncertainty_deg)),
+                ],
+            }],
+            1,
+        )?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&ev)?);
+        return Ok(());
+    }
+    println!(
+        "Error in angle (eq 67) of the fit on {} in, against the {}:",
+        fmt_list(&rep.separations),
+        if ev.reference == "truth" {
+            "true head offset (truth sidecar)"
+        } else {
+            "fitted head offset (no truth known)"
+        }
+    );
+    println!(
+        "{:>14} {:>14} {:>14} {:>18} {:>8}",
+        "separation in", "std (deg)", "mean (deg)", "CTA uncert. (deg)", "reports"
+    );
+    for i in 0..ev.separation_in.len() {
+        println!(
+            "{:>14} {:>14.5} {:>14.5} {:>18.5} {:>8}",
+            ev.separation_in[i],
+            ev.angle_std_deg[i],
+            ev.angle_mean_deg[i],
+            ev.cta_uncertainty_deg[i],
+            ev.reports[i]
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,303 @@
+//! The Ch V calibration: the 7-parameter collinearity model (eq 65) fitted to a measurement
+//! file by GLSDC (eqs 56-59), and its evaluation (eq 67, Figure 57).
+
+use crate::measurement::Dataset;
+use cta_core::collinearity::{self, Fit, Obs, Params, ParamsExt, NAMES};
+use cta_core::emulator::{Head, Pose};
+use cta_core::glsdc::{self, Settings};
+use cta_core::uncertainty;
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// How residuals are weighted (eq 56's `W`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Weights {
+    /// `W = I`: every sample is one observation (the thesis's choice).
+    None,
+    /// Point means weighted by `n / variance` from the repeated samples of each point, with
+    /// a floor of 1/12 count^2 (the quantisation of integer counts).
+    Repeat,
+}
+
+/// A saved fit (`cta fit --save`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct FitReport {
+    /// Model fitted.
+    pub model: String,
+    /// The measurement file.
+    pub source: String,
+    /// Separations used, inches.
+    pub separations: Vec<f64>,
+    /// Weighting.
+    pub weights: Weights,
+    /// Estimated parameters by name (d in inches, p MRP, H counts).
+    pub params: BTreeMap<String, f64>,
+    /// Their 1-sigma.
+    pub sigma: BTreeMap<String, f64>,
+    /// Covariance, row-major 7x7, parameter order d1 d2 d3 p1 p2 p3 H.
+    pub covariance: Vec<f64>,
+    /// Unweighted residual RMS, counts.
+    pub rms_counts: f64,
+    /// Weighted residual variance per degree of freedom (chi2/dof with `repeat` weights).
+    pub chi2_dof: f64,
+    /// Iterations.
+    pub iterations: usize,
+    /// Condition number of the scaled, weighted Jacobian.
+    pub condition: f64,
+    /// Why GLSDC stopped.
+    pub stop: String,
+    /// Observations (beacon reports or point means).
+    pub observations: usize,
+    /// Things the user should know.
+    pub warnings: Vec<String>,
+}
+
+impl FitReport {
+    /// The parameter vector.
+    pub fn x(&self) -> Params<f64> {
+        Params::from_iterator(NAMES.iter().map(|n| self.params[*n]))
+    }
+
+    /// Load a saved fit.
+    pub fn load(path: &Path) -> Result<FitReport, String> {
+        let s = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let r: FitReport = serde_json::from_str(&s)
+            .map_err(|e| format!("{}: not a CTA fit file: {e}", path.display()))?;
+        if NAMES.iter().any(|n| !r.params.contains_key(*n)) {
+            return Err(format!(
+                "{}: fit file lacks one of {}",
+                path.display(),
+                NAMES.join(", ")
+            ));
+        }
+        Ok(r)
+    }
+}
+
+/// Build the GLSDC observations from a dataset.
+pub fn observations(ds: &Dataset, weights: Weights) -> Result<Vec<Obs<f64>>, String> {
+    match weights {
+        Weights::None => Ok(ds
+            .samples
+            .iter()
+            .map(|s| Obs {
+                r: Vector3::from(s.r),
+                y: [s.x, s.y],
+                w: [1.0; 2],
+            })
+            .collect()),
+        Weights::Repeat => {
+            let mut out = Vec::new();
+            for p in ds.points() {
+                let n = p.rows.len();
+                if n < 2 {
+                    return Err(format!(
+                        "{}:{}: --weights repeat needs repeated samples, this point has one (use --weights none)",
+                        ds.path.display(),
+                        p.first.line
+                    ));
+                }
+                let mut mean = [0.0; 2];
+                for &i in &p.rows {
+                    mean[0] += ds.samples[i].x / n as f64;
+                    mean[1] += ds.samples[i].y / n as f64;
+                }
+                let mut var = [0.0; 2];
+                for &i in &p.rows {
+                    var[0] += (ds.samples[i].x - mean[0]).powi(2) / (n - 1) as f64;
+                    var[1] += (ds.samples[i].y - mean[1]).powi(2) / (n - 1) as f64;
+                }
+                let w = var.map(|v| n as f64 / v.max(1.0 / 12.0));
+                out.push(Obs {
+                    r: Vector3::from(p.first.r),
+                    y: mean,
+                    w,
+                });
+            }
+            Ok(out)
+        }
+    }
+}
+
+/// Fit eq 65 to `ds` (already restricted to the wanted separations).
+pub fn fit(ds: &Dataset, weights: Weights) -> Result<FitReport, String> {
+    let obs = observations(ds, weights)?;
+    let mut beacons: Vec<[u64; 3]> = obs
+        .iter()
+        .map(|o| [o.r.x.to_bits(), o.r.y.to_bits(), o.r.z.to_bits()])
+        .collect();
+    beacons.sort();
+    beacons.dedup();
+    if 2 * beacons.len() < 7 {
+        return Err(format!(
+            "{}: {} beacon position(s) give {} equations, fewer than the 7 parameters",
+            ds.path.display(),
+            beacons.len(),
+            2 * beacons.len()
+        ));
+    }
+    let seps = ds.separations();
+    let mut warnings = Vec::new();
+    if seps.len() == 1 {
+        warnings.push(
+            "one separation only: d3 and H are (nearly) parallel there (Ch V); fit two separations, e.g. 20,25".into(),
+        );
+    }
+    if seps.iter().any(|&s| s < 20.0) {
+        warnings.push(format!(
+            "separations below 20 in ({}) carry near-field errors the pinhole model cannot follow: they bias the fit \
+             (virtual eye, H); the thesis recommends calibrating at 20-30 in (Ch VI), or use `cta analyze` for the \
+             near-field model",
+            seps.iter().filter(|&&s| s < 20.0).map(|s| s.to_string()).collect::<Vec<_>>().join(", ")
+        ));
+    }
+    let sat = ds
+        .samples
+        .iter()
+        .filter(|s| s.x.abs() >= 32767.0 || s.y.abs() >= 32767.0)
+        .count();
+    if sat > 0 {
+        warnings.push(format!(
+            "{sat} report(s) at the 16-bit limit (beacon at the edge of the field of view)"
+        ));
+    }
+    let head = Head::<f64>::northstar();
+    let x0 = Params::from_pose(
+        &Pose {
+            d: Vector3::zeros(),
+            p: Vector3::zeros(),
+        },
+        head.h(),
+    );
+    let settings = Settings {
+        weights_absolute: weights == Weights::Repeat,
+        ..Settings::default()
+    };
+    let problem = Fit { obs: &obs };
+    let sol = match glsdc::solve(&problem, x0, &settings) {
+        Ok(s) => s,
+        Err(glsdc::Error::RankDeficient { null, ratio, .. }) => {
+            let mut s = String::new();
+            glsdc::describe_null(&problem, &null, &mut s).ok();
+            return Err(format!(
+                "{}: the data cannot separate the parameters along [{s}] (eigenvalue ratio {ratio:.1e}); \
+                 add a second separation or more beacons",
+                ds.path.display()
+            ));
+        }
+        Err(glsdc::Error::NotConverged { cost, iterations, .. }) => {
+            return Err(format!(
+                "{}: GLSDC did not converge in {iterations} iterations (last cost {cost:.6e}); reason: iteration cap reached",
+                ds.path.display()
+            ))
+        }
+        Err(glsdc::Error::Model(e)) => {
+            return Err(format!("{}: the model cannot be evaluated at the start ({e:?}): a beacon behind the head?", ds.path.display()))
+        }
+        Err(glsdc::Error::TooFewRows { m, n }) => {
+            return Err(format!("{}: {m} residuals for {n} parameters", ds.path.display()))
+        }
+    };
+    if sol.condition > 1e6 {
+        let mut s = String::new();
+        if let Ok((null, _)) = glsdc::weakest_direction(&problem, &sol.x) {
+            glsdc::describe_null(&problem, &null, &mut s).ok();
+        }
+        warnings.push(format!(
+            "ill-conditioned (condition {:.2e}): [{s}] is poorly determined (Table 3: d3 and H nearly parallel)",
+            sol.condition
+        ));
+    }
+    let map = |v: &dyn Fn(usize) -> f64| {
+        NAMES
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (n.to_string(), v(i)))
+            .collect()
+    };
+    Ok(FitReport {
+        model: "pinhole (eq 65, 7 parameters)".into(),
+        source: ds.path.display().to_string(),
+        separations: seps,
+        weights,
+        params: map(&|i| sol.x[i]),
+        sigma: map(&|i| sol.sigma[i]),
+        covariance: sol.covariance.transpose().iter().copied().collect(),
+        rms_counts: sol.rms,
+        chi2_dof: sol.variance_factor,
+        iterations: sol.iterations,
+        condition: sol.condition,
+        stop: format!("{:?}", sol.stop),
+        observations: obs.len(),
+        warnings,
+    })
+}
+
+/// Figure 57 for one fit: per separation, the standard deviation over the reports of the
+/// error in angle (eq 67) and the mean CTA angle uncertainty (eq 36, Table 2).
+#[derive(Debug, Clone, Serialize)]
+pub struct Evaluation {
+    /// Separations, inches.
+    pub separation_in: Vec<f64>,
+    /// Standard deviation of the error in angle, degrees.
+    pub angle_std_deg: Vec<f64>,
+    /// Mean error in angle, degrees.
+    pub angle_mean_deg: Vec<f64>,
+    /// Mean CTA angle uncertainty (eq 36 with Table 2), degrees.
+    pub cta_uncertainty_deg: Vec<f64>,
+    /// Reports per separation.
+    pub reports: Vec<usize>,
+    /// "truth" when the file's sidecar gave the true head offset, else "fit" (the angle is
+    /// then measured against the fitted offset and only shows the model's inconsistency).
+    pub reference: String,
+}
+
+/// Evaluate a fit on a dataset; `d_ref` is the true head offset when known.
+pub fn evaluate(x: &Params<f64>, ds: &Dataset, d_ref: Option<Vector3<f64>>) -> Evaluation {
+    let d = d_ref.unwrap_or_else(|| Vector3::new(x[0], x[1], x[2]));
+    let u = uncertainty::rss_inches(&uncertainty::TABLE2);
+    let mut ev = Evaluation {
+        separation_in: Vec::new(),
+        angle_std_deg: Vec::new(),
+        angle_mean_deg: Vec::new(),
+        cta_uncertainty_deg: Vec::new(),
+        reports: Vec::new(),
+        reference: if d_ref.is_some() {
+            "truth".into()
+        } else {
+            "fit".into()
+        },
+    };
+    for sep in ds.separations() {
+        let rows: Vec<_> = ds
+            .samples
+            .iter()
+            .filter(|s| s.separation_in == sep)
+            .collect();
+        let errs: Vec<f64> = rows
+            .iter()
+            .map(|s| collinearity::angle_error(x, [s.x, s.y], &Vector3::from(s.r), &d).to_degrees())
+            .collect();
+        let n = errs.len() as f64;
+        let mean = errs.iter().sum::<f64>() / n;
+        let var = if errs.len() > 1 {
+            errs.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0)
+        } else {
+            0.0
+        };
+        let cta = rows
+            .iter()
+            .map(|s| uncertainty::angle_3d(&(Vector3::from(s.r) - d), u).to_degrees())
+            .sum::<f64>()
+            / n;
+        ev.separation_in.push(sep);
+        ev.angle_std_deg.push(var.sqrt());
+        ev.angle_mean_deg.push(mean);
+        ev.cta_uncertainty_deg.push(cta);
+        ev.reports.push(rows.len());
+    }
+    ev
+}

@@ -1,0 +1,195 @@
+//! Small SVG line charts (plotters' SVG backend: no fonts, no external resources), for the
+//! thesis figures `cta` redraws (Figures 14-24, 40, 57).
+
+use plotters::prelude::*;
+use std::path::Path;
+
+/// One curve.
+#[derive(Debug, Clone)]
+pub struct Series {
+    /// Legend label.
+    pub label: String,
+    /// Points (x, y); non-finite or non-positive-on-log points are dropped.
+    pub points: Vec<(f64, f64)>,
+    /// Draw dashed (e.g. a noise floor or an uncertainty).
+    pub dashed: bool,
+}
+
+impl Series {
+    /// A solid curve.
+    pub fn new(label: impl Into<String>, points: Vec<(f64, f64)>) -> Self {
+        Series {
+            label: label.into(),
+            points,
+            dashed: false,
+        }
+    }
+    /// A dashed curve.
+    pub fn dashed(label: impl Into<String>, points: Vec<(f64, f64)>) -> Self {
+        Series {
+            label: label.into(),
+            points,
+            dashed: true,
+        }
+    }
+}
+
+/// One panel of a figure.
+#[derive(Debug, Clone)]
+pub struct Panel {
+    /// Panel title.
+    pub title: String,
+    /// X axis label.
+    pub x_desc: String,
+    /// Y axis label.
+    pub y_desc: String,
+    /// Logarithmic x.
+    pub log_x: bool,
+    /// Logarithmic y.
+    pub log_y: bool,
+    /// Curves.
+    pub series: Vec<Series>,
+}
+
+const COLORS: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(23, 190, 207),
+];
+
+fn range(vals: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in vals {
+        if v.is_finite() && (!log || v > 0.0) {
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+    }
+    if !lo.is_finite() {
+        return if log { (0.1, 1.0) } else { (0.0, 1.0) };
+    }
+    if log {
+        (lo / 1.2, hi * 1.2)
+    } else if hi == lo {
+        (lo - 1.0, hi + 1.0)
+    } else {
+        let pad = 0.05 * (hi - lo);
+        (lo - pad, hi + pad)
+    }
+}
+
+fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    p: &Panel,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    let keep = |x: f64, y: f64| {
+        x.is_finite() && y.is_finite() && (!p.log_x || x > 0.0) && (!p.log_y || y > 0.0)
+    };
+    let xs = p
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().filter(|q| keep(q.0, q.1)).map(|q| q.0));
+    let ys = p
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().filter(|q| keep(q.0, q.1)).map(|q| q.1));
+    let (x0, x1) = range(xs, p.log_x);
+    let (y0, y1) = range(ys, p.log_y);
+    let mut b = ChartBuilder::on(area);
+    b.caption(&p.title, ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(60);
+    macro_rules! body {
+        ($chart:expr) => {{
+            let mut c = $chart;
+            c.configure_mesh()
+                .x_desc(p.x_desc.as_str())
+                .y_desc(p.y_desc.as_str())
+                .draw()
+                .map_err(e)?;
+            for (k, s) in p.series.iter().enumerate() {
+                let col = COLORS[k % COLORS.len()];
+                let pts: Vec<(f64, f64)> = s
+                    .points
+                    .iter()
+                    .copied()
+                    .filter(|q| keep(q.0, q.1))
+                    .collect();
+                let style = ShapeStyle {
+                    color: col.to_rgba(),
+                    filled: false,
+                    stroke_width: 2,
+                };
+                if s.dashed {
+                    c.draw_series(DashedLineSeries::new(pts, 6, 4, style))
+                        .map_err(e)?
+                        .label(s.label.as_str())
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col));
+                } else {
+                    c.draw_series(LineSeries::new(pts, style))
+                        .map_err(e)?
+                        .label(s.label.as_str())
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col));
+                }
+            }
+            c.configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .position(SeriesLabelPosition::UpperRight)
+                .draw()
+                .map_err(e)?;
+        }};
+    }
+    match (p.log_x, p.log_y) {
+        (false, false) => body!(b.build_cartesian_2d(x0..x1, y0..y1).map_err(e)?),
+        (true, false) => body!(b
+            .build_cartesian_2d((x0..x1).log_scale(), y0..y1)
+            .map_err(e)?),
+        (false, true) => body!(b
+            .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
+            .map_err(e)?),
+        (true, true) => body!(b
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .map_err(e)?),
+    }
+    Ok(())
+}
+
+/// Render panels on a grid (`cols` wide) to an SVG string.
+pub fn render_svg(title: &str, panels: &[Panel], cols: usize) -> Result<String, String> {
+    let cols = cols.max(1);
+    let rows = panels.len().div_ceil(cols).max(1);
+    let (w, h) = (520 * cols as u32, 380 * rows as u32 + 40);
+    let mut buf = String::new();
+    {
+        let root = SVGBackend::with_string(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let root = root
+            .titled(title, ("sans-serif", 20))
+            .map_err(|e| e.to_string())?;
+        let areas = root.split_evenly((rows, cols));
+        for (a, p) in areas.iter().zip(panels) {
+            draw_panel(a, p)?;
+        }
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(buf)
+}
+
+/// Render panels to an SVG file.
+pub fn write_svg(path: &Path, title: &str, panels: &[Panel], cols: usize) -> anyhow::Result<()> {
+    let svg = render_svg(title, panels, cols)
+        .map_err(|e| anyhow::anyhow!("{}: plotting failed: {e}", path.display()))?;
+    std::fs::write(path, svg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(())
+}
