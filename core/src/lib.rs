@@ -27,9 +27,9 @@ pub mod nearfield2d;
 pub mod pattern;
 pub mod uncertainty;
 
-/// Wire protocol shared by the boards and the host (issue: firmware-beacon / firmware-sensor).
-pub mod wire;
-/// Beacon modulation schedule (issue: firmware-beacon).
-pub mod schedule;
 /// On-chip 6-dof pose solution (issue: firmware-sensor).
 pub mod pose;
+/// Beacon modulation schedule (issue: firmware-beacon).
+pub mod schedule;
+/// Wire protocol shared by the boards and the host (issue: firmware-beacon / firmware-sensor).
+pub mod wire;

@@ -44,7 +44,8 @@ pub fn dcm_partials<T: Real>(p: &Vector3<T>) -> [Matrix3<T>; 3] {
     for (i, o) in out.iter_mut().enumerate() {
         let e = skew(&Vector3::ith(i, one));
         let pi = p[i];
-        let num = (e * s + s * e) * T::lit(8.0) - e * (T::lit(4.0) * (one - sig)) + s * (T::lit(8.0) * pi);
+        let num = (e * s + s * e) * T::lit(8.0) - e * (T::lit(4.0) * (one - sig))
+            + s * (T::lit(8.0) * pi);
         *o = num / a2 - f * (T::lit(4.0) * pi / a3);
     }
     out

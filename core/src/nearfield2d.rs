@@ -240,25 +240,53 @@ mod tests {
         let ki = [10.22, 26.76, 33.08, 23.39];
         for i in 0..4 {
             let th = rad(thetas[i]);
-            let cp = m.crossing_distance(Effect::Proximity, th, noise, 0.6).unwrap();
-            let ci = m.crossing_distance(Effect::Intensity, th, noise, 0.6).unwrap();
-            let cc = m.crossing_distance(Effect::Combined, th, noise, 0.6).unwrap();
+            let cp = m
+                .crossing_distance(Effect::Proximity, th, noise, 0.6)
+                .unwrap();
+            let ci = m
+                .crossing_distance(Effect::Intensity, th, noise, 0.6)
+                .unwrap();
+            let cc = m
+                .crossing_distance(Effect::Combined, th, noise, 0.6)
+                .unwrap();
             assert!(within(cp, prox[i], 0.02), "proximity {} -> {cp}", thetas[i]);
-            assert!(within(ci, inten[i], 0.02), "intensity {} -> {ci}", thetas[i]);
+            assert!(
+                within(ci, inten[i], 0.02),
+                "intensity {} -> {ci}",
+                thetas[i]
+            );
             assert!(within(cc, comb[i], 0.03), "combined {} -> {cc}", thetas[i]);
             let fp = m.far_field_coeff_deg(Effect::Proximity, th);
             let fi = m.far_field_coeff_deg(Effect::Intensity, th);
-            assert!(within(fp, kp[i], 0.005), "coeff proximity {} -> {fp}", thetas[i]);
-            assert!(within(fi, ki[i], 0.005), "coeff intensity {} -> {fi}", thetas[i]);
+            assert!(
+                within(fp, kp[i], 0.005),
+                "coeff proximity {} -> {fp}",
+                thetas[i]
+            );
+            assert!(
+                within(fi, ki[i], 0.005),
+                "coeff intensity {} -> {fi}",
+                thetas[i]
+            );
         }
         // Ratios at 6 deg: proximity/non-uniform 2.07, intensity/non-uniform 3.10 (5 %).
         let th = rad(6.0);
         let kn = m.far_field_coeff_deg(Effect::Pattern, th);
-        assert!(within(m.far_field_coeff_deg(Effect::Proximity, th) / kn, 2.07, 0.05));
-        assert!(within(m.far_field_coeff_deg(Effect::Intensity, th) / kn, 3.10, 0.05));
+        assert!(within(
+            m.far_field_coeff_deg(Effect::Proximity, th) / kn,
+            2.07,
+            0.05
+        ));
+        assert!(within(
+            m.far_field_coeff_deg(Effect::Intensity, th) / kn,
+            3.10,
+            0.05
+        ));
         // With the Lambertian default the combined crossing at 6 deg is 221.7 D.
         let ml = Model2d::<f64>::thesis(Pattern::vsml3710());
-        let cl = ml.crossing_distance(Effect::Combined, th, noise, 0.6).unwrap();
+        let cl = ml
+            .crossing_distance(Effect::Combined, th, noise, 0.6)
+            .unwrap();
         assert!(within(cl, 221.7, 0.03), "lambertian combined -> {cl}");
     }
 }

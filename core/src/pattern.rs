@@ -79,7 +79,8 @@ impl<T: Real> Pattern<T> {
 #[inline]
 pub fn quartic_eq17<T: Real>(g: T) -> T {
     let g2 = g * g;
-    T::lit(-4e-7) * g2 * g2 - T::lit(4e-6) * g2 * g + T::lit(5e-5) * g2 - T::lit(1e-3) * g + T::one()
+    T::lit(-4e-7) * g2 * g2 - T::lit(4e-6) * g2 * g + T::lit(5e-5) * g2 - T::lit(1e-3) * g
+        + T::one()
 }
 
 #[cfg(test)]
