@@ -1,0 +1,15 @@
+//! Beacon-board firmware entry point (wiring only; the logic is in the library).
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod chip;
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!(
+        "cta-firmware-beacon runs on the STM32F103ZET6: build it with \
+         `cargo build --release` (or flash with `cargo run --release`) from firmware-beacon/, \
+         or use `cta beacon sim` for the simulated board"
+    );
+    std::process::exit(2);
+}
