@@ -1,0 +1,531 @@
+//! The sensor board's logic: PC requests in, NorthStar frames in, replies, spot reports
+//! and poses out. Hardware-free: the chip's `main.rs` and the simulated board drive the
+//! same [`Board`] through [`Io`].
+
+use cta_core::pose::{
+    Calibration, Constellation, ModelKind, PoseSolver, PoseStatus, SolverSettings,
+};
+use cta_core::wire::sensor::{
+    Mode, NorthStarStats, PoseReport, SensorConfig, SensorError, SensorRequest, SensorResponse,
+    SensorStatus, SpotReport, RATE_RANGE, SENSITIVITY_RANGE,
+};
+use cta_core::wire::{
+    encode_frame, BoardKind, ErrorReply, FrameDecoder, Header, Identity, Reply, Request, Response,
+    MAX_FRAME, PROTOCOL_VERSION, SEQ_NONE,
+};
+use serde::{Deserialize, Serialize};
+
+use crate::northstar::{self, NsCommand, NsDecoder, NsEvent, SpotFrame};
+use crate::storage::{self, FlashPages};
+
+/// Largest frame the board sends (a full constellation read-back fits with room to spare).
+pub const TX_FRAME: usize = 512;
+
+/// What the board needs from its surroundings.
+pub trait Io {
+    /// Monotonic board time, microseconds since reset.
+    fn now_us(&mut self) -> u64;
+    /// Send a frame to the PC; `false` if it had to be dropped.
+    fn send_pc(&mut self, bytes: &[u8]) -> bool;
+    /// Send bytes to the NorthStar.
+    fn send_ns(&mut self, bytes: &[u8]);
+}
+
+/// What is kept in flash.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Stored {
+    /// The sensor calibration.
+    pub calibration: Option<Calibration>,
+    /// The beacon constellation.
+    pub constellation: Option<Constellation>,
+}
+
+type SensorReply = Reply<SensorResponse, SensorError>;
+
+/// The sensor board.
+pub struct Board<F: FlashPages> {
+    flash: F,
+    simulated: bool,
+    pc: FrameDecoder<MAX_FRAME>,
+    ns: NsDecoder,
+    mode: Mode,
+    sensitivity: u8,
+    rate_hz: u8,
+    stored: Stored,
+    generation: u32,
+    solver: Option<PoseSolver<f32>>,
+    reports: u32,
+    dropped: u32,
+    refused: u32,
+    last_host_us: u64,
+    last_pose: Option<PoseStatus>,
+}
+
+impl<F: FlashPages> Board<F> {
+    /// Start the board: load the stored configuration (if any) from `flash`.
+    pub fn new(flash: F, simulated: bool) -> Self {
+        let (generation, stored) = storage::load::<Stored, F>(&flash).unwrap_or_default();
+        Board {
+            flash,
+            simulated,
+            pc: FrameDecoder::new(),
+            ns: NsDecoder::new(),
+            mode: Mode::Idle,
+            sensitivity: 4,
+            rate_hz: 10,
+            stored,
+            generation,
+            solver: None,
+            reports: 0,
+            dropped: 0,
+            refused: 0,
+            last_host_us: 0,
+            last_pose: None,
+        }
+    }
+
+    /// Commands to send the NorthStar at start-up (sensitivity and rate in force).
+    pub fn start(&mut self, io: &mut impl Io) {
+        self.command_ns(NsCommand::SetSensitivity(self.sensitivity), io);
+        self.command_ns(NsCommand::SetRate(self.rate_hz), io);
+    }
+
+    /// The stored configuration.
+    pub fn stored(&self) -> &Stored {
+        &self.stored
+    }
+
+    /// The current mode.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// Bytes received from the PC.
+    pub fn on_pc_bytes(&mut self, bytes: &[u8], io: &mut impl Io) {
+        for &b in bytes {
+            let Some(frame) = self.pc.push::<Request<SensorRequest>>(b) else {
+                continue;
+            };
+            self.last_host_us = io.now_us();
+            let (seq, reply) = match frame {
+                Ok((h, req)) => (h.seq, self.handle(req, io)),
+                Err(e) => (e.seq, Err(ErrorReply::BadFrame(e.fault))),
+            };
+            if reply.is_err() {
+                self.refused = self.refused.saturating_add(1);
+            }
+            self.send(seq, &reply, io);
+        }
+    }
+
+    /// Bytes received from the NorthStar.
+    pub fn on_ns_bytes(&mut self, bytes: &[u8], io: &mut impl Io) {
+        let mut ns = core::mem::take(&mut self.ns);
+        ns.feed(bytes, |ev| {
+            if let NsEvent::Report(frame) = ev {
+                self.on_frame(&frame, io);
+            }
+        });
+        self.ns = ns;
+    }
+
+    fn send(&mut self, seq: u16, reply: &SensorReply, io: &mut impl Io) -> bool {
+        let mut buf = [0u8; TX_FRAME];
+        let ok = match encode_frame(Header::new(seq), reply, &mut buf) {
+            Ok(frame) => io.send_pc(frame),
+            Err(_) => false,
+        };
+        if !ok {
+            self.dropped = self.dropped.saturating_add(1);
+        }
+        ok
+    }
+
+    fn command_ns(&mut self, cmd: NsCommand, io: &mut impl Io) {
+        let mut out = [0u8; 7];
+        let n = northstar::encode_command(cmd, &mut out);
+        io.send_ns(&out[..n]);
+    }
+
+    fn handle(&mut self, req: Request<SensorRequest>, io: &mut impl Io) -> SensorReply {
+        match req {
+            Request::Identify => Ok(Response::Identity(Identity {
+                board: BoardKind::Sensor,
+                protocol: PROTOCOL_VERSION,
+                firmware: heapless::String::try_from(env!("CARGO_PKG_VERSION")).unwrap_or_default(),
+                simulated: self.simulated,
+                max_frame: MAX_FRAME as u16,
+            })),
+            Request::Heartbeat => Ok(Response::Ack),
+            Request::Board(r) => self.handle_board(r, io).map_err(ErrorReply::Board),
+        }
+    }
+
+    fn handle_board(
+        &mut self,
+        req: SensorRequest,
+        io: &mut impl Io,
+    ) -> Result<Response<SensorResponse>, SensorError> {
+        match req {
+            SensorRequest::Status => Ok(Response::Board(SensorResponse::Status(self.status(io)))),
+            SensorRequest::GetConfig => Ok(Response::Board(SensorResponse::Config(SensorConfig {
+                generation: self.generation,
+                calibration: self.stored.calibration,
+                constellation: self.stored.constellation.clone(),
+            }))),
+            SensorRequest::SetMode(mode) => {
+                if let Mode::Pose(model) = mode {
+                    self.solver = Some(self.build_solver(model)?);
+                } else {
+                    self.solver = None;
+                }
+                self.mode = mode;
+                Ok(Response::Ack)
+            }
+            SensorRequest::SetSensitivity(s) => {
+                if !(SENSITIVITY_RANGE.0..=SENSITIVITY_RANGE.1).contains(&s) {
+                    return Err(SensorError::SensitivityOutOfRange { got: s });
+                }
+                self.sensitivity = s;
+                self.command_ns(NsCommand::SetSensitivity(s), io);
+                Ok(Response::Ack)
+            }
+            SensorRequest::SetRate(r) => {
+                if !(RATE_RANGE.0..=RATE_RANGE.1).contains(&r) {
+                    return Err(SensorError::RateOutOfRange { got: r });
+                }
+                self.rate_hz = r;
+                self.command_ns(NsCommand::SetRate(r), io);
+                Ok(Response::Ack)
+            }
+            SensorRequest::LoadCalibration(cal) => {
+                cal.validate()?;
+                let mut next = self.stored.clone();
+                next.calibration = Some(cal);
+                self.store(next)?;
+                Ok(Response::Ack)
+            }
+            SensorRequest::LoadConstellation(con) => {
+                con.validate()?;
+                let mut next = self.stored.clone();
+                next.constellation = Some(con);
+                self.store(next)?;
+                Ok(Response::Ack)
+            }
+        }
+    }
+
+    fn build_solver(&self, model: ModelKind) -> Result<PoseSolver<f32>, SensorError> {
+        match (&self.stored.calibration, &self.stored.constellation) {
+            (Some(cal), Some(con)) => {
+                let settings = SolverSettings {
+                    model,
+                    ..SolverSettings::default()
+                };
+                Ok(PoseSolver::new(cal, con, settings)?)
+            }
+            (cal, con) => Err(SensorError::NotConfigured {
+                calibration: cal.is_some(),
+                constellation: con.is_some(),
+            }),
+        }
+    }
+
+    fn store(&mut self, next: Stored) -> Result<(), SensorError> {
+        self.generation = storage::save(&mut self.flash, &next).map_err(|_| SensorError::Flash)?;
+        self.stored = next;
+        // A new configuration invalidates the solver (and its warm start).
+        if let Mode::Pose(model) = self.mode {
+            match self.build_solver(model) {
+                Ok(s) => self.solver = Some(s),
+                Err(_) => {
+                    self.solver = None;
+                    self.mode = Mode::Idle;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn status(&mut self, io: &mut impl Io) -> SensorStatus {
+        let now = io.now_us();
+        let ns = self.ns.stats();
+        SensorStatus {
+            uptime_ms: now / 1000,
+            mode: self.mode,
+            sensitivity: self.sensitivity,
+            rate_hz: self.rate_hz,
+            calibrated: self.stored.calibration.is_some(),
+            constellation: self.stored.constellation.is_some(),
+            config_generation: self.generation,
+            pc: *self.pc.stats(),
+            northstar: NorthStarStats {
+                frames: ns.frames,
+                crc_errors: ns.crc_errors,
+                discarded: ns.discarded,
+            },
+            reports: self.reports,
+            dropped: self.dropped,
+            refused: self.refused,
+            since_host_ms: (now.saturating_sub(self.last_host_us) / 1000).min(u32::MAX as u64)
+                as u32,
+            last_pose: self.last_pose,
+        }
+    }
+
+    fn on_frame(&mut self, frame: &SpotFrame, io: &mut impl Io) {
+        let t_us = io.now_us();
+        let seq = self.reports;
+        let body = match self.mode {
+            Mode::Idle => return,
+            Mode::Stream => SensorResponse::Spots(SpotReport {
+                seq,
+                t_us,
+                ns_seq: frame.seq,
+                sensitivity: frame.sensitivity,
+                spots: frame.spots.clone(),
+            }),
+            Mode::Pose(model) => {
+                let Some(solver) = self.solver.as_mut() else {
+                    return;
+                };
+                let sol = solver.solve(&frame.spots);
+                let solve_us = io.now_us().saturating_sub(t_us).min(u32::MAX as u64) as u32;
+                self.last_pose = Some(sol.status);
+                let a = |v: nalgebra::Vector3<f32>| [v.x, v.y, v.z];
+                SensorResponse::Pose(PoseReport {
+                    seq,
+                    t_us,
+                    ns_seq: frame.seq,
+                    model,
+                    status: sol.status,
+                    position: a(sol.position),
+                    mrp: a(sol.mrp),
+                    sigma_position: a(sol.sigma_position),
+                    sigma_attitude_deg: a(sol.sigma_attitude_deg),
+                    rms: sol.rms,
+                    condition: sol.condition,
+                    iterations: sol.iterations,
+                    beacons: sol.beacons,
+                    cold_start: sol.cold_start,
+                    solve_us,
+                })
+            }
+        };
+        self.reports = self.reports.wrapping_add(1);
+        self.send(SEQ_NONE, &Ok(Response::Board(body)), io);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::storage::RamFlash;
+    use cta_core::pose::{cta_constellation, Beacon, CalField, ConfigError, Spot};
+    use std::vec::Vec;
+
+    type Frame = (Header, SensorReply);
+
+    #[derive(Default)]
+    struct FakeIo {
+        t: u64,
+        pc: Vec<u8>,
+        ns: Vec<u8>,
+    }
+
+    impl Io for FakeIo {
+        fn now_us(&mut self) -> u64 {
+            self.t += 10;
+            self.t
+        }
+        fn send_pc(&mut self, bytes: &[u8]) -> bool {
+            self.pc.extend_from_slice(bytes);
+            true
+        }
+        fn send_ns(&mut self, bytes: &[u8]) {
+            self.ns.extend_from_slice(bytes);
+        }
+    }
+
+    fn replies(io: &mut FakeIo) -> Vec<Frame> {
+        let mut d = FrameDecoder::<MAX_FRAME>::new();
+        let out = io
+            .pc
+            .iter()
+            .filter_map(|&b| d.push::<SensorReply>(b))
+            .map(|r| r.expect("board frames decode"))
+            .collect();
+        io.pc.clear();
+        out
+    }
+
+    fn request(
+        board: &mut Board<RamFlash>,
+        io: &mut FakeIo,
+        seq: u16,
+        r: SensorRequest,
+    ) -> SensorReply {
+        let mut buf = [0u8; MAX_FRAME];
+        let f = encode_frame(Header::new(seq), &Request::Board(r), &mut buf).unwrap();
+        board.on_pc_bytes(f, io);
+        let mut got = replies(io);
+        assert_eq!(got.len(), 1);
+        let (h, reply) = got.pop().unwrap();
+        assert_eq!(h.seq, seq);
+        reply
+    }
+
+    #[test]
+    fn refuses_bad_configurations_by_name() {
+        let mut b = Board::new(RamFlash::default(), false);
+        let mut io = FakeIo::default();
+        let mut con = cta_constellation();
+        con.beacons[2].id = con.beacons[0].id;
+        let r = request(&mut b, &mut io, 1, SensorRequest::LoadConstellation(con));
+        assert_eq!(
+            r,
+            Err(ErrorReply::Board(SensorError::Config(
+                ConfigError::DuplicateId { id: 0 }
+            )))
+        );
+        let mut con = cta_constellation();
+        con.beacons.truncate(3);
+        let r = request(&mut b, &mut io, 2, SensorRequest::LoadConstellation(con));
+        assert!(matches!(
+            r,
+            Err(ErrorReply::Board(SensorError::Config(
+                ConfigError::TooFewBeacons { count: 3, .. }
+            )))
+        ));
+        let mut cal = Calibration::table3();
+        cal.d[2] = 40.0;
+        let r = request(&mut b, &mut io, 3, SensorRequest::LoadCalibration(cal));
+        assert_eq!(
+            r,
+            Err(ErrorReply::Board(SensorError::Config(
+                ConfigError::CalibrationOutOfRange { field: CalField::D }
+            )))
+        );
+        let r = request(
+            &mut b,
+            &mut io,
+            4,
+            SensorRequest::SetMode(Mode::Pose(ModelKind::NearField)),
+        );
+        assert_eq!(
+            r,
+            Err(ErrorReply::Board(SensorError::NotConfigured {
+                calibration: false,
+                constellation: false
+            }))
+        );
+        let r = request(&mut b, &mut io, 5, SensorRequest::SetSensitivity(5));
+        assert_eq!(
+            r,
+            Err(ErrorReply::Board(SensorError::SensitivityOutOfRange {
+                got: 5
+            }))
+        );
+    }
+
+    #[test]
+    fn configuration_survives_a_reset_and_poses_are_reported() {
+        let mut b = Board::new(RamFlash::default(), false);
+        let mut io = FakeIo::default();
+        let con = cta_constellation();
+        assert_eq!(
+            request(
+                &mut b,
+                &mut io,
+                1,
+                SensorRequest::LoadConstellation(con.clone())
+            ),
+            Ok(Response::Ack)
+        );
+        assert_eq!(
+            request(
+                &mut b,
+                &mut io,
+                2,
+                SensorRequest::LoadCalibration(Calibration::table3())
+            ),
+            Ok(Response::Ack)
+        );
+        // Reset: a new board on the same flash.
+        let flash = b.flash.clone();
+        let mut b = Board::new(flash, false);
+        assert_eq!(b.stored().constellation.as_ref(), Some(&con));
+        assert_eq!(
+            request(
+                &mut b,
+                &mut io,
+                3,
+                SensorRequest::SetMode(Mode::Pose(ModelKind::Pinhole))
+            ),
+            Ok(Response::Ack)
+        );
+        // A far-field-ish frame: target 20 in away, spots from the pinhole model.
+        let solver = PoseSolver::<f64>::new(
+            &Calibration::table3(),
+            &con,
+            SolverSettings {
+                model: ModelKind::Pinhole,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let x = nalgebra::SVector::<f64, 6>::new(0.1, 0.2, 20.0, 0.0, 0.0, 0.0);
+        let mut frame = SpotFrame {
+            seq: 7,
+            sensitivity: 4,
+            spots: heapless::Vec::new(),
+        };
+        for Beacon { id, r } in &con.beacons {
+            let r = nalgebra::Vector3::new(r[0] as f64, r[1] as f64, r[2] as f64);
+            let y = solver.predict(&x, &r).unwrap();
+            frame
+                .spots
+                .push(Spot {
+                    id: *id,
+                    x: y[0].round() as i16,
+                    y: y[1].round() as i16,
+                    magnitude: 9000,
+                })
+                .unwrap();
+        }
+        let mut bytes = [0u8; northstar::MAX_FRAME];
+        let n = northstar::encode_report(&frame, &mut bytes);
+        // Line noise first: the board must still find the frame.
+        b.on_ns_bytes(&[0xA5, 0x5A, 0x01, 0x30, 0x00, 0x13], &mut io);
+        b.on_ns_bytes(&bytes[..n], &mut io);
+        let got = replies(&mut io);
+        assert_eq!(got.len(), 1);
+        assert_eq!(got[0].0.seq, SEQ_NONE);
+        match &got[0].1 {
+            Ok(Response::Board(SensorResponse::Pose(p))) => {
+                assert_eq!(p.status, PoseStatus::Ok, "{p:?}");
+                assert_eq!(p.ns_seq, 7);
+                assert!((p.position[2] - 20.0).abs() < 0.05, "{p:?}");
+            }
+            other => panic!("expected a pose, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn bad_frames_are_answered_and_counted() {
+        let mut b = Board::new(RamFlash::default(), false);
+        let mut io = FakeIo::default();
+        b.on_pc_bytes(&[0, 1, 2, 3, 4, 5, 6, 0], &mut io);
+        let got = replies(&mut io);
+        assert_eq!(got.len(), 1);
+        assert!(matches!(got[0].1, Err(ErrorReply::BadFrame(_))));
+        match request(&mut b, &mut io, 9, SensorRequest::Status) {
+            Ok(Response::Board(SensorResponse::Status(s))) => {
+                assert_eq!(s.pc.bad(), 1);
+                assert_eq!(s.refused, 1);
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+}

@@ -1,0 +1,292 @@
+//! The simulated sensor board (feature `sim`): the firmware's [`Board`] behind a
+//! pseudo-terminal, fed by a simulated NorthStar that emits frames of the assumed format
+//! ([`crate::northstar`]) from the core emulator (eqs 60-63) for a given target pose and
+//! beacon set. The host (`cta sensor --sim`) and the end-to-end tests talk to it exactly as
+//! to the real board, over the pty's path.
+
+use std::io::{Read, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use cta_core::emulator::{Effects, Emulator, Head, Pose as HeadPose};
+use cta_core::pose::{simulate_spots, Calibration, Constellation};
+use nalgebra::Vector3;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, Normal};
+use serialport::{SerialPort, TTYPort};
+
+use crate::board::{Board, Io};
+use crate::northstar::{self, NsCommand, SpotFrame, MAX_FRAME};
+use crate::storage::RamFlash;
+
+/// The simulated NorthStar: true physics, true beacon positions, the target's true pose.
+#[derive(Debug, Clone)]
+pub struct SimNorthStar {
+    /// The head on the board with the eq 63 physics (the truth).
+    pub physics: Emulator<f64>,
+    /// True constellation (beacon positions in the target frame, channels).
+    pub constellation: Constellation,
+    /// True target position in N, inches.
+    pub t: Vector3<f64>,
+    /// True target attitude (MRP, N -> T).
+    pub q: Vector3<f64>,
+    /// Gaussian noise on each coordinate, counts (1-sigma).
+    pub noise: f64,
+    /// Probability that a burst of random bytes precedes a frame (line noise).
+    pub garbage: f64,
+    /// Report rate, Hz (set by the board's rate command).
+    pub rate_hz: u8,
+    /// Sensitivity setting (set by the board's command; echoed in the frames).
+    pub sensitivity: u8,
+    seq: u8,
+    rng: StdRng,
+}
+
+impl SimNorthStar {
+    /// A NorthStar mounted with `cal`'s head pose and near-field parameters (true physics:
+    /// proximity, intensity, Lambertian beacon), seeing `constellation` at `(t, q)`.
+    pub fn new(
+        cal: &Calibration,
+        constellation: Constellation,
+        t: Vector3<f64>,
+        q: Vector3<f64>,
+        noise: f64,
+        seed: u64,
+    ) -> Self {
+        SimNorthStar {
+            physics: physics(cal),
+            constellation,
+            t,
+            q,
+            noise,
+            garbage: 0.0,
+            rate_hz: 10,
+            sensitivity: 4,
+            seq: 0,
+            rng: StdRng::seed_from_u64(seed),
+        }
+    }
+
+    /// The next frame's bytes (with line noise before it, if configured).
+    pub fn next_frame(&mut self) -> Vec<u8> {
+        let normal = Normal::new(0.0, self.noise.max(0.0)).expect("finite sigma");
+        let rng = &mut self.rng;
+        let spots = simulate_spots(&self.physics, &self.constellation, &self.t, &self.q, |_| {
+            normal.sample(rng)
+        });
+        let frame = SpotFrame {
+            seq: self.seq,
+            sensitivity: self.sensitivity,
+            spots,
+        };
+        self.seq = self.seq.wrapping_add(1);
+        let mut out = Vec::new();
+        if self.rng.random::<f64>() < self.garbage {
+            let n = self.rng.random_range(1..40);
+            out.extend((0..n).map(|_| self.rng.random::<u8>()));
+        }
+        let mut buf = [0u8; MAX_FRAME];
+        let n = northstar::encode_report(&frame, &mut buf);
+        out.extend_from_slice(&buf[..n]);
+        out
+    }
+
+    /// Handle command bytes from the board; returns the acknowledgement frames.
+    pub fn on_command_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        for cmd in bytes.chunks(7) {
+            let Some(c) = northstar::decode_command(cmd) else {
+                continue;
+            };
+            let (kind, ok) = match c {
+                NsCommand::SetSensitivity(s) => {
+                    let ok = (1..=4).contains(&s);
+                    if ok {
+                        self.sensitivity = s;
+                    }
+                    (0x10, ok)
+                }
+                NsCommand::SetRate(r) => {
+                    let ok = (1..=50).contains(&r);
+                    if ok {
+                        self.rate_hz = r;
+                    }
+                    (0x11, ok)
+                }
+            };
+            let mut a = [0u8; 8];
+            let n = northstar::encode_ack(kind, if ok { 0 } else { 1 }, &mut a);
+            out.extend_from_slice(&a[..n]);
+        }
+        out
+    }
+}
+
+/// The true physics for a calibration: head pose `d, p`, near-field geometry (nominal if
+/// absent), proximity + intensity + Lambertian beacon.
+pub fn physics(cal: &Calibration) -> Emulator<f64> {
+    let nf = cal
+        .near_field
+        .unwrap_or(cta_core::pose::NearField::nominal());
+    let a = (nf.alpha_deg as f64).to_radians();
+    let head = Head {
+        alpha_x: a,
+        alpha_y: a,
+        s: nf.s as f64,
+        beta: nf.beta as f64,
+    };
+    let v = |a: [f32; 3]| Vector3::new(a[0] as f64, a[1] as f64, a[2] as f64);
+    let effects = Effects {
+        pattern: cta_core::pattern::Pattern::Lambertian {
+            m: nf.pattern_m as f64,
+        },
+        ..Effects::default()
+    };
+    Emulator::new(
+        head,
+        HeadPose {
+            d: v(cal.d),
+            p: v(cal.p),
+        },
+        effects,
+    )
+}
+
+struct SimIo<'a> {
+    port: &'a mut TTYPort,
+    start: Instant,
+    to_ns: Vec<u8>,
+}
+
+impl Io for SimIo<'_> {
+    fn now_us(&mut self) -> u64 {
+        self.start.elapsed().as_micros() as u64
+    }
+    fn send_pc(&mut self, bytes: &[u8]) -> bool {
+        self.port.write_all(bytes).is_ok()
+    }
+    fn send_ns(&mut self, bytes: &[u8]) {
+        self.to_ns.extend_from_slice(bytes);
+    }
+}
+
+/// A running simulated board. Dropping it stops the board thread.
+pub struct SimBoard {
+    path: String,
+    stop: Arc<AtomicBool>,
+    northstar: Arc<Mutex<SimNorthStar>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl SimBoard {
+    /// Start the board (empty flash) behind a new pseudo-terminal.
+    pub fn spawn(northstar: SimNorthStar) -> std::io::Result<Self> {
+        Self::spawn_with_flash(northstar, RamFlash::default())
+    }
+
+    /// Start the board with the given flash contents (e.g. a previous run's).
+    pub fn spawn_with_flash(northstar: SimNorthStar, flash: RamFlash) -> std::io::Result<Self> {
+        let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::other)?;
+        let path = slave
+            .name()
+            .ok_or_else(|| std::io::Error::other("pseudo-terminal has no name"))?;
+        master
+            .set_timeout(Duration::from_millis(2))
+            .map_err(std::io::Error::other)?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let ns = Arc::new(Mutex::new(northstar));
+        let (stop2, ns2) = (stop.clone(), ns.clone());
+        let thread = std::thread::Builder::new()
+            .name("sim-sensor-board".into())
+            .spawn(move || run(master, slave, flash, ns2, stop2))?;
+        Ok(SimBoard {
+            path,
+            stop,
+            northstar: ns,
+            thread: Some(thread),
+        })
+    }
+
+    /// Path of the pseudo-terminal to open (like `/dev/ttyUSB0` for the real board).
+    pub fn path(&self) -> &str {
+        &self.path
+    }
+
+    /// Change the simulated NorthStar (e.g. move the target).
+    pub fn with_northstar<R>(&self, f: impl FnOnce(&mut SimNorthStar) -> R) -> R {
+        let mut g = self.northstar.lock().unwrap_or_else(|e| e.into_inner());
+        f(&mut g)
+    }
+}
+
+impl Drop for SimBoard {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn run(
+    mut master: TTYPort,
+    _slave: TTYPort,
+    flash: RamFlash,
+    ns: Arc<Mutex<SimNorthStar>>,
+    stop: Arc<AtomicBool>,
+) {
+    let mut board = Board::new(flash, true);
+    let start = Instant::now();
+    let mut next_frame = Instant::now();
+    let mut buf = [0u8; 256];
+    {
+        let mut io = SimIo {
+            port: &mut master,
+            start,
+            to_ns: Vec::new(),
+        };
+        board.start(&mut io);
+        let to_ns = std::mem::take(&mut io.to_ns);
+        let acks = ns
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .on_command_bytes(&to_ns);
+        board.on_ns_bytes(&acks, &mut io);
+    }
+    while !stop.load(Ordering::Relaxed) {
+        let n = match master.read(&mut buf) {
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => 0,
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => 0,
+            Err(_) => {
+                // No client attached (EIO on a pty master): wait and retry.
+                std::thread::sleep(Duration::from_millis(5));
+                0
+            }
+        };
+        let mut io = SimIo {
+            port: &mut master,
+            start,
+            to_ns: Vec::new(),
+        };
+        board.on_pc_bytes(&buf[..n], &mut io);
+        let mut g = ns.lock().unwrap_or_else(|e| e.into_inner());
+        if !io.to_ns.is_empty() {
+            let to_ns = std::mem::take(&mut io.to_ns);
+            let acks = g.on_command_bytes(&to_ns);
+            board.on_ns_bytes(&acks, &mut io);
+        }
+        if Instant::now() >= next_frame {
+            let bytes = g.next_frame();
+            next_frame += Duration::from_secs_f64(1.0 / g.rate_hz.max(1) as f64);
+            if next_frame < Instant::now() {
+                next_frame = Instant::now();
+            }
+            drop(g);
+            board.on_ns_bytes(&bytes, &mut io);
+        }
+    }
+}
