@@ -19,3 +19,5 @@ pub mod measurement;
 pub mod plot;
 /// Emulated CTA data with injectable effects and a truth sidecar.
 pub mod simulate;
+/// `cta demo`: the main job on the simulated CTA.
+pub mod demo;

@@ -40,6 +40,10 @@ enum Cmd {
     /// Ch V: the error in angle of a saved fit per separation (eq 67), the Figure 57 curve,
     /// against the truth when the data carries it.
     Evaluate(commands::EvaluateArgs),
+    /// The main job on the built-in simulated CTA (no hardware): near-field errors,
+    /// uncertainty, a simulated characterization with a hidden effect, calibration and
+    /// evaluation, with plots, in one folder.
+    Demo(cta_host::demo::DemoArgs),
 }
 
 fn main() {
@@ -50,6 +54,7 @@ fn main() {
         Cmd::Simulate(a) => commands::simulate(a),
         Cmd::Fit(a) => commands::fit_cmd(a),
         Cmd::Evaluate(a) => commands::evaluate_cmd(a),
+        Cmd::Demo(a) => cta_host::demo::run(a),
     };
     if let Err(e) = r {
         eprintln!("cta: error: {e:#}");

@@ -1,6 +1,7 @@
 //! Small SVG line charts (plotters' SVG backend: no fonts, no external resources), for the
 //! thesis figures `cta` redraws (Figures 14-24, 40, 57).
 
+use plotters::coord::combinators::BindKeyPoints;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -153,16 +154,50 @@ where
     match (p.log_x, p.log_y) {
         (false, false) => body!(b.build_cartesian_2d(x0..x1, y0..y1).map_err(e)?),
         (true, false) => body!(b
-            .build_cartesian_2d((x0..x1).log_scale(), y0..y1)
+            .build_cartesian_2d((x0..x1).log_scale().with_key_points(log_keys(x0, x1)), y0..y1)
             .map_err(e)?),
         (false, true) => body!(b
-            .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
+            .build_cartesian_2d(x0..x1, (y0..y1).log_scale().with_key_points(log_keys(y0, y1)))
             .map_err(e)?),
         (true, true) => body!(b
-            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .build_cartesian_2d((x0..x1).log_scale().with_key_points(log_keys(x0, x1)), (y0..y1).log_scale().with_key_points(log_keys(y0, y1)))
             .map_err(e)?),
     }
     Ok(())
+}
+
+/// Tick positions on a log axis: 1, 2, 5 per decade (1 per decade over wide ranges).
+fn log_keys(lo: f64, hi: f64) -> Vec<f64> {
+    let (a, b) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+    let mult: &[f64] = if b - a > 4 { &[1.0] } else { &[1.0, 2.0, 5.0] };
+    let mut v = Vec::new();
+    for k in a..=b {
+        for m in mult {
+            let x: f64 = format!("{m}e{k}").parse().unwrap_or(f64::NAN);
+            if x >= lo && x <= hi {
+                v.push(x);
+            }
+        }
+    }
+    v
+}
+
+/// A tick label with at most 3 significant digits and no float noise.
+pub fn tick(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let mag = v.abs().log10().floor() as i32;
+    if !(-3..5).contains(&mag) {
+        return format!("{v:.1e}");
+    }
+    let decimals = (2 - mag).max(0) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
 }
 
 /// Render panels on a grid (`cols` wide) to an SVG string.
