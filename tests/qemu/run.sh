@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# Build one measurement program of this harness, run it under QEMU (lm3s6965evb,
+# Cortex-M3) one instruction per translation block with an execution trace, and
+# print the number of instructions executed per segment: from each call of
+# `qemu_mark` to the next (the last one ends at `qemu_done`).
+#
+#   usage: tests/qemu/run.sh BIN        e.g. tests/qemu/run.sh beacon_tick
+#
+# Output: the program's own output, then a line
+#   BIN: segments=N overhead=O mean=M max=X min=Y (instructions per segment, marker overhead subtracted)
+# where the overhead O (instructions of an empty segment: the first segments of every
+# program are empty on purpose) has been subtracted from mean/max/min.
+# Needs qemu-system-arm, the thumbv7m-none-eabi target and llvm-tools (installed here
+# if missing). Set CARGO_TARGET_DIR to share a target dir.
+set -euo pipefail
+bin=${1:?usage: run.sh BIN}
+here=$(cd "$(dirname "$0")" && pwd)
+cd "$here"
+rustup target add thumbv7m-none-eabi >/dev/null 2>&1 || true
+rustup component add llvm-tools >/dev/null 2>&1 || true
+command -v qemu-system-arm >/dev/null || { echo "run.sh: qemu-system-arm not found" >&2; exit 1; }
+cargo build --release --quiet --bin "$bin"
+target_dir=${CARGO_TARGET_DIR:-$here/target}
+elf="$target_dir/thumbv7m-none-eabi/release/$bin"
+nm="$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin/llvm-nm"
+addr() { "$nm" "$elf" | awk -v s="$1" '$3 == s { print $1 }'; }
+mark=$(addr qemu_mark)
+done_=$(addr qemu_done)
+[ -n "$mark" ] && [ -n "$done_" ] && [ "$mark" != "$done_" ] || { echo "run.sh: markers not found in $elf" >&2; exit 1; }
+# Trace lines look like: "Trace 0: 0x7f... [00800400/00000d94/00000110/ff000201] symbol";
+# the second field in brackets is the guest PC.
+fifo=$(mktemp -u); mkfifo "$fifo"; trap 'rm -f "$fifo"' EXIT
+awk -v mark="$mark" -v done_="$done_" -v bin="$bin" '
+  function close_seg() { if (open) { segs[++n] = count } }
+  /^Trace/ {
+    split($0, a, "["); split(a[2], f, "/"); pc = f[2]
+    if (open) count++
+    if (pc == mark) { close_seg(); open = 1; count = 0 }
+    else if (pc == done_) { close_seg(); open = 0 }
+    next
+  }
+  END {
+    if (n == 0) { print bin ": no segments found" > "/dev/stderr"; exit 1 }
+    # Empty leading segments give the marker + loop overhead: the smallest segment.
+    ovh = segs[1]; for (i = 1; i <= n; i++) if (segs[i] < ovh) ovh = segs[i]
+    sum = 0; mx = 0; mn = -1; m = 0
+    for (i = 1; i <= n; i++) { if (i <= 4) continue; v = segs[i] - ovh; sum += v; m++; if (v > mx) mx = v; if (mn < 0 || v < mn) mn = v }
+    printf "%s: segments=%d overhead=%d mean=%.1f max=%d min=%d\n", bin, m, ovh, sum / m, mx, mn
+  }' "$fifo" &
+awk_pid=$!
+qemu-system-arm -machine lm3s6965evb -cpu cortex-m3 -nographic \
+  -semihosting-config enable=on,target=native -singlestep -d exec,nochain -D "$fifo" \
+  -kernel "$elf" 2>/dev/null
+wait "$awk_pid"

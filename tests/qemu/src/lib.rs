@@ -1,0 +1,61 @@
+//! Shared pieces of the QEMU measurement programs.
+//!
+//! A program calls [`mark`] right before each measured call and [`done`] after the last
+//! one; `run.sh` counts the instructions QEMU executes from each `qemu_mark` to the next
+//! (the last segment ends at `qemu_done`) and prints the per-segment mean and maximum.
+//! Each segment therefore includes the measured call plus a few instructions of loop and
+//! marker overhead (reported by the `overhead` segments: programs first call [`mark`]
+//! back to back a few times).
+#![no_std]
+
+use core::sync::atomic::{compiler_fence, AtomicU32, Ordering};
+
+use cortex_m_semihosting::{debug, hprintln};
+
+/// Segments started (also keeps the two markers from being merged into one function).
+static MARKS: AtomicU32 = AtomicU32::new(0);
+
+/// Marker before each measured call (never inlined: its address is the segment boundary).
+#[inline(never)]
+#[no_mangle]
+pub extern "C" fn qemu_mark() {
+    MARKS.store(
+        MARKS.load(Ordering::Relaxed).wrapping_add(1),
+        Ordering::Relaxed,
+    );
+    compiler_fence(Ordering::SeqCst);
+}
+
+/// Marker after the last measured call.
+#[inline(never)]
+#[no_mangle]
+pub extern "C" fn qemu_done() {
+    MARKS.store(0, Ordering::Relaxed);
+    compiler_fence(Ordering::SeqCst);
+}
+
+/// Start a segment.
+#[inline(always)]
+pub fn mark() {
+    qemu_mark();
+}
+
+/// End the last segment, print `msg` and exit QEMU with success.
+pub fn done(msg: &str) -> ! {
+    qemu_done();
+    hprintln!("{}", msg);
+    debug::exit(debug::EXIT_SUCCESS);
+    loop {}
+}
+
+/// Exit QEMU with failure (e.g. from a panic handler).
+pub fn fail(msg: &str) -> ! {
+    hprintln!("FAILED: {}", msg);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {}
+}
+
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    fail("panic")
+}
