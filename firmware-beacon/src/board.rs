@@ -335,7 +335,7 @@ mod tests {
     fn boots_dark_and_identifies_as_beacon() {
         let (mut b, mut m) = setup();
         assert_eq!(b.lit(), 0);
-        assert_eq!(*m.levels(), [0; 7]);
+        assert_eq!(m.levels(), [0; 7]);
         let mut buf = [0u8; 64];
         let f = encode_frame(
             Header::new(1),
@@ -426,7 +426,7 @@ mod tests {
         );
         // Nothing was lit by any refused request.
         assert_eq!(b.lit(), 0);
-        assert_eq!(*m.levels(), [0; 7]);
+        assert_eq!(m.levels(), [0; 7]);
     }
 
     #[test]
@@ -483,7 +483,7 @@ mod tests {
             Ok(Response::Ack)
         );
         assert_eq!(b.lit(), 0);
-        assert_eq!(*m.levels(), [0; 7]);
+        assert_eq!(m.levels(), [0; 7]);
     }
 
     #[test]
@@ -498,7 +498,7 @@ mod tests {
         };
         send(&mut b, &mut m, &set(7, LedMode::On), 1_000);
         assert_eq!(b.lit(), 1);
-        assert_ne!(*m.levels(), [0; 7]);
+        assert_ne!(m.levels(), [0; 7]);
         // Heartbeats every 5 s keep it alive for a minute.
         for k in 1..=12u64 {
             b.poll(1_000 + k * 5_000 - 1, &mut m);
@@ -513,7 +513,7 @@ mod tests {
         let _ = roundtrip(&mut b, &mut m, &[1, 2, 3, 0], last + 9_000);
         b.poll(last + 10_001, &mut m);
         assert_eq!(b.lit(), 0);
-        assert_eq!(*m.levels(), [0; 7]);
+        assert_eq!(m.levels(), [0; 7]);
         assert_eq!(b.status(last + 10_001).deadman_trips, 1);
     }
 

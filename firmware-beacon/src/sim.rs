@@ -14,7 +14,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use cta_core::schedule::{Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS, TICK_HZ};
+use cta_core::schedule::{Levels, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS, TICK_HZ};
 use cta_core::wire::MAX_FRAME;
 use serialport::{SerialPort, TTYPort};
 
@@ -131,12 +131,12 @@ fn run(port: &mut TTYPort, stop: &AtomicBool, snapshot: &Mutex<Snapshot>) -> io:
         let due = (now.as_micros() as u64 * TICK_HZ as u64) / 1_000_000;
         ticks = ticks.max(due.saturating_sub(TICK_HZ as u64 / 10));
         while ticks < due {
-            modulator.tick(|_, _| {});
+            modulator.tick(&mut Levels::default());
             ticks += 1;
         }
         if let Ok(mut s) = snapshot.lock() {
             *s = Snapshot {
-                levels: *modulator.levels(),
+                levels: modulator.levels(),
                 ticks,
             };
         }
