@@ -569,7 +569,7 @@ where
     for (i, o) in order.iter_mut().enumerate().take(k) {
         *o = i;
     }
-    order[..k].sort_by(|&a, &b| {
+    order[..k].sort_unstable_by(|&a, &b| {
         null[b]
             .abs()
             .partial_cmp(&null[a].abs())
