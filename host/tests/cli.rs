@@ -1,0 +1,108 @@
+//! The `cta` binary end to end: the thesis commands, and bad input giving a one-line error
+//! and a non-zero exit, never a panic.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn cta(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cta")).args(args).output().expect("run cta")
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("cta-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn json(o: &Output) -> serde_json::Value {
+    assert!(o.status.success(), "stderr: {}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).expect("JSON output")
+}
+
+fn fails_with(o: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "expected failure, got success: {err}");
+    assert!(!err.contains("panicked"), "panic: {err}");
+    assert!(err.contains(needle), "stderr lacks `{needle}`: {err}");
+    assert_eq!(err.trim().lines().count(), 1, "not one line: {err}");
+}
+
+#[test]
+fn simulate_fit_evaluate_round_trip() {
+    let d = tmpdir("rt");
+    let csv = d.join("sim.csv");
+    let fit = d.join("fit.json");
+    let o = cta(&["simulate", "--out", s(&csv), "--separations", "20,25,30"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(d.join("sim.truth.json").exists());
+    let f = json(&cta(&["fit", s(&csv), "--separations", "25,30", "--save", s(&fit), "--json"]));
+    // Table 3, (25, 30): d3 = +1.1378, H = 19016, rms 1.6.
+    assert!((f["params"]["d3"].as_f64().unwrap() - 1.1378).abs() < 0.03);
+    assert!((f["params"]["H"].as_f64().unwrap() - 19016.0).abs() < 0.003 * 19016.0);
+    for k in ["d1", "d2", "d3", "p1", "p2", "p3", "H"] {
+        assert!(f["sigma"][k].as_f64().unwrap() > 0.0);
+    }
+    assert!(f["rms_counts"].as_f64().is_some() && f["iterations"].as_u64().is_some());
+    assert!(f["condition"].as_f64().unwrap() > 1.0 && f["warnings"].is_array());
+    let e = json(&cta(&["evaluate", s(&fit), s(&csv), "--json"]));
+    assert_eq!(e["separation_in"].as_array().unwrap().len(), 3);
+    let std30 = e["angle_std_deg"][2].as_f64().unwrap();
+    assert!(std30 > 0.05 && std30 < 0.2, "{std30}");
+    assert_eq!(e["reference"], "truth");
+}
+
+#[test]
+fn nearfield_and_uncertainty_json() {
+    let n = json(&cta(&["nearfield", "--profile", "quartic", "--theta", "6", "--json"]));
+    let p = n["crossing_D"]["proximity"][0].as_f64().unwrap();
+    assert!((p - 68.5).abs() < 0.02 * 68.5);
+    assert!(n["coeff_deg_D"]["intensity"][0].as_f64().unwrap() > 10.0);
+    assert_eq!(n["theta_deg"][0], 6.0);
+    let u = json(&cta(&["uncertainty", "--json"]));
+    assert!((u["rss_mils"]["x"].as_f64().unwrap() - 31.54).abs() < 0.05);
+    assert!((u["rss_mils"]["z"].as_f64().unwrap() - 17.52).abs() < 0.05);
+    // A user budget.
+    let d = tmpdir("budget");
+    let b = d.join("b.toml");
+    std::fs::write(&b, "[[item]]\nname = \"a\"\nx = 3\n[[item]]\nname = \"b\"\nx = 4\nz_plus = 1\n").unwrap();
+    let u = json(&cta(&["uncertainty", "--budget", s(&b), "--json"]));
+    assert!((u["rss_mils"]["x"].as_f64().unwrap() - 5.0).abs() < 1e-12);
+    std::fs::write(&b, "[[item]]\nname = \"a\"\nxx = 3\n").unwrap();
+    // TOML errors quote the offending line under the one-line summary.
+    let o = cta(&["uncertainty", "--budget", s(&b)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("line 3") && err.contains("unknown field `xx`"), "{err}");
+}
+
+#[test]
+fn bad_measurement_files() {
+    let d = tmpdir("bad");
+    let f = d.join("m.csv");
+    std::fs::write(&f, "").unwrap();
+    fails_with(&cta(&["fit", s(&f)]), "no measurements");
+    std::fs::write(&f, "x,y,separation_in,beacon_x_in,beacon_y_in\n1,2,3,4,5\n").unwrap();
+    fails_with(&cta(&["fit", s(&f)]), "missing required column `beacon_z_in`");
+    std::fs::write(&f, "x,y,separation_in,beacon_x_in,beacon_y_in,beacon_z_in\n1,2,20,0,0,20\n1,inf,20,1,0,20\n").unwrap();
+    fails_with(&cta(&["fit", s(&f)]), "m.csv:3: column `y`: `inf` is not a finite number");
+    std::fs::write(&f, "x,y,separation_in,beacon_x_in,beacon_y_in,beacon_z_in\n1,2,20,0,0,20\n3,4,20,1,0,20\n5,6,20,0,1,20\n").unwrap();
+    fails_with(&cta(&["fit", s(&f)]), "fewer than the 7 parameters");
+    let sim = d.join("sim.csv");
+    assert!(cta(&["simulate", "--out", s(&sim), "--separations", "20,25"]).status.success());
+    fails_with(&cta(&["fit", s(&sim), "--separations", "30"]), "separation(s) 30 not in the file (it has 20, 25)");
+    fails_with(&cta(&["fit", s(&sim), "--weights", "repeat"]), "needs repeated samples");
+    fails_with(&cta(&["fit", s(&d.join("absent.csv"))]), "absent.csv");
+    fails_with(&cta(&["simulate", "--out", s(&sim), "--effect", "glare=1"]), "unknown effect `glare`");
+}
+
+#[test]
+fn one_separation_names_the_parallel_pair() {
+    let d = tmpdir("one");
+    let sim = d.join("one.csv");
+    assert!(cta(&["simulate", "--out", s(&sim), "--separations", "20", "--far-field", "--p", "0,0,0"]).status.success());
+    fails_with(&cta(&["fit", s(&sim)]), "d3");
+}
