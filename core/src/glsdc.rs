@@ -733,4 +733,54 @@ mod tests {
         assert!((s.sigma[1] - (0.2 * s2).sqrt()).abs() < 1e-12);
         assert!(s.condition > 1.0);
     }
+
+    #[test]
+    fn iteration_cap_reports_last_cost_not_nan() {
+        let t: [f64; 8] = [0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5];
+        let y: [f64; 8] = core::array::from_fn(|i| 2.0 * (-0.7 * t[i]).exp());
+        let p = Exp { t: &t, y: &y };
+        let s = Settings {
+            max_iter: 1,
+            ..Settings::default()
+        };
+        match solve(&p, Vector2::new(10.0, 1.0), &s) {
+            Err(Error::NotConverged {
+                x,
+                cost,
+                iterations,
+            }) => {
+                assert_eq!(iterations, 1);
+                assert!(cost.is_finite() && cost > 0.0 && x.iter().all(|v| v.is_finite()));
+            }
+            other => panic!("expected NotConverged, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn works_in_f32() {
+        struct Lin32;
+        impl Problem<f32> for Lin32 {
+            type D = U2;
+            fn dim(&self) -> U2 {
+                U2
+            }
+            fn n_rows(&self) -> usize {
+                5
+            }
+            fn rows(
+                &self,
+                x: &Vector2<f32>,
+                _j: bool,
+                sink: &mut dyn FnMut(f32, f32, &[f32]),
+            ) -> Result<(), ModelError> {
+                for i in 0..5 {
+                    let t = i as f32;
+                    sink(1.5 + 0.25 * t - (x[0] + x[1] * t), 1.0, &[1.0, t]);
+                }
+                Ok(())
+            }
+        }
+        let s = solve(&Lin32, Vector2::new(0.0f32, 0.0), &Settings::default()).unwrap();
+        assert!((s.x[0] - 1.5).abs() < 1e-5 && (s.x[1] - 0.25).abs() < 1e-5);
+    }
 }
