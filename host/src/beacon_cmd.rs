@@ -1,1 +1,351 @@
-//! (being written)
+//! `cta beacon ...`: talk to the beacon board (or the simulated one) by hand.
+//!
+//! ```text
+//! cta beacon sim                          # start the simulated board, prints its pty path
+//! cta beacon --port /dev/ttyUSB0 identify
+//! cta beacon --port /dev/ttyUSB0 set 45 3        # LED 45 at table entry 3 (3090 Hz)
+//! cta beacon --port /dev/ttyUSB0 set 46 0,5      # LED 46 at entries 0 and 5 at once
+//! cta beacon --port /dev/ttyUSB0 set-many 0=on 1=2 2=off
+//! cta beacon --port /dev/ttyUSB0 status
+//! cta beacon --port /dev/ttyUSB0 heartbeat --every-ms 2000   # keep LEDs lit (dead-man)
+//! cta beacon --port /dev/ttyUSB0 all-off
+//! cta beacon pins                         # the pin map
+//! ```
+//!
+//! LED ids are `row * 10 + column`; frequencies are indices into the board's table
+//! (`cta beacon --port P table` lists it; default: the 10 NorthStar ID pairs, entry `2k` and
+//! `2k + 1` for ID `k`).
+
+use std::time::Duration;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand};
+use cta_core::schedule::{grid_position, BEACON_PINS, RESERVED_PINS, SPARE_PIN};
+use cta_core::wire::beacon::{
+    Beacon, BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting, Limits, LED_COUNT,
+    MAX_FREQS,
+};
+use cta_firmware_beacon::sim::SimBoard;
+
+use crate::link::{open_serial, Link, LinkConfig};
+
+/// `cta beacon`: command the beacon board over its serial link.
+#[derive(Debug, Args)]
+pub struct BeaconArgs {
+    /// Serial port of the board (e.g. /dev/ttyUSB0, or the pty printed by `cta beacon sim`).
+    #[arg(long, global = true)]
+    pub port: Option<String>,
+    /// Reply timeout per attempt, ms.
+    #[arg(long, default_value_t = 500, global = true)]
+    pub timeout_ms: u64,
+    /// Resends after a timeout.
+    #[arg(long, default_value_t = 2, global = true)]
+    pub retries: u32,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: BeaconCommand,
+}
+
+/// `cta beacon` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum BeaconCommand {
+    /// Which board answers, its firmware and protocol version.
+    Identify,
+    /// Lit LEDs, limits, uptime, link counters.
+    Status,
+    /// Set one LED: `off`, `on`, or table indices (`3`, or `0,5` for several at once).
+    Set {
+        /// LED id, row * 10 + column (0..100).
+        led: u8,
+        /// `off`, `on` or comma-separated table indices.
+        mode: String,
+    },
+    /// Set several LEDs atomically: `ID=MODE ...` (e.g. `12=3 13=on 14=off`).
+    SetMany {
+        /// `ID=MODE` pairs.
+        #[arg(required = true)]
+        settings: Vec<String>,
+    },
+    /// Every LED off.
+    AllOff,
+    /// Show the frequency table, or replace it (`--set 3040,2010,...` in Hz; all LEDs go off).
+    Table {
+        /// New table, comma-separated frequencies in Hz.
+        #[arg(long, value_delimiter = ',')]
+        set: Option<Vec<f64>>,
+    },
+    /// The mode of every LED.
+    Leds,
+    /// Change the safety limits.
+    Limits {
+        /// Most LEDs lit at once (1..=100).
+        #[arg(long)]
+        max_lit: u8,
+        /// Dead-man timeout, ms (all LEDs off after this long without a valid frame).
+        #[arg(long, default_value_t = 10_000)]
+        deadman_ms: u32,
+    },
+    /// Send heartbeats (once, or every `--every-ms` until Ctrl-C / `--count`).
+    Heartbeat {
+        /// Interval between heartbeats, ms (0: send one).
+        #[arg(long, default_value_t = 0)]
+        every_ms: u64,
+        /// Stop after this many heartbeats (0: never, with --every-ms).
+        #[arg(long, default_value_t = 0)]
+        count: u64,
+    },
+    /// Run the simulated beacon board on a pseudo-terminal and print its path.
+    Sim {
+        /// Stop after this many seconds (default: run until Ctrl-C).
+        #[arg(long)]
+        seconds: Option<f64>,
+    },
+    /// Print the pin map: LED id, grid cell, position (in) and GPIO.
+    Pins,
+}
+
+/// Parse an LED mode: `off`, `on`, or comma-separated table indices.
+pub fn parse_mode(s: &str) -> Result<LedMode> {
+    match s.trim() {
+        "off" => return Ok(LedMode::Off),
+        "on" => return Ok(LedMode::On),
+        _ => {}
+    }
+    let mut set = 0u32;
+    for part in s.split(',') {
+        let i: u8 = part.trim().parse().with_context(|| {
+            format!("mode {s:?}: expected `off`, `on` or table indices like `3` or `0,5`")
+        })?;
+        if i as usize >= MAX_FREQS {
+            bail!("mode {s:?}: table index {i} is beyond the largest table ({MAX_FREQS} entries)");
+        }
+        set |= 1 << i;
+    }
+    Ok(LedMode::Modulated(FreqSet(set)))
+}
+
+/// Parse `ID=MODE`.
+pub fn parse_setting(s: &str) -> Result<LedSetting> {
+    let (id, mode) = s
+        .split_once('=')
+        .with_context(|| format!("setting {s:?}: expected ID=MODE, e.g. 12=3"))?;
+    let led = id
+        .trim()
+        .parse()
+        .with_context(|| format!("setting {s:?}: LED id {id:?} is not a number"))?;
+    Ok(LedSetting {
+        led,
+        mode: parse_mode(mode)?,
+    })
+}
+
+fn mode_text(m: LedMode) -> String {
+    match m {
+        LedMode::Off => "off".into(),
+        LedMode::On => "on".into(),
+        LedMode::Modulated(set) => set
+            .indices()
+            .map(|i| i.to_string())
+            .collect::<Vec<_>>()
+            .join(","),
+    }
+}
+
+/// Run `cta beacon`.
+pub fn run(args: &BeaconArgs) -> Result<()> {
+    match &args.command {
+        BeaconCommand::Sim { seconds } => return run_sim(*seconds),
+        BeaconCommand::Pins => {
+            print_pins();
+            return Ok(());
+        }
+        _ => {}
+    }
+    let path = args.port.as_deref().context(
+        "--port PATH is required (the board's serial port, or the pty of `cta beacon sim`)",
+    )?;
+    let port = open_serial(path)?;
+    let mut link = Link::<Beacon, _>::new(
+        port,
+        LinkConfig {
+            timeout: Duration::from_millis(args.timeout_ms),
+            retries: args.retries,
+        },
+    );
+    let id = link
+        .check_board()
+        .with_context(|| format!("identifying the board on {path}"))?;
+    match &args.command {
+        BeaconCommand::Identify => println!(
+            "{} board, firmware {}, protocol {}{}, max frame {} bytes",
+            id.board,
+            id.firmware,
+            id.protocol,
+            if id.simulated { " (simulated)" } else { "" },
+            id.max_frame
+        ),
+        BeaconCommand::Status => match link.call(BeaconRequest::Status)? {
+            Some(BeaconResponse::Status(s)) => {
+                println!("uptime          {:.1} s", s.uptime_ms as f64 / 1000.0);
+                println!("lit LEDs        {} (cap {})", s.lit, s.limits.max_lit);
+                println!(
+                    "dead-man        {} ms, host silent for {} ms, tripped {} time(s)",
+                    s.limits.deadman_ms, s.since_host_ms, s.deadman_trips
+                );
+                println!(
+                    "frames          {} good, {} bad (oversized {}, encoding {}, truncated {}, crc {}, malformed {}, version {})",
+                    s.decoder.ok,
+                    s.decoder.bad(),
+                    s.decoder.oversized,
+                    s.decoder.encoding,
+                    s.decoder.truncated,
+                    s.decoder.crc,
+                    s.decoder.malformed,
+                    s.decoder.version
+                );
+                println!("refused         {}", s.refused);
+                println!("uart errors     {}", s.uart_errors);
+                println!(
+                    "tick            {} Hz, table of {} frequencies",
+                    s.tick_hz, s.table_len
+                );
+                println!("watchdog reset  {}", s.watchdog_reset);
+            }
+            other => bail!("unexpected reply to Status: {other:?}"),
+        },
+        BeaconCommand::Set { led, mode } => {
+            let setting = LedSetting {
+                led: *led,
+                mode: parse_mode(mode)?,
+            };
+            link.call(BeaconRequest::Set(setting))?;
+            println!("LED {led}: {}", mode_text(setting.mode));
+        }
+        BeaconCommand::SetMany { settings } => {
+            let mut v = heapless::Vec::new();
+            for s in settings {
+                v.push(parse_setting(s)?)
+                    .map_err(|_| anyhow::anyhow!("more than {LED_COUNT} settings"))?;
+            }
+            let n = v.len();
+            link.call(BeaconRequest::SetMany(v))?;
+            println!("{n} LED(s) set");
+        }
+        BeaconCommand::AllOff => {
+            link.call(BeaconRequest::AllOff)?;
+            println!("all LEDs off");
+        }
+        BeaconCommand::Table { set } => {
+            if let Some(hz) = set {
+                let mut v = heapless::Vec::new();
+                for &f in hz {
+                    if !(f.is_finite() && f > 0.0 && f < 4.0e6) {
+                        bail!("frequency {f} Hz is not a positive number of Hz");
+                    }
+                    v.push((f * 1000.0).round() as u32)
+                        .map_err(|_| anyhow::anyhow!("more than {MAX_FREQS} frequencies"))?;
+                }
+                link.call(BeaconRequest::SetTable(v))?;
+                println!("table replaced; all LEDs off");
+            }
+            match link.call(BeaconRequest::GetTable)? {
+                Some(BeaconResponse::Table(t)) => {
+                    for (i, mhz) in t.iter().enumerate() {
+                        println!("{i:2}  {:.3} Hz", *mhz as f64 / 1000.0);
+                    }
+                }
+                other => bail!("unexpected reply to GetTable: {other:?}"),
+            }
+        }
+        BeaconCommand::Leds => match link.call(BeaconRequest::GetLeds)? {
+            Some(BeaconResponse::Leds(modes)) => {
+                for (i, m) in modes.iter().enumerate() {
+                    if m.is_lit() {
+                        println!("{i:3}  {}", mode_text(*m));
+                    }
+                }
+                let lit = modes.iter().filter(|m| m.is_lit()).count();
+                println!("{lit} lit, {} off", modes.len() - lit);
+            }
+            other => bail!("unexpected reply to GetLeds: {other:?}"),
+        },
+        BeaconCommand::Limits {
+            max_lit,
+            deadman_ms,
+        } => {
+            link.call(BeaconRequest::SetLimits(Limits {
+                max_lit: *max_lit,
+                deadman_ms: *deadman_ms,
+            }))?;
+            println!("cap {max_lit} LEDs, dead-man {deadman_ms} ms");
+        }
+        BeaconCommand::Heartbeat { every_ms, count } => {
+            let mut sent = 0u64;
+            loop {
+                link.heartbeat()?;
+                sent += 1;
+                if *every_ms == 0 || (*count > 0 && sent >= *count) {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(*every_ms));
+            }
+            println!("{sent} heartbeat(s) acknowledged");
+        }
+        BeaconCommand::Sim { .. } | BeaconCommand::Pins => unreachable!("handled above"),
+    }
+    Ok(())
+}
+
+fn run_sim(seconds: Option<f64>) -> Result<()> {
+    let sim = SimBoard::spawn().context("starting the simulated beacon board")?;
+    println!("simulated beacon board on {}", sim.path());
+    println!(
+        "try: cta beacon --port {} identify   (Ctrl-C stops the board)",
+        sim.path()
+    );
+    use std::io::Write as _;
+    std::io::stdout().flush()?;
+    let start = std::time::Instant::now();
+    loop {
+        std::thread::sleep(Duration::from_millis(100));
+        if let Some(s) = seconds {
+            if start.elapsed().as_secs_f64() >= s {
+                break;
+            }
+        }
+    }
+    sim.stop().context("simulated beacon board")?;
+    Ok(())
+}
+
+fn print_pins() {
+    println!("id  row col   x(in)  y(in)  GPIO");
+    for (id, pin) in BEACON_PINS.iter().enumerate() {
+        let (row, col, x, y) = grid_position(id as u8);
+        println!("{id:3} {row:3} {col:3}  {x:6.1} {y:6.1}  {pin}");
+    }
+    println!("reserved:");
+    for (pin, why) in RESERVED_PINS {
+        println!("  {pin:5} {why}");
+    }
+    println!("spare: {SPARE_PIN}");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn modes_parse() {
+        assert_eq!(parse_mode("off").unwrap(), LedMode::Off);
+        assert_eq!(parse_mode("on").unwrap(), LedMode::On);
+        assert_eq!(parse_mode("3").unwrap(), LedMode::Modulated(FreqSet(8)));
+        assert_eq!(parse_mode("0, 5").unwrap(), LedMode::Modulated(FreqSet(33)));
+        assert!(parse_mode("40").is_err());
+        assert!(parse_mode("blink").is_err());
+        let s = parse_setting("12=on").unwrap();
+        assert_eq!((s.led, s.mode), (12, LedMode::On));
+        assert!(parse_setting("12").is_err());
+        assert!(parse_setting("x=on").is_err());
+    }
+}
