@@ -21,3 +21,6 @@ pub mod plot;
 pub mod simulate;
 /// `cta demo`: the main job on the simulated CTA.
 pub mod demo;
+
+/// `cta analyze`: from measured data to a named cause, an extended model and a measured gain.
+pub mod analyze;

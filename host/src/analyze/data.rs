@@ -1,0 +1,259 @@
+//! From a measurement file to the weighted point means the analysis fits.
+//!
+//! The repeated samples of one point (one beacon at one separation and one setting, see
+//! [`Dataset::points`]) are averaged; the weight of the mean is `n / sigma^2`, the inverse
+//! variance of a mean of `n` samples (eq 56's `W = R^-1`, so chi-square per degree of freedom
+//! means something). Where `sigma^2` comes from is the noise model ([`Weights`]):
+//!
+//! - `separation` (default): the sample variance pooled over every point of a separation,
+//!   per axis. Pooling ~100 points gives a variance good to a few percent, where one point's
+//!   5-sample variance is good to only ~60 % and its inverse is heavy-tailed (that would bias
+//!   chi-square). Noise that changes with separation (the thesis's Ch VI question) is kept.
+//! - `point`: each point's own sample variance (needs several samples per point; use `cta
+//!   noise` first to see whether the noise varies within a separation).
+//! - `global`: one pooled variance per axis for the whole file.
+//!
+//! Every variance is floored at 1/12 count^2, the quantisation noise of integer counts, so
+//! noise-free data still has finite weights.
+//!
+//! Fallback when the file has one sample per point (no repeated samples, no variance): the
+//! noise is the `--noise` value in counts, by default [`DEFAULT_NOISE_COUNTS`] = 0.1 % of
+//! beta, the level REFERENCE.md's "beyond the thesis" uses. Chi-square is then relative to
+//! that assumed noise, and the output says so.
+//!
+//! Points with any sample at the NorthStar's 16-bit limit (|count| >= 32767: a cell in shadow
+//! or a pinned output) carry no usable position information and are left out (counted in
+//! [`Data::excluded`]).
+
+use crate::measurement::{fmt_list, Dataset};
+use nalgebra::Vector3;
+
+/// Noise assumed when there are no repeated samples: 0.1 % of beta (32.8 counts).
+pub const DEFAULT_NOISE_COUNTS: f64 = 32.768;
+/// Quantisation floor on every variance, counts^2.
+pub const VARIANCE_FLOOR: f64 = 1.0 / 12.0;
+/// Outputs at or beyond this magnitude are treated as pinned.
+pub const PINNED: f64 = 32767.0;
+
+/// How the weights are made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Weights {
+    /// Sample variance pooled per separation and axis (default).
+    Separation,
+    /// Each point's own sample variance.
+    Point,
+    /// One pooled variance per axis for the whole file.
+    Global,
+}
+
+/// One averaged point.
+#[derive(Debug, Clone, Copy)]
+pub struct PointMean {
+    /// Index into [`Data::seps`].
+    pub sep: usize,
+    /// Recorded beacon position, N, inches.
+    pub r: Vector3<f64>,
+    /// Mean (X, Y), counts.
+    pub y: [f64; 2],
+    /// Weights of the two means, 1/counts^2.
+    pub w: [f64; 2],
+    /// Samples averaged.
+    pub n: usize,
+    /// Beacon id, when the file has one.
+    pub beacon: Option<u32>,
+    /// Line of the first sample in the file.
+    pub line: usize,
+}
+
+/// The weighted point means of one file.
+#[derive(Debug, Clone)]
+pub struct Data {
+    /// Distinct recorded separations, ascending, inches.
+    pub seps: Vec<f64>,
+    /// Averaged points.
+    pub points: Vec<PointMean>,
+    /// Points left out (pinned outputs).
+    pub excluded: usize,
+    /// Samples read.
+    pub samples: usize,
+    /// Per separation, the 1-sigma noise of one sample (X, Y), counts.
+    pub noise_by_sep: Vec<[f64; 2]>,
+    /// How the weights were made, in words (printed and reported).
+    pub noise_note: String,
+    /// True when the noise came from repeated samples, false when assumed.
+    pub noise_measured: bool,
+}
+
+impl Data {
+    /// Average and weight a dataset. `noise`: the one-sample noise (counts) to assume when
+    /// the file has no repeated samples (None: [`DEFAULT_NOISE_COUNTS`]); when given and the
+    /// file does have repeats, it overrides the measured noise.
+    pub fn from_dataset(
+        ds: &Dataset,
+        weights: Weights,
+        noise: Option<f64>,
+    ) -> Result<Data, String> {
+        if let Some(n) = noise {
+            if !(n > 0.0 && n.is_finite()) {
+                return Err(format!("--noise {n}: must be a positive number of counts"));
+            }
+        }
+        let seps = ds.separations();
+        let sep_index = |s: f64| seps.iter().position(|&v| v == s).unwrap_or(0);
+        let groups = ds.points();
+        // Per point: mean, sum of squared deviations, count.
+        struct Acc {
+            sep: usize,
+            r: Vector3<f64>,
+            mean: [f64; 2],
+            ss: [f64; 2],
+            n: usize,
+            beacon: Option<u32>,
+            line: usize,
+            pinned: bool,
+        }
+        let mut acc: Vec<Acc> = Vec::with_capacity(groups.len());
+        for g in &groups {
+            let n = g.rows.len();
+            let mut mean = [0.0; 2];
+            let mut pinned = false;
+            for &i in &g.rows {
+                let s = &ds.samples[i];
+                mean[0] += s.x;
+                mean[1] += s.y;
+                pinned |= s.x.abs() >= PINNED || s.y.abs() >= PINNED;
+            }
+            mean[0] /= n as f64;
+            mean[1] /= n as f64;
+            let mut ss = [0.0; 2];
+            for &i in &g.rows {
+                let s = &ds.samples[i];
+                ss[0] += (s.x - mean[0]).powi(2);
+                ss[1] += (s.y - mean[1]).powi(2);
+            }
+            acc.push(Acc {
+                sep: sep_index(g.first.separation_in),
+                r: Vector3::from(g.first.r),
+                mean,
+                ss,
+                n,
+                beacon: g.first.beacon,
+                line: g.first.line,
+                pinned,
+            });
+        }
+        let repeated = acc.iter().any(|a| a.n > 1);
+        // Pooled variances per separation and globally.
+        let mut pool = vec![([0.0f64; 2], 0usize); seps.len()];
+        let mut gpool = ([0.0f64; 2], 0usize);
+        for a in acc.iter().filter(|a| !a.pinned && a.n > 1) {
+            for k in 0..2 {
+                pool[a.sep].0[k] += a.ss[k];
+                gpool.0[k] += a.ss[k];
+            }
+            pool[a.sep].1 += a.n - 1;
+            gpool.1 += a.n - 1;
+        }
+        let gvar = |k: usize| {
+            if gpool.1 > 0 {
+                (gpool.0[k] / gpool.1 as f64).max(VARIANCE_FLOOR)
+            } else {
+                VARIANCE_FLOOR
+            }
+        };
+        let (noise_note, noise_measured);
+        let var_of = |a: &Acc, k: usize| -> f64 {
+            if let Some(n) = noise {
+                return n * n;
+            }
+            if !repeated {
+                return DEFAULT_NOISE_COUNTS * DEFAULT_NOISE_COUNTS;
+            }
+            match weights {
+                Weights::Point if a.n > 1 => (a.ss[k] / (a.n - 1) as f64).max(VARIANCE_FLOOR),
+                Weights::Separation if pool[a.sep].1 > 0 => {
+                    (pool[a.sep].0[k] / pool[a.sep].1 as f64).max(VARIANCE_FLOOR)
+                }
+                _ => gvar(k),
+            }
+        };
+        if let Some(n) = noise {
+            noise_note = format!("noise set by --noise: {n} counts per sample (both axes)");
+            noise_measured = false;
+        } else if !repeated {
+            noise_note = format!(
+                "one sample per point: noise ASSUMED {DEFAULT_NOISE_COUNTS:.1} counts per sample \
+                 (0.1 % of beta); chi-square is relative to that assumption (set --noise)"
+            );
+            noise_measured = false;
+        } else {
+            noise_note = match weights {
+                Weights::Separation => {
+                    "noise from repeated samples, pooled per separation and axis".into()
+                }
+                Weights::Point => "noise from each point's repeated samples".into(),
+                Weights::Global => {
+                    "noise from repeated samples, pooled over the file per axis".into()
+                }
+            };
+            noise_measured = true;
+        }
+        let mut points = Vec::with_capacity(acc.len());
+        let mut excluded = 0;
+        for a in &acc {
+            if a.pinned {
+                excluded += 1;
+                continue;
+            }
+            let n = a.n as f64;
+            points.push(PointMean {
+                sep: a.sep,
+                r: a.r,
+                y: a.mean,
+                w: [n / var_of(a, 0), n / var_of(a, 1)],
+                n: a.n,
+                beacon: a.beacon,
+                line: a.line,
+            });
+        }
+        let noise_by_sep = (0..seps.len())
+            .map(|s| {
+                let probe = acc.iter().find(|a| a.sep == s && !a.pinned);
+                match probe {
+                    Some(a) => [var_of(a, 0).sqrt(), var_of(a, 1).sqrt()],
+                    None => [f64::NAN; 2],
+                }
+            })
+            .collect();
+        if points.is_empty() {
+            return Err(format!(
+                "{}: every point has a pinned output (|count| >= 32767): nothing to analyze",
+                ds.path.display()
+            ));
+        }
+        Ok(Data {
+            seps,
+            points,
+            excluded,
+            samples: ds.samples.len(),
+            noise_by_sep,
+            noise_note,
+            noise_measured,
+        })
+    }
+
+    /// Number of points at each separation.
+    pub fn points_per_sep(&self) -> Vec<usize> {
+        let mut c = vec![0; self.seps.len()];
+        for p in &self.points {
+            c[p.sep] += 1;
+        }
+        c
+    }
+
+    /// The separations as a compact list.
+    pub fn seps_text(&self) -> String {
+        fmt_list(&self.seps)
+    }
+}

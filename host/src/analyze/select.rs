@@ -1,0 +1,502 @@
+//! Forward selection of candidate effects with cross-validation across separations and an
+//! information criterion.
+//!
+//! Each round fits every remaining candidate on top of the current model (all data), scores
+//! it by the Bayesian information criterion `dBIC = dchi2 - k ln m` (`k` added parameters,
+//! `m` residuals), and for the best scorers measures the held-out gain: the separations are
+//! split into folds (interleaved, so every fold spans near and far), the model is fitted on
+//! the other folds and predicts the held-out one. A candidate is accepted when
+//! `dBIC > BIC_MIN` and the held-out chi-square drops. Per-separation corrections
+//! (`plate_offset`, `separation_error`) cannot be predicted for a separation never seen: on
+//! held-out separations they are estimated from that separation's data with everything else
+//! fixed, and the held-out RMS is corrected for those degrees of freedom.
+
+use super::data::Data;
+use super::model::{fit, Base, Cand, FitFailure, FitResult, Model};
+use rayon::prelude::*;
+
+/// Minimum BIC improvement to accept a candidate ("very strong" evidence on the Kass-Raftery
+/// scale).
+pub const BIC_MIN: f64 = 10.0;
+
+/// Held-out (cross-validated) prediction quality of a model.
+#[derive(Debug, Clone)]
+pub struct Cv {
+    /// Held-out RMS residual, counts (degrees-of-freedom corrected for per-separation
+    /// corrections estimated on the held-out data).
+    pub rms: f64,
+    /// Held-out weighted sum of squares.
+    pub chi2: f64,
+    /// Held-out residual rows.
+    pub rows: usize,
+    /// Held-out RMS per separation, counts.
+    pub rms_by_sep: Vec<f64>,
+}
+
+/// One candidate tried in one round.
+#[derive(Debug, Clone)]
+pub struct Trial {
+    /// Round (1 = on top of the starting model).
+    pub round: usize,
+    /// Candidate.
+    pub cand: Cand,
+    /// Chi-square improvement (all data).
+    pub dchi2: f64,
+    /// Added parameters.
+    pub k: usize,
+    /// BIC improvement.
+    pub dbic: f64,
+    /// Held-out RMS with the candidate, when measured.
+    pub cv_rms: Option<f64>,
+    /// Held-out chi-square with the candidate, when measured.
+    pub cv_chi2: Option<f64>,
+    /// Accepted in this round.
+    pub accepted: bool,
+    /// Why it could not be fitted, when it could not.
+    pub failure: Option<String>,
+}
+
+/// One accepted effect.
+#[derive(Debug, Clone)]
+pub struct Step {
+    /// The effect.
+    pub cand: Cand,
+    /// The model after adding it, and its fit.
+    pub model: Model,
+    /// Fit on all data.
+    pub fit: FitResult,
+    /// Cross-validation before and after.
+    pub cv_before: Cv,
+    /// After.
+    pub cv_after: Cv,
+    /// Chi-square improvement and BIC improvement.
+    pub dchi2: f64,
+    /// BIC improvement.
+    pub dbic: f64,
+}
+
+/// The outcome of forward selection.
+#[derive(Debug, Clone)]
+pub struct Selection {
+    /// The starting model and its fit.
+    pub base_model: Model,
+    /// Its fit.
+    pub base_fit: FitResult,
+    /// Its held-out quality.
+    pub base_cv: Cv,
+    /// Accepted effects, in order.
+    pub steps: Vec<Step>,
+    /// Every candidate tried, every round.
+    pub trials: Vec<Trial>,
+    /// Candidates that could not be tested at all, with the reason.
+    pub untested: Vec<(Cand, String)>,
+}
+
+impl Selection {
+    /// The final model and its fit.
+    pub fn last(&self) -> (&Model, &FitResult, &Cv) {
+        match self.steps.last() {
+            Some(s) => (&s.model, &s.fit, &s.cv_after),
+            None => (&self.base_model, &self.base_fit, &self.base_cv),
+        }
+    }
+}
+
+/// Selection settings.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Starting model.
+    pub base: Base,
+    /// Number of cross-validation folds (capped by the number of separations).
+    pub folds: usize,
+    /// Candidates to consider.
+    pub candidates: Vec<Cand>,
+    /// Stop after this many accepted effects.
+    pub max_effects: usize,
+}
+
+/// Progress callback: called with a short message after each fit.
+pub type Progress<'a> = &'a (dyn Fn(&str) + Sync);
+
+/// Indices of every per-separation parameter of the separations in `seps`.
+fn locals(model: &Model, seps: &[usize]) -> Vec<usize> {
+    seps.iter().flat_map(|&k| model.locals_of_sep(k)).collect()
+}
+
+/// Fit every global parameter and the per-separation ones of the separations in `subset`.
+pub fn fit_all(
+    model: &Model,
+    data: &Data,
+    subset: &[usize],
+    x0: &[f64],
+) -> Result<FitResult, FitFailure> {
+    fit_all_except(model, data, subset, x0, &[])
+}
+
+/// [`fit_all`] with the parameters in `held` kept at their `x0` values.
+pub fn fit_all_except(
+    model: &Model,
+    data: &Data,
+    subset: &[usize],
+    x0: &[f64],
+    held: &[usize],
+) -> Result<FitResult, FitFailure> {
+    let mut present: Vec<usize> = subset.iter().map(|&i| data.points[i].sep).collect();
+    present.sort_unstable();
+    present.dedup();
+    let mut free: Vec<usize> = (0..model.n_global_params()).collect();
+    free.extend(locals(model, &present));
+    free.retain(|i| !held.contains(i));
+    fit(model, data, subset, x0, &free, true, &data.seps)
+}
+
+/// The separation folds: separation index `k` goes to fold `k % folds`.
+pub fn folds(nsep: usize, folds: usize) -> Vec<Vec<usize>> {
+    let f = folds.min(nsep).max(1);
+    (0..f).map(|j| (j..nsep).step_by(f).collect()).collect()
+}
+
+/// Cross-validate `model` (started from the all-data fit `x`) over `fold_seps`.
+pub fn cross_validate(
+    model: &Model,
+    data: &Data,
+    x: &[f64],
+    fold_seps: &[Vec<usize>],
+) -> Result<Cv, FitFailure> {
+    let parts: Vec<Result<(Vec<usize>, Vec<[f64; 2]>, usize), FitFailure>> = fold_seps
+        .par_iter()
+        .map(|held| {
+            let train: Vec<usize> = (0..data.points.len())
+                .filter(|&i| !held.contains(&data.points[i].sep))
+                .collect();
+            let test: Vec<usize> = (0..data.points.len())
+                .filter(|&i| held.contains(&data.points[i].sep))
+                .collect();
+            let f = match fit_all(model, data, &train, x) {
+                Ok(f) => f,
+                // The training separations may not constrain the newest effect at all (e.g.
+                // saturation that only shows at a held-out separation): then the model
+                // trained on them predicts without it, i.e. with the effect absent.
+                Err(e) => match model.effects.last() {
+                    Some(&c) if !c.global_names(model.base).is_empty() => {
+                        let mut xa = x.to_vec();
+                        let idx: Vec<usize> = model.global_indices(c).collect();
+                        for (i, v) in idx.iter().zip(c.absent(model.base)) {
+                            xa[*i] = v;
+                        }
+                        fit_all_except(model, data, &train, &xa, &idx).map_err(|_| {
+                            FitFailure(format!(
+                                "with separation(s) {} held out: {}",
+                                crate::measurement::fmt_list(
+                                    &held.iter().map(|&k| data.seps[k]).collect::<Vec<_>>()
+                                ),
+                                e.0
+                            ))
+                        })?
+                    }
+                    _ => return Err(e),
+                },
+            };
+            let mut xt = f.x.clone();
+            let loc = locals(model, held);
+            let mut nloc = 0;
+            if !loc.is_empty() && !test.is_empty() {
+                for &i in &loc {
+                    xt[i] = 0.0;
+                }
+                let g = fit(model, data, &test, &xt, &loc, false, &data.seps)?;
+                xt = g.x;
+                nloc = loc.len();
+            }
+            let y = model
+                .predict(&xt, data, &test)
+                .map_err(|_| FitFailure("the model cannot predict a held-out separation".into()))?;
+            Ok((test, y, nloc))
+        })
+        .collect();
+    let nsep = data.seps.len();
+    let mut ss_sep = vec![0.0; nsep];
+    let mut n_sep = vec![0usize; nsep];
+    let (mut ss, mut chi2, mut rows, mut nloc_all) = (0.0, 0.0, 0usize, 0usize);
+    for p in parts {
+        let (test, y, nloc) = p?;
+        nloc_all += nloc;
+        for (j, &i) in test.iter().enumerate() {
+            let pt = &data.points[i];
+            for a in 0..2 {
+                let r = pt.y[a] - y[j][a];
+                ss += r * r;
+                chi2 += pt.w[a] * r * r;
+                ss_sep[pt.sep] += r * r;
+                n_sep[pt.sep] += 1;
+            }
+            rows += 2;
+        }
+    }
+    let dof = (rows as f64 - nloc_all as f64).max(1.0);
+    let corr = rows as f64 / dof;
+    Ok(Cv {
+        rms: (ss / dof).sqrt(),
+        chi2: chi2 * corr,
+        rows,
+        rms_by_sep: ss_sep
+            .iter()
+            .zip(&n_sep)
+            .map(|(s, &n)| {
+                if n > 0 {
+                    (s / n as f64).sqrt()
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect(),
+    })
+}
+
+/// Added parameters of `cand` (per-separation blocks minus their zero-mean constraints).
+fn added_params(model: &Model, cand: Cand) -> usize {
+    let w = cand.local_names().len();
+    cand.global_names(model.base).len() + w * model.nsep.saturating_sub(1)
+}
+
+/// Start values for `cand` on top of `model`'s fit `prev`: neutral values, except for
+/// `saturation`, whose level is scanned over quantiles of the predicted cell signals. Returns
+/// None when no saturation level fits better than none.
+fn start(
+    model: &Model,
+    cand: Cand,
+    prev: &FitResult,
+    data: &Data,
+    all: &[usize],
+) -> Option<Vec<f64>> {
+    let m2 = model.with(cand);
+    let x0 = m2.start_from(model, &prev.x);
+    let mut x0: Vec<f64> = x0.as_slice().to_vec();
+    if cand != Cand::Saturation {
+        return Some(x0);
+    }
+    let em = model.emulator(&prev.x);
+    let mut peaks: Vec<f64> = data
+        .points
+        .iter()
+        .map(|p| {
+            let s = em.signals(&(p.r + model.offset(&prev.x, p.sep)));
+            s.iter().fold(0.0f64, |a, &b| a.max(b))
+        })
+        .collect();
+    peaks.sort_by(f64::total_cmp);
+    let idx = m2.global_indices(Cand::Saturation).start;
+    let mut best: Option<(f64, f64)> = None;
+    for q in [0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95, 0.98, 0.99, 0.995] {
+        let level = peaks[((peaks.len() - 1) as f64 * q) as usize];
+        if !(level > 0.0) {
+            continue;
+        }
+        x0[idx] = level.ln();
+        let Ok(y) = m2.predict(&x0, data, all) else {
+            continue;
+        };
+        let chi2: f64 = all
+            .iter()
+            .zip(&y)
+            .map(|(&i, y)| {
+                let p = &data.points[i];
+                p.w[0] * (p.y[0] - y[0]).powi(2) + p.w[1] * (p.y[1] - y[1]).powi(2)
+            })
+            .sum();
+        if best.is_none_or(|b| chi2 < b.0) {
+            best = Some((chi2, x0[idx]));
+        }
+    }
+    let (chi2, ln_s) = best?;
+    if chi2 >= prev.chi2 {
+        return None;
+    }
+    x0[idx] = ln_s;
+    Some(x0)
+}
+
+/// Run forward selection with the default interleaved folds.
+pub fn select(data: &Data, opts: &Options, progress: Progress) -> Result<Selection, String> {
+    let f = folds(data.seps.len(), opts.folds);
+    select_with_folds(data, opts, &f, progress)
+}
+
+/// Run forward selection with the given held-out folds (separation indices). Errors when
+/// even the starting model cannot be fitted.
+pub fn select_with_folds(
+    data: &Data,
+    opts: &Options,
+    fold_seps: &[Vec<usize>],
+    progress: Progress,
+) -> Result<Selection, String> {
+    let all: Vec<usize> = (0..data.points.len()).collect();
+    let nsep = data.seps.len();
+    let base_model = Model::new(opts.base, nsep);
+    let x0 = initial_pose(data, &all, opts.base)?;
+    let base_fit = fit_all(&base_model, data, &all, &x0).map_err(|e| {
+        format!(
+            "the `{}` starting model could not be fitted: {}",
+            opts.base.name(),
+            e.0
+        )
+    })?;
+    progress("starting model fitted");
+    let base_cv = cross_validate(&base_model, data, &base_fit.x, fold_seps)
+        .map_err(|e| format!("cross-validation of the starting model failed: {}", e.0))?;
+    progress("starting model cross-validated");
+    let mut sel = Selection {
+        base_model: base_model.clone(),
+        base_fit,
+        base_cv,
+        steps: Vec::new(),
+        trials: Vec::new(),
+        untested: Vec::new(),
+    };
+    // Candidates that cannot be tested on this data at all.
+    let mut pool: Vec<Cand> = Vec::new();
+    for &c in &opts.candidates {
+        if !c.available(opts.base) {
+            continue;
+        }
+        if !c.local_names().is_empty() && nsep < 3 {
+            sel.untested.push((
+                c,
+                format!(
+                    "one correction per separation needs at least 3 separations to be told apart \
+                     from the head offset and cross-validated; the file has {nsep}"
+                ),
+            ));
+            continue;
+        }
+        pool.push(c);
+    }
+    let mut round = 0;
+    while !pool.is_empty() && sel.steps.len() < opts.max_effects {
+        round += 1;
+        let (model, cur, cur_cv) = {
+            let (m, f, c) = sel.last();
+            (m.clone(), f.clone(), c.clone())
+        };
+        let results: Vec<(Cand, Result<Option<FitResult>, FitFailure>)> = pool
+            .par_iter()
+            .map(|&c| {
+                let r = match start(&model, c, &cur, data, &all) {
+                    None => Ok(None),
+                    Some(x0) => fit_all(&model.with(c), data, &all, &x0).map(Some),
+                };
+                progress(&format!("round {round}: {}", c.name()));
+                (c, r)
+            })
+            .collect();
+        let ln_m = (cur.m as f64).ln();
+        let mut scored: Vec<(usize, FitResult)> = Vec::new();
+        for (c, r) in results {
+            let k = added_params(&model, c);
+            let mut t = Trial {
+                round,
+                cand: c,
+                dchi2: 0.0,
+                k,
+                dbic: -(k as f64) * ln_m,
+                cv_rms: None,
+                cv_chi2: None,
+                accepted: false,
+                failure: None,
+            };
+            match r {
+                Ok(Some(f)) => {
+                    t.dchi2 = cur.chi2 - f.chi2;
+                    t.dbic = t.dchi2 - k as f64 * ln_m;
+                    scored.push((sel.trials.len(), f));
+                }
+                Ok(None) => {}
+                Err(e) => t.failure = Some(e.0),
+            }
+            sel.trials.push(t);
+        }
+        scored.sort_by(|a, b| sel.trials[b.0].dbic.total_cmp(&sel.trials[a.0].dbic));
+        let mut accepted = None;
+        for (ti, f) in scored {
+            if sel.trials[ti].dbic <= BIC_MIN {
+                break;
+            }
+            let c = sel.trials[ti].cand;
+            let m2 = model.with(c);
+            let cv = match cross_validate(&m2, data, &f.x, fold_seps) {
+                Ok(cv) => cv,
+                Err(e) => {
+                    sel.trials[ti].failure = Some(format!("cross-validation: {}", e.0));
+                    continue;
+                }
+            };
+            progress(&format!("round {round}: {} cross-validated", c.name()));
+            sel.trials[ti].cv_rms = Some(cv.rms);
+            sel.trials[ti].cv_chi2 = Some(cv.chi2);
+            if cv.chi2 < cur_cv.chi2 {
+                sel.trials[ti].accepted = true;
+                accepted = Some(Step {
+                    cand: c,
+                    model: m2,
+                    dchi2: sel.trials[ti].dchi2,
+                    dbic: sel.trials[ti].dbic,
+                    fit: f,
+                    cv_before: cur_cv.clone(),
+                    cv_after: cv,
+                });
+                break;
+            }
+        }
+        match accepted {
+            Some(s) => {
+                pool.retain(|&c| c != s.cand);
+                sel.steps.push(s);
+            }
+            None => break,
+        }
+    }
+    // Candidates that failed in every round they were tried, and never fitted.
+    for &c in &pool {
+        let tried: Vec<&Trial> = sel.trials.iter().filter(|t| t.cand == c).collect();
+        if !tried.is_empty() && tried.iter().all(|t| t.failure.is_some()) {
+            let why = tried
+                .last()
+                .and_then(|t| t.failure.clone())
+                .unwrap_or_default();
+            sel.untested.push((c, why));
+        }
+    }
+    Ok(sel)
+}
+
+/// Starting pose: the 7-parameter pinhole fit (eq 65) from a zero pose, as REFERENCE.md
+/// advises (a cold near-field fit can fall into a false minimum). For the `thesis` start
+/// the pinhole's virtual-eye d3 is dropped (the near-field model puts the eye on the board).
+fn initial_pose(data: &Data, all: &[usize], base: Base) -> Result<Vec<f64>, String> {
+    let pin = Model::new(Base::Pinhole, data.seps.len());
+    let x0 = vec![
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        cta_core::emulator::Head::<f64>::northstar().h(),
+    ];
+    let f = fit_all(&pin, data, all, &x0);
+    let mut x = match f {
+        Ok(f) => f.x,
+        Err(e) if base == Base::Pinhole => {
+            return Err(format!(
+                "the pinhole starting model could not be fitted: {}",
+                e.0
+            ))
+        }
+        Err(_) => x0,
+    };
+    if base == Base::Thesis {
+        x.truncate(6);
+        x[2] = 0.0;
+    }
+    Ok(x)
+}
