@@ -179,6 +179,32 @@ where
     ss: T,
 }
 
+impl<T: Real, D: Dim> Normal<T, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    /// Jacobi scaling `s_i = 1/sqrt(N_ii)` (0 for a parameter the data does not touch):
+    /// returns the scaled normal matrix `S N S` and `s`.
+    fn scaled(&self) -> (OMatrix<T, D, D>, OVector<T, D>) {
+        let (dim, _) = self.n.shape_generic();
+        let scale = OVector::<T, D>::from_fn_generic(dim, U1, |i, _| {
+            let nii = self.n[(i, i)];
+            if nii > T::zero() {
+                T::one() / nii.sqrt()
+            } else {
+                T::zero()
+            }
+        });
+        let mut ns = self.n.clone();
+        for a in 0..dim.value() {
+            for b in 0..dim.value() {
+                ns[(a, b)] *= scale[a] * scale[b];
+            }
+        }
+        (ns, scale)
+    }
+}
+
 fn cost_at<T: Real, P: Problem<T>>(prob: &P, x: &OVector<T, P::D>) -> Result<(T, T), ModelError>
 where
     DefaultAllocator: Allocator<P::D>,
@@ -303,22 +329,7 @@ where
     while iterations < settings.max_iter {
         iterations += 1;
         let ne = accumulate(prob, &x).map_err(Error::Model)?;
-        // Jacobi scaling: s_i = 1/sqrt(N_ii).
-        let mut scale = OVector::<T, P::D>::zeros_generic(d, U1);
-        for i in 0..n {
-            let nii = ne.n[(i, i)];
-            scale[i] = if nii > T::zero() {
-                T::one() / nii.sqrt()
-            } else {
-                T::zero()
-            };
-        }
-        let mut ns = ne.n.clone();
-        for a in 0..n {
-            for b in 0..n {
-                ns[(a, b)] *= scale[a] * scale[b];
-            }
-        }
+        let (ns, scale) = ne.scaled();
         let gs = ne.g.component_mul(&scale);
         // Rank check on the scaled normal matrix.
         if let Some(err) = rank_check(&ns, &scale, &x, settings) {
@@ -452,21 +463,7 @@ where
     let n = d.value();
     let m = prob.n_rows();
     let ne = accumulate(prob, &x).map_err(Error::Model)?;
-    let mut scale = OVector::<T, P::D>::zeros_generic(d, U1);
-    for i in 0..n {
-        let nii = ne.n[(i, i)];
-        scale[i] = if nii > T::zero() {
-            T::one() / nii.sqrt()
-        } else {
-            T::zero()
-        };
-    }
-    let mut ns = ne.n.clone();
-    for a in 0..n {
-        for b in 0..n {
-            ns[(a, b)] *= scale[a] * scale[b];
-        }
-    }
+    let (ns, scale) = ne.scaled();
     if let Some(err) = rank_check(&ns, &scale, &x, settings) {
         return Err(err);
     }
@@ -524,19 +521,7 @@ pub fn weakest_direction<T: Real, P: Problem<T>>(
 where
     DefaultAllocator: Allocator<P::D> + Allocator<P::D, P::D>,
 {
-    let ne = accumulate(prob, x)?;
-    let n = prob.dim().value();
-    let mut ns = ne.n.clone();
-    for a in 0..n {
-        for b in 0..n {
-            let (na, nb) = (ne.n[(a, a)], ne.n[(b, b)]);
-            ns[(a, b)] = if na > T::zero() && nb > T::zero() {
-                ns[(a, b)] / (na * nb).sqrt()
-            } else {
-                T::zero()
-            };
-        }
-    }
+    let (ns, _) = accumulate(prob, x)?.scaled();
     let (lmax, lmin, v) = extreme_eigen(&ns, lmax_guard::<T>());
     let ratio = if lmax > T::zero() {
         lmin / lmax
