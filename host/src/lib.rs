@@ -24,3 +24,5 @@ pub mod demo;
 
 /// `cta analyze`: from measured data to a named cause, an extended model and a measured gain.
 pub mod analyze;
+/// `cta noise`: the noise of repeated samples and the weighting it implies.
+pub mod noise;

@@ -1,13 +1,411 @@
-//! The self-contained HTML report of `cta analyze --report DIR`.
-use super::Analysis;
+//! The self-contained HTML report of `cta analyze --report DIR`: one `index.html` with
+//! inline SVG plots (plotters' SVG backend) and no external resources.
+//!
+//! Contents: the verdict; the named causes with parameters, 1-sigma and held-out gain; the
+//! evidence (every candidate of every round with its chi-square and BIC improvement and
+//! held-out RMS); residual quiver maps per separation before and after; held-out RMS
+//! versus separation; chi-square per residual versus off-boresight angle; the Figure 57
+//! curve (angle-error spread versus separation) before and after; the final parameter table;
+//! and the residual diagnostics.
+
+use super::{g, Analysis, Cause};
+use crate::noise::html_escape;
+use crate::plot::{render_svg, Panel, Series};
+use plotters::prelude::*;
+use std::fmt::Write;
 use std::path::Path;
 
 /// Write `DIR/index.html`.
 pub fn write(dir: &Path, a: &Analysis) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir)?;
-    std::fs::write(
-        dir.join("index.html"),
-        format!("<pre>{}</pre>", super::render_text(a)),
-    )?;
+    let html = render(a).map_err(|e| anyhow::anyhow!("plotting failed: {e}"))?;
+    std::fs::write(dir.join("index.html"), html)?;
     Ok(())
+}
+
+fn cause_rows(s: &mut String, causes: &[Cause]) {
+    for (k, c) in causes.iter().enumerate() {
+        let params: Vec<String> = c
+            .params
+            .iter()
+            .filter(|(n, _)| !n.contains('@'))
+            .map(|(n, v)| match c.sigma.get(n) {
+                Some(sg) => format!("{n} = {} &plusmn; {}", g(*v), g(*sg)),
+                None => format!("{n} = {}", g(*v)),
+            })
+            .collect();
+        let _ = write!(
+            s,
+            "<tr><td>{}</td><td><b>{}</b></td><td>{}</td><td>{:.1} &rarr; {:.1} (gain {:.1})</td>\
+             <td>{:.0}</td><td>{:.0}</td><td>{:.3}</td></tr>",
+            k + 1,
+            c.effect,
+            params.join("<br>"),
+            c.heldout_rms_before,
+            c.heldout_rms_after,
+            c.gain_rms_counts,
+            c.dchi2,
+            c.dbic,
+            c.chi2_dof_after
+        );
+        let locals: Vec<String> = c
+            .params
+            .iter()
+            .filter(|(n, _)| n.contains('@'))
+            .map(|(n, v)| {
+                format!(
+                    "{n} = {} &plusmn; {}",
+                    g(*v),
+                    g(*c.sigma.get(n).unwrap_or(&f64::NAN))
+                )
+            })
+            .collect();
+        if !locals.is_empty() {
+            let _ = write!(
+                s,
+                "<tr><td></td><td colspan=6><details><summary>per-separation values (relative to \
+                 their mean; the common part is in the head offset d)</summary>{}</details></td></tr>",
+                locals.join(", ")
+            );
+        }
+    }
+}
+
+const STYLE: &str = "body{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em}\
+table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #ccc;padding:3px 8px;\
+text-align:left;vertical-align:top}th{background:#eee}.verdict{font-size:1.3em;padding:0.5em;\
+background:#f4f4e8;border-left:6px solid #c90}.acc{background:#e6f4e6}svg{max-width:100%;height:auto}";
+
+/// The whole page.
+pub fn render(a: &Analysis) -> Result<String, String> {
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        "<!doctype html><html><head><meta charset=utf-8><title>cta analyze: {}</title>\
+         <style>{STYLE}</style></head><body>",
+        html_escape(&a.file)
+    );
+    let _ = write!(
+        s,
+        "<h1>cta analyze</h1><p>{} &mdash; starting model <b>{}</b>; {} samples &rarr; {} points \
+         ({} left out: pinned output); {}.</p><p class=verdict>{}</p>",
+        html_escape(&a.file),
+        a.model_from,
+        a.samples,
+        a.points,
+        a.excluded_points,
+        html_escape(&a.noise),
+        html_escape(&a.verdict)
+    );
+    let _ = write!(
+        s,
+        "<p>chi2/dof {:.3} &rarr; {:.3}; held-out RMS {:.2} &rarr; {:.2} counts \
+         (cross-validation folds, held-out separations: {}).</p>",
+        a.chi2_dof_before,
+        a.chi2_dof_after,
+        a.rms_before,
+        a.rms_after,
+        a.folds
+            .iter()
+            .map(|f| format!("[{}]", crate::measurement::fmt_list(f)))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    let head =
+        "<tr><th>#</th><th>effect</th><th>parameters (1-sigma)</th><th>held-out RMS, counts</th>\
+                <th>&Delta;chi2</th><th>&Delta;BIC</th><th>chi2/dof after</th></tr>";
+    if !a.causes.is_empty() {
+        let _ = write!(s, "<h2>Named causes</h2><table>{head}");
+        cause_rows(&mut s, &a.causes);
+        s.push_str("</table>");
+    }
+    if !a.tentative.is_empty() {
+        let _ = write!(
+            s,
+            "<h2>Partial improvements (not named)</h2><p>These extensions lower chi-square but \
+             leave chi2/dof clearly above 1: the data hold structure outside the vocabulary, so \
+             none is named with confidence.</p><table>{head}"
+        );
+        cause_rows(&mut s, &a.tentative);
+        s.push_str("</table>");
+    }
+    if !a.structure.is_empty() {
+        s.push_str("<h2>Where the unexplained structure is</h2><ul>");
+        for n in &a.structure {
+            let _ = write!(s, "<li>{}</li>", html_escape(n));
+        }
+        s.push_str("</ul>");
+    }
+    if !a.untested.is_empty() {
+        s.push_str("<h2>Candidates that could not be tested</h2><ul>");
+        for u in &a.untested {
+            let _ = write!(
+                s,
+                "<li><b>{}</b>: {}</li>",
+                u.effect,
+                html_escape(&u.reason)
+            );
+        }
+        s.push_str("</ul>");
+    }
+    // Evidence.
+    s.push_str(
+        "<h2>Evidence: every candidate, every round</h2><p>Accepted when &Delta;BIC &gt; 10 \
+         and the held-out chi-square drops; the best &Delta;BIC is tried first.</p><table><tr>\
+         <th>round</th><th>candidate</th><th>k</th><th>&Delta;chi2</th><th>&Delta;BIC</th>\
+         <th>held-out RMS</th><th>note</th></tr>",
+    );
+    for t in &a.trials {
+        let _ = write!(
+            s,
+            "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{:.1}</td><td>{:.1}</td><td>{}</td><td>{}</td></tr>",
+            if t.accepted { " class=acc" } else { "" },
+            t.round,
+            t.effect,
+            t.k,
+            t.dchi2,
+            t.dbic,
+            t.heldout_rms.map(|v| format!("{v:.2}")).unwrap_or_default(),
+            if t.accepted {
+                "accepted".to_string()
+            } else {
+                html_escape(t.failure.as_deref().unwrap_or(""))
+            }
+        );
+    }
+    s.push_str("</table>");
+    // Plots.
+    let seps = &a.separations;
+    let line = |title: &str, y: &str, log_y: bool, b: &[f64], af: &[f64]| Panel {
+        title: title.into(),
+        x_desc: "separation (in)".into(),
+        y_desc: y.into(),
+        log_x: false,
+        log_y,
+        series: vec![
+            Series::new(
+                "before",
+                seps.iter().copied().zip(b.iter().copied()).collect(),
+            ),
+            Series::new(
+                "after",
+                seps.iter().copied().zip(af.iter().copied()).collect(),
+            ),
+        ],
+    };
+    let ang = |d: &super::diag::Diagnostics| -> Vec<(f64, f64)> {
+        d.by_angle
+            .iter()
+            .map(|b| {
+                let lo: f64 = b
+                    .label
+                    .split(['-', '+'])
+                    .next()
+                    .and_then(|v| v.trim().parse().ok())
+                    .unwrap_or(0.0);
+                (lo + 5.0, b.chi2_per_row)
+            })
+            .collect()
+    };
+    let panels = vec![
+        line(
+            "Figure 57: angle-error spread per separation",
+            "angle error std (deg)",
+            true,
+            &a.angle_std_before_deg,
+            &a.angle_std_after_deg,
+        ),
+        line(
+            "held-out residual vs separation",
+            "held-out RMS (counts)",
+            true,
+            &a.heldout_rms_by_sep_before,
+            &a.heldout_rms_by_sep_after,
+        ),
+        Panel {
+            title: "residual vs off-boresight angle".into(),
+            x_desc: "off-boresight angle (deg)".into(),
+            y_desc: "chi2 per residual".into(),
+            log_x: false,
+            log_y: true,
+            series: vec![
+                Series::new("before", ang(&a.diagnostics_before)),
+                Series::new("after", ang(&a.diagnostics_after)),
+                Series::dashed("noise floor", vec![(0.0, 1.0), (80.0, 1.0)]),
+            ],
+        },
+        Panel {
+            title: "chi2 per residual by separation (all-data fits)".into(),
+            x_desc: "separation (in)".into(),
+            y_desc: "chi2 per residual".into(),
+            log_x: false,
+            log_y: true,
+            series: vec![
+                Series::new(
+                    "before",
+                    a.diagnostics_before
+                        .by_separation
+                        .iter()
+                        .zip(seps)
+                        .map(|(b, s)| (*s, b.chi2_per_row))
+                        .collect(),
+                ),
+                Series::new(
+                    "after",
+                    a.diagnostics_after
+                        .by_separation
+                        .iter()
+                        .zip(seps)
+                        .map(|(b, s)| (*s, b.chi2_per_row))
+                        .collect(),
+                ),
+                Series::dashed("noise floor", seps.iter().map(|s| (*s, 1.0)).collect()),
+            ],
+        },
+    ];
+    s.push_str("<h2>Before and after</h2>");
+    s.push_str(&render_svg("", &panels, 2)?);
+    if let Some(d) = &a.detail {
+        s.push_str(
+            "<h2>Residual maps</h2><p>Each arrow is a point's mean residual (measured &minus; \
+             model) in (X, Y) counts, drawn at the beacon's grid position; before and after \
+             share one scale per separation (the bar in the title).</p>",
+        );
+        s.push_str(&quivers(a, d)?);
+    }
+    s.push_str("<h2>Final parameters (1-sigma)</h2><table><tr><th>parameter</th><th>value</th><th>1-sigma</th></tr>");
+    for p in &a.params_after {
+        let _ = write!(
+            s,
+            "<tr><td>{}</td><td>{}</td><td>{}</td></tr>",
+            p.name,
+            g(p.value),
+            g(p.sigma)
+        );
+    }
+    s.push_str("</table><h3>Starting model</h3><table><tr><th>parameter</th><th>value</th><th>1-sigma</th></tr>");
+    for p in &a.params_before {
+        let _ = write!(
+            s,
+            "<tr><td>{}</td><td>{}</td><td>{}</td></tr>",
+            p.name,
+            g(p.value),
+            g(p.sigma)
+        );
+    }
+    s.push_str("</table><h2>Residual diagnostics (chi2 per residual; 1 = noise)</h2><table><tr><th>bin</th><th>before</th><th>after</th></tr>");
+    let (b, af) = (&a.diagnostics_before, &a.diagnostics_after);
+    for (x, y) in b
+        .by_axis
+        .iter()
+        .zip(&af.by_axis)
+        .chain(b.radial_tangential.iter().zip(&af.radial_tangential))
+        .chain(b.by_angle.iter().zip(&af.by_angle))
+    {
+        let _ = write!(
+            s,
+            "<tr><td>{}</td><td>{:.2} (mean z {:+.2})</td><td>{:.2} (mean z {:+.2})</td></tr>",
+            x.label, x.chi2_per_row, x.mean_z, y.chi2_per_row, y.mean_z
+        );
+    }
+    s.push_str("</table><h3>Worst beacons after</h3><ul>");
+    for w in &af.worst_beacons {
+        let _ = write!(s, "<li>{}: {:.2}</li>", w.label, w.chi2_per_row);
+    }
+    s.push_str("</ul><p>Method: host/ANALYZE.md. Equation numbers are Stancliffe (2010)'s.</p></body></html>");
+    Ok(s)
+}
+
+/// Quiver maps: up to 8 separations spread over the range, before and after side by side.
+fn quivers(a: &Analysis, d: &super::Detail) -> Result<String, String> {
+    let nsep = a.separations.len();
+    let pick: Vec<usize> = if nsep <= 8 {
+        (0..nsep).collect()
+    } else {
+        let mut v: Vec<usize> = (0..8).map(|i| i * (nsep - 1) / 7).collect();
+        v.dedup();
+        v
+    };
+    let rows = pick.len();
+    let (w, h) = (900u32, 420 * rows as u32);
+    let mut buf = String::new();
+    {
+        let root = SVGBackend::with_string(&mut buf, (w, h)).into_drawing_area();
+        let e = |e: DrawingAreaErrorKind<std::io::Error>| e.to_string();
+        root.fill(&WHITE).map_err(e)?;
+        let areas = root.split_evenly((rows, 2));
+        let xs: Vec<f64> = d.data.points.iter().map(|p| p.r.x).collect();
+        let ys: Vec<f64> = d.data.points.iter().map(|p| p.r.y).collect();
+        let ext = xs.iter().chain(&ys).fold(1.0f64, |m, v| m.max(v.abs())) + 1.0;
+        for (row, &k) in pick.iter().enumerate() {
+            let idx: Vec<usize> = (0..d.data.points.len())
+                .filter(|&i| d.data.points[i].sep == k)
+                .collect();
+            let max_res = idx
+                .iter()
+                .map(|&i| d.before[i].0[0].hypot(d.before[i].0[1]))
+                .filter(|v| v.is_finite())
+                .fold(0.0f64, f64::max)
+                .max(1e-9);
+            // The longest "before" arrow spans 1.2 grid pitches.
+            let scale = 1.2 / max_res;
+            for (col, (res, name)) in [(&d.before, "before"), (&d.after, "after")]
+                .iter()
+                .enumerate()
+            {
+                let area = &areas[row * 2 + col];
+                let mut c = ChartBuilder::on(area)
+                    .caption(
+                        format!(
+                            "{} in, {name} (arrow of 1 pitch = {} counts)",
+                            a.separations[k],
+                            crate::plot::tick(1.0 / scale)
+                        ),
+                        ("sans-serif", 14),
+                    )
+                    .margin(8)
+                    .x_label_area_size(24)
+                    .y_label_area_size(30)
+                    .build_cartesian_2d(-ext..ext, -ext..ext)
+                    .map_err(e)?;
+                c.configure_mesh().disable_mesh().draw().map_err(e)?;
+                let color = if col == 0 {
+                    RGBColor(214, 39, 40)
+                } else {
+                    RGBColor(31, 119, 180)
+                };
+                for &i in &idx {
+                    let p = &d.data.points[i];
+                    let r = res[i].0;
+                    if !(r[0].is_finite() && r[1].is_finite()) {
+                        continue;
+                    }
+                    let (x0, y0) = (p.r.x, p.r.y);
+                    let (dx, dy) = (r[0] * scale, r[1] * scale);
+                    let (x1, y1) = (x0 + dx, y0 + dy);
+                    c.draw_series(std::iter::once(PathElement::new(
+                        vec![(x0, y0), (x1, y1)],
+                        color,
+                    )))
+                    .map_err(e)?;
+                    let len = dx.hypot(dy);
+                    if len > 0.05 {
+                        let (ux, uy) = (dx / len, dy / len);
+                        let hs = 0.15f64.min(0.4 * len);
+                        let head =
+                            |s: f64| (x1 - hs * (ux - s * uy * 0.5), y1 - hs * (uy + s * ux * 0.5));
+                        c.draw_series(std::iter::once(PathElement::new(
+                            vec![head(1.0), (x1, y1), head(-1.0)],
+                            color,
+                        )))
+                        .map_err(e)?;
+                    }
+                    c.draw_series(std::iter::once(Circle::new((x0, y0), 1, BLACK.filled())))
+                        .map_err(e)?;
+                }
+            }
+        }
+        root.present().map_err(e)?;
+    }
+    Ok(buf)
 }

@@ -1,0 +1,498 @@
+//! `cta noise`: the noise questions the thesis leaves open (Ch VI, "Future Work": "work also
+//! needs to be performed to determine a suitable weighting matrix").
+//!
+//! From the repeated samples of each point (one beacon at one separation and one setting,
+//! [`Dataset::points`]) it takes the sample variance, and pools it (sum of squared
+//! deviations over sum of degrees of freedom) by each factor the file records: separation,
+//! off-boresight angle, signal magnitude, modulation frequency, power level and
+//! sensitivity setting. It reports the one-sample standard deviation per axis for each
+//! group, the X-Y correlation, and the weighting the spread implies for `cta fit` and
+//! `cta analyze` (eq 56's `W = R^-1`): one variance for the file when the groups agree,
+//! per separation when they differ by separation (the `analyze --weights separation`
+//! default), per point when they differ within a separation.
+//!
+//! The off-boresight angle here is geometric (no model): the angle of the beacon from the
+//! board normal seen from the N origin, `atan(hypot(x, y) / z)`.
+
+use crate::measurement::{Dataset, Sample};
+use crate::plot::{render_svg, Panel, Series};
+use anyhow::Context;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+/// `cta noise`: how noisy are the repeated samples, and on what does the noise depend?
+#[derive(Debug, Clone, clap::Args)]
+#[command(after_long_help = "\
+Needs repeated samples (several rows per beacon, separation and setting). For each factor the
+file records (separation, off-boresight angle, signal magnitude, modulation frequency, power
+level, sensitivity setting) the table gives the pooled one-sample standard deviation of X and
+Y in counts, and the verdict says which weighting to use in `cta analyze --weights`.
+
+EXAMPLE:
+  cta simulate --out sim.csv --separations 2..30 --noise 32.8 --samples 20
+  cta noise sim.csv --plot noise-plots")]
+pub struct NoiseArgs {
+    /// Measurement file (CSV, host/MEASUREMENTS.md).
+    pub file: PathBuf,
+    /// Write SVG plots (noise.svg) and a small HTML page into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub plot: Option<PathBuf>,
+    /// Print the result as JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Pooled noise of one group of points.
+#[derive(Debug, Clone, Serialize)]
+pub struct Group {
+    /// Group label (e.g. "10 in", "20-30 deg").
+    pub label: String,
+    /// Numeric key for plots (separation, angle bin centre, ...).
+    pub key: f64,
+    /// Points with repeated samples.
+    pub points: usize,
+    /// Degrees of freedom pooled (samples minus points).
+    pub dof: usize,
+    /// One-sample standard deviation of X, counts.
+    pub std_x: f64,
+    /// Of Y.
+    pub std_y: f64,
+}
+
+/// Noise by one factor.
+#[derive(Debug, Clone, Serialize)]
+pub struct Factor {
+    /// Factor name.
+    pub factor: String,
+    /// Groups (empty when the file does not record the factor).
+    pub groups: Vec<Group>,
+    /// Largest over smallest group std (both axes), 1 when uniform.
+    pub spread_ratio: f64,
+    /// Whether the spread exceeds what sampling alone explains (99 % chi-square bound).
+    pub significant: bool,
+}
+
+/// The `cta noise` result.
+#[derive(Debug, Clone, Serialize)]
+pub struct NoiseReport {
+    /// File.
+    pub file: String,
+    /// Samples read.
+    pub samples: usize,
+    /// Points with repeated samples.
+    pub points_repeated: usize,
+    /// Points with one sample (no variance).
+    pub points_single: usize,
+    /// Pooled one-sample std over the file (X, Y), counts.
+    pub std_all: [f64; 2],
+    /// Pooled X-Y correlation of the deviations.
+    pub xy_correlation: f64,
+    /// Noise by factor.
+    pub factors: Vec<Factor>,
+    /// Standard deviation of the point variances within a separation relative to what
+    /// sampling alone gives (1 = homogeneous within a separation).
+    pub within_separation_dispersion: f64,
+    /// The weighting it implies.
+    pub weighting: String,
+}
+
+struct Pt {
+    first: Sample,
+    n: usize,
+    ss: [f64; 2],
+    sxy: f64,
+}
+
+fn pool(label: String, key: f64, pts: &[&Pt]) -> Group {
+    let dof: usize = pts.iter().map(|p| p.n - 1).sum();
+    let d = dof.max(1) as f64;
+    Group {
+        label,
+        key,
+        points: pts.len(),
+        dof,
+        std_x: (pts.iter().map(|p| p.ss[0]).sum::<f64>() / d).sqrt(),
+        std_y: (pts.iter().map(|p| p.ss[1]).sum::<f64>() / d).sqrt(),
+    }
+}
+
+fn factor(name: &str, groups: Vec<Group>) -> Factor {
+    let g: Vec<&Group> = groups.iter().filter(|g| g.dof >= 2).collect();
+    let mut lo = f64::INFINITY;
+    let mut hi: f64 = 0.0;
+    let mut significant = false;
+    for a in 0..2 {
+        let s: Vec<f64> = g
+            .iter()
+            .map(|g| if a == 0 { g.std_x } else { g.std_y })
+            .collect();
+        for &v in &s {
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        // Each group's variance estimate has relative sd sqrt(2/dof); flag a spread beyond
+        // ~2.6 of those (99 %) between the extreme groups.
+        for (i, gi) in g.iter().enumerate() {
+            for (j, gj) in g.iter().enumerate() {
+                if i < j {
+                    let (vi, vj) = (s[i] * s[i], s[j] * s[j]);
+                    let sd = ((2.0 / gi.dof as f64) + (2.0 / gj.dof as f64)).sqrt();
+                    if vi > 0.0 && vj > 0.0 && (vi / vj).ln().abs() > 2.6 * sd {
+                        significant = true;
+                    }
+                }
+            }
+        }
+    }
+    Factor {
+        factor: name.into(),
+        spread_ratio: if lo > 0.0 && lo.is_finite() {
+            hi / lo
+        } else {
+            f64::NAN
+        },
+        significant,
+        groups,
+    }
+}
+
+fn by_value(name: &str, pts: &[Pt], get: impl Fn(&Sample) -> Option<f64>, unit: &str) -> Factor {
+    let mut m: BTreeMap<u64, Vec<&Pt>> = BTreeMap::new();
+    for p in pts.iter().filter(|p| p.n > 1) {
+        if let Some(v) = get(&p.first) {
+            m.entry(v.to_bits()).or_default().push(p);
+        }
+    }
+    let mut groups: Vec<Group> = m
+        .into_iter()
+        .map(|(k, v)| {
+            let x = f64::from_bits(k);
+            pool(format!("{x}{unit}"), x, &v)
+        })
+        .collect();
+    groups.sort_by(|a, b| a.key.total_cmp(&b.key));
+    factor(name, groups)
+}
+
+fn by_bins(
+    name: &str,
+    pts: &[Pt],
+    get: impl Fn(&Sample) -> Option<f64>,
+    edges: &[f64],
+    unit: &str,
+) -> Factor {
+    let mut bins: Vec<Vec<&Pt>> = vec![Vec::new(); edges.len() - 1];
+    for p in pts.iter().filter(|p| p.n > 1) {
+        if let Some(v) = get(&p.first) {
+            if let Some(b) = (0..edges.len() - 1).find(|&b| v >= edges[b] && v < edges[b + 1]) {
+                bins[b].push(p);
+            }
+        }
+    }
+    let groups = bins
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| !v.is_empty())
+        .map(|(b, v)| {
+            pool(
+                format!(
+                    "{}-{}{unit}",
+                    crate::plot::tick(edges[b]),
+                    crate::plot::tick(edges[b + 1])
+                ),
+                0.5 * (edges[b] + edges[b + 1]),
+                v,
+            )
+        })
+        .collect();
+    factor(name, groups)
+}
+
+/// Analyze the noise of a dataset.
+pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
+    let groups = ds.points();
+    let mut pts = Vec::with_capacity(groups.len());
+    for g in &groups {
+        let n = g.rows.len();
+        let (mut mx, mut my) = (0.0, 0.0);
+        for &i in &g.rows {
+            mx += ds.samples[i].x;
+            my += ds.samples[i].y;
+        }
+        mx /= n as f64;
+        my /= n as f64;
+        let (mut ss, mut sxy) = ([0.0; 2], 0.0);
+        for &i in &g.rows {
+            let (dx, dy) = (ds.samples[i].x - mx, ds.samples[i].y - my);
+            ss[0] += dx * dx;
+            ss[1] += dy * dy;
+            sxy += dx * dy;
+        }
+        pts.push(Pt {
+            first: g.first,
+            n,
+            ss,
+            sxy,
+        });
+    }
+    let rep: Vec<&Pt> = pts.iter().filter(|p| p.n > 1).collect();
+    if rep.is_empty() {
+        return Err(format!(
+            "{}: every point has a single sample: the noise needs repeated samples of one \
+             beacon at one setting (e.g. `cta simulate --samples 20`, or a sweep with several \
+             samples per beacon)",
+            ds.path.display()
+        ));
+    }
+    let all = pool("all".into(), 0.0, &rep);
+    let sxy: f64 = rep.iter().map(|p| p.sxy).sum();
+    let corr = sxy / ((all.std_x * all.std_y) * all.dof.max(1) as f64);
+    let angle = |s: &Sample| Some(s.r[0].hypot(s.r[1]).atan2(s.r[2]).to_degrees());
+    let mut factors = vec![
+        by_value("separation", &pts, |s| Some(s.separation_in), " in"),
+        by_bins(
+            "off-boresight angle",
+            &pts,
+            angle,
+            &[0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 90.0],
+            " deg",
+        ),
+    ];
+    // Magnitude: log bins (factor-of-2) over the recorded range.
+    let mags: Vec<f64> = rep
+        .iter()
+        .filter_map(|p| p.first.magnitude)
+        .filter(|m| *m > 0.0)
+        .collect();
+    if !mags.is_empty() {
+        let lo = mags.iter().cloned().fold(f64::INFINITY, f64::min);
+        let hi = mags.iter().cloned().fold(0.0, f64::max);
+        let mut edges = vec![lo];
+        while *edges.last().unwrap_or(&hi) <= hi {
+            let e = edges.last().copied().unwrap_or(hi) * 2.0;
+            edges.push(e);
+        }
+        factors.push(by_bins(
+            "signal magnitude",
+            &pts,
+            |s| s.magnitude,
+            &edges,
+            "",
+        ));
+    } else {
+        factors.push(factor("signal magnitude", Vec::new()));
+    }
+    factors.push(by_value(
+        "modulation frequency",
+        &pts,
+        |s| s.frequency_hz,
+        " Hz",
+    ));
+    factors.push(by_value("power level", &pts, |s| s.power, ""));
+    factors.push(by_value("sensitivity setting", &pts, |s| s.sensitivity, ""));
+    // Within-separation homogeneity: each point's variance over its separation's pooled
+    // variance; under homogeneous Gaussian noise (n-1) s^2/sigma^2 is chi-square(n-1), so the
+    // ratio has variance 2/(n-1).
+    let sep = &factors[0];
+    let mut z2 = 0.0;
+    let mut cnt = 0.0;
+    for p in &rep {
+        if p.n < 3 {
+            continue;
+        }
+        if let Some(g) = sep.groups.iter().find(|g| g.key == p.first.separation_in) {
+            for a in 0..2 {
+                let pooled = if a == 0 { g.std_x } else { g.std_y }.powi(2);
+                if pooled > 0.0 {
+                    let r = p.ss[a] / (p.n - 1) as f64 / pooled;
+                    z2 += (r - 1.0).powi(2) / (2.0 / (p.n - 1) as f64);
+                    cnt += 1.0;
+                }
+            }
+        }
+    }
+    let dispersion = if cnt > 0.0 {
+        (z2 / cnt).sqrt()
+    } else {
+        f64::NAN
+    };
+    let others_differ = factors[1..].iter().any(|f| f.significant);
+    let weighting = if dispersion > 1.3 || (others_differ && !factors[0].significant) {
+        format!(
+            "the noise differs within a separation (dispersion {dispersion:.2}, 1 = homogeneous): \
+             weight each point by its own variance, `cta analyze --weights point` (needs ~10+ \
+             samples per point for stable weights)"
+        )
+    } else if factors[0].significant {
+        "the noise changes with separation: weight by the variance pooled per separation \
+         (`cta analyze --weights separation`, the default); W = diag(n_i / sigma_sep^2)"
+            .into()
+    } else {
+        format!(
+            "the noise is uniform: one variance for the file (`cta analyze --weights global`); \
+             W = diag(n_i / sigma^2) with sigma = {:.1} (X), {:.1} (Y) counts",
+            all.std_x, all.std_y
+        )
+    };
+    Ok(NoiseReport {
+        file: ds.path.display().to_string(),
+        samples: ds.samples.len(),
+        points_repeated: rep.len(),
+        points_single: pts.len() - rep.len(),
+        std_all: [all.std_x, all.std_y],
+        xy_correlation: corr,
+        factors,
+        within_separation_dispersion: dispersion,
+        weighting,
+    })
+}
+
+/// The table.
+pub fn render_text(r: &NoiseReport) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "cta noise {}: {} samples, {} points with repeated samples ({} single)",
+        r.file, r.samples, r.points_repeated, r.points_single
+    );
+    let _ = writeln!(
+        s,
+        "one-sample std over the file: X {:.2}, Y {:.2} counts; X-Y correlation {:+.3}\n",
+        r.std_all[0], r.std_all[1], r.xy_correlation
+    );
+    for f in &r.factors {
+        if f.groups.is_empty() {
+            let _ = writeln!(s, "by {}: not recorded in the file\n", f.factor);
+            continue;
+        }
+        let _ = writeln!(
+            s,
+            "by {} (max/min {:.2}{}):",
+            f.factor,
+            f.spread_ratio,
+            if f.significant {
+                ", differs beyond sampling"
+            } else {
+                ", within sampling"
+            }
+        );
+        let _ = writeln!(
+            s,
+            "  {:<16} {:>7} {:>8} {:>10} {:>10}",
+            "group", "points", "dof", "std X", "std Y"
+        );
+        for g in &f.groups {
+            let _ = writeln!(
+                s,
+                "  {:<16} {:>7} {:>8} {:>10.2} {:>10.2}",
+                g.label, g.points, g.dof, g.std_x, g.std_y
+            );
+        }
+        let _ = writeln!(s);
+    }
+    let _ = writeln!(
+        s,
+        "within-separation dispersion of point variances: {:.2} (1 = homogeneous)",
+        r.within_separation_dispersion
+    );
+    let _ = writeln!(s, "weighting: {}", r.weighting);
+    s
+}
+
+fn panel(f: &Factor, log_x: bool) -> Panel {
+    let pts = |a: usize| -> Vec<(f64, f64)> {
+        f.groups
+            .iter()
+            .map(|g| (g.key, if a == 0 { g.std_x } else { g.std_y }))
+            .collect()
+    };
+    Panel {
+        title: format!("noise by {}", f.factor),
+        x_desc: f.factor.clone(),
+        y_desc: "one-sample std (counts)".into(),
+        log_x,
+        log_y: false,
+        series: vec![Series::new("X", pts(0)), Series::new("Y", pts(1))],
+    }
+}
+
+/// Run `cta noise`.
+pub fn run(args: &NoiseArgs) -> anyhow::Result<()> {
+    let ds = Dataset::read(&args.file).map_err(anyhow::Error::msg)?;
+    let r = analyze_noise(&ds).map_err(anyhow::Error::msg)?;
+    if let Some(dir) = &args.plot {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let panels: Vec<Panel> = r
+            .factors
+            .iter()
+            .filter(|f| f.groups.len() > 1)
+            .map(|f| panel(f, f.factor == "signal magnitude"))
+            .collect();
+        let svg = render_svg(&format!("CTA noise: {}", r.file), &panels, 2)
+            .map_err(|e| anyhow::anyhow!("plotting failed: {e}"))?;
+        std::fs::write(dir.join("noise.svg"), &svg)?;
+        let html = format!(
+            "<!doctype html><meta charset=utf-8><title>cta noise</title>\
+             <body style='font-family:sans-serif'>{svg}<pre>{}</pre></body>",
+            html_escape(&render_text(&r))
+        );
+        std::fs::write(dir.join("index.html"), html)?;
+        eprintln!("plots: {}", dir.join("index.html").display());
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        print!("{}", render_text(&r));
+    }
+    Ok(())
+}
+
+/// Escape text for HTML.
+pub fn html_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulate::SimConfig;
+
+    #[test]
+    fn recovers_the_simulated_noise_and_sees_separation_dependence() {
+        let cfg = SimConfig {
+            separations: vec![5.0, 20.0],
+            noise: 30.0,
+            samples: 10,
+            ..Default::default()
+        };
+        let (ds, _) = cfg.run();
+        let r = analyze_noise(&ds).unwrap();
+        assert!((r.std_all[0] - 30.0).abs() < 1.5, "{:?}", r.std_all);
+        assert!(!r.factors[0].significant, "uniform noise flagged");
+        assert!(r.weighting.contains("uniform"), "{}", r.weighting);
+        // Make the far separation noisier (+/-40 counts alternating over the samples of each
+        // point): the separation factor must notice.
+        let mut ds2 = ds.clone();
+        for s in ds2.samples.iter_mut().filter(|s| s.separation_in == 20.0) {
+            if let Some(k) = s.sample {
+                s.x += if k % 2 == 0 { 40.0 } else { -40.0 };
+            }
+        }
+        let r2 = analyze_noise(&ds2).unwrap();
+        assert!(r2.factors[0].significant);
+        assert!(r2.weighting.contains("separation"), "{}", r2.weighting);
+        let single = SimConfig {
+            separations: vec![5.0],
+            ..Default::default()
+        }
+        .run()
+        .0;
+        assert!(analyze_noise(&single)
+            .unwrap_err()
+            .contains("single sample"));
+    }
+}

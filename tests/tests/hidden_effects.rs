@@ -1,0 +1,306 @@
+//! Hidden-effect tests of `cta analyze` (issue 3): data simulated with a known effect on top
+//! of the thesis physics must come back with that effect named first, its parameters near
+//! the truth, and a held-out gain; clean data must name nothing; an effect outside the
+//! vocabulary must be reported as unexplained structure, not as a false name.
+//!
+//! Datasets (documented choice, to keep the debug-build suite fast while honest): the CTA
+//! 10 x 10 grid at 1 in pitch, 13 separations spanning 2-30 in (2, 3, 4, 5, 6, 8, 10, 12,
+//! 15, 18, 21, 25, 30: dense near the board where the near-field effects live, sparse far),
+//! 4 samples per point with Gaussian noise of 0.1 % of beta (32.8 counts, rounded to whole
+//! counts as the NorthStar reports), seeded. The `--from pinhole` test needs the precision
+//! REFERENCE.md's d3 claim rests on: all 29 separations and 200 samples per point (the
+//! thesis's Ch VI protocol takes 100-200 samples per point).
+//!
+//! `intensity` has no test of its own on top of the thesis physics (the `thesis` model
+//! already contains it: injecting it changes nothing); it is found from `pinhole` below.
+
+use cta_host::analyze::{analyze, model::Base, Analysis, Options};
+use cta_host::effects::{Effect, VOCABULARY};
+use cta_host::simulate::{SimConfig, Truth};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+const SEPS: [f64; 13] = [
+    2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0, 18.0, 21.0, 25.0, 30.0,
+];
+const NOISE: f64 = 32.768;
+
+fn sim(effects: &[&str], seed: u64) -> SimConfig {
+    SimConfig {
+        separations: SEPS.to_vec(),
+        effects: effects.iter().map(|e| Effect::parse(e).unwrap()).collect(),
+        noise: NOISE,
+        samples: 4,
+        seed,
+        ..Default::default()
+    }
+}
+
+fn run(cfg: &SimConfig, from: Base) -> (Analysis, Truth) {
+    let (ds, truth) = cfg.run();
+    let opts = Options {
+        from,
+        ..Default::default()
+    };
+    let a = analyze(&ds, &opts, &|_: &str| {}).unwrap_or_else(|e| panic!("analyze failed: {e}"));
+    (a, truth)
+}
+
+fn names(a: &Analysis) -> Vec<&str> {
+    a.causes.iter().map(|c| c.effect.as_str()).collect()
+}
+
+/// Parameter `p` of the first cause is within `k` sigma (and `tol` absolute, whichever is
+/// larger) of `truth`.
+fn near(a: &Analysis, p: &str, truth: f64, tol: f64) {
+    let c = &a.causes[0];
+    let v = c.params[p];
+    let s = c.sigma.get(p).copied().unwrap_or(0.0);
+    assert!(
+        (v - truth).abs() <= (5.0 * s).max(tol),
+        "{}: {p} = {v} +/- {s}, truth {truth}",
+        c.effect
+    );
+}
+
+/// The effect is named first, alone, with a held-out gain and chi2/dof brought near 1.
+fn named_first(effect: &str, seed: u64) -> (Analysis, Truth) {
+    let (a, t) = run(&sim(&[effect], seed), Base::Thesis);
+    let name = effect.split('=').next().unwrap();
+    assert!(
+        !a.unexplained && a.causes.first().map(|c| c.effect.as_str()) == Some(name),
+        "hidden {effect}: got {:?} ({})",
+        names(&a),
+        a.verdict
+    );
+    assert!(a.causes[0].gain_rms_counts > 0.0, "no held-out gain");
+    assert!(a.rms_after < a.rms_before);
+    assert!(a.chi2_dof_after < 1.2 && a.chi2_dof_before > a.chi2_dof_after);
+    (a, t)
+}
+
+#[test]
+fn proximity() {
+    let (a, _) = named_first("proximity=0.21", 11);
+    near(&a, "S", 0.21, 0.002);
+}
+
+#[test]
+fn beacon_pattern() {
+    let (a, _) = named_first("beacon_pattern=45", 12);
+    near(&a, "H_deg", 45.0, 0.5);
+}
+
+#[test]
+fn beacon_tilt() {
+    let (a, _) = named_first("beacon_tilt=3,45", 13);
+    near(&a, "T_deg", 3.0, 0.3);
+    near(&a, "AZ_deg", 45.0, 10.0);
+}
+
+#[test]
+fn cell_gain() {
+    let (a, _) = named_first("cell_gain=0.03,-0.02", 14);
+    near(&a, "GX", 0.03, 0.001);
+    near(&a, "GY", -0.02, 0.001);
+}
+
+#[test]
+fn cell_bias() {
+    let (a, _) = named_first("cell_bias=1e-5,-1e-5", 15);
+    near(&a, "BX", 1e-5, 5e-7);
+    near(&a, "BY", -1e-5, 5e-7);
+}
+
+#[test]
+fn face_angle() {
+    let (a, _) = named_first("face_angle=1,-0.5", 16);
+    near(&a, "DX", 1.0, 0.02);
+    near(&a, "DY", -0.5, 0.02);
+}
+
+#[test]
+fn saturation() {
+    let (a, _) = named_first("saturation=0.08", 17);
+    near(&a, "S", 0.08, 0.001);
+}
+
+#[test]
+fn plate_offset() {
+    let (a, t) = named_first("plate_offset=0.05", 18);
+    // Per-separation offsets are relative to their mean (the common part is d1, d2).
+    let n = t.plate_offsets.len() as f64;
+    let mx = t.plate_offsets.iter().map(|o| o[0]).sum::<f64>() / n;
+    for (k, sep) in t.separations.iter().enumerate() {
+        let v = a.causes[0].params[&format!("x@{sep}in")];
+        assert!(
+            (v - (t.plate_offsets[k][0] - mx)).abs() < 0.01,
+            "x offset at {sep} in: {v} vs {}",
+            t.plate_offsets[k][0] - mx
+        );
+    }
+}
+
+#[test]
+fn separation_error() {
+    let (a, t) = named_first("separation_error=0.05", 19);
+    let n = t.separation_errors.len() as f64;
+    let m = t.separation_errors.iter().sum::<f64>() / n;
+    for (k, sep) in t.separations.iter().enumerate() {
+        let v = a.causes[0].params[&format!("z@{sep}in")];
+        assert!(
+            (v - (t.separation_errors[k] - m)).abs() < 0.01,
+            "z at {sep} in: {v} vs {}",
+            t.separation_errors[k] - m
+        );
+    }
+}
+
+/// A hidden effect chosen at random (seeded) among the vocabulary, at a random size within a
+/// detectable range.
+#[test]
+fn random_effect() {
+    let mut rng = StdRng::seed_from_u64(2024);
+    let testable: Vec<&str> = VOCABULARY
+        .iter()
+        .copied()
+        .filter(|n| *n != "intensity")
+        .collect();
+    let name = testable[rng.random_range(0..testable.len())];
+    let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    let u: f64 = rng.random_range(0.0..1.0);
+    let spec = match name {
+        "proximity" => format!("proximity={}", 0.175 + sign * (0.02 + 0.04 * u)),
+        "beacon_pattern" => format!("beacon_pattern={}", 40.0 + 15.0 * u),
+        "beacon_tilt" => format!("beacon_tilt={},{}", 3.0 + 3.0 * u, 360.0 * u),
+        "cell_gain" => format!("cell_gain={},{}", sign * (0.01 + 0.03 * u), 0.02 * u),
+        "cell_bias" => format!("cell_bias={},{}", sign * (5e-6 + 1e-5 * u), 0.0),
+        "face_angle" => format!("face_angle={},{}", sign * (0.5 + u), -0.5 * u),
+        "saturation" => format!("saturation={}", 0.05 + 0.05 * u),
+        "plate_offset" => format!("plate_offset={}", 0.03 + 0.05 * u),
+        "separation_error" => format!("separation_error={}", 0.03 + 0.05 * u),
+        other => unreachable!("{other}"),
+    };
+    let seed = rng.random_range(1..1000);
+    let (a, _) = named_first(&spec, seed);
+    assert_eq!(a.causes.len(), 1, "{spec}: {:?}", names(&a));
+}
+
+#[test]
+fn two_effects_at_once() {
+    let (a, _) = run(
+        &sim(&["cell_gain=0.03,-0.02", "beacon_tilt=3,45"], 21),
+        Base::Thesis,
+    );
+    let mut n = names(&a);
+    n.sort_unstable();
+    assert_eq!(n, ["beacon_tilt", "cell_gain"], "{}", a.verdict);
+    assert!(!a.unexplained);
+    assert!(a.causes.iter().all(|c| c.gain_rms_counts > 0.0));
+}
+
+#[test]
+fn clean_data_names_nothing() {
+    let (a, _) = run(&sim(&[], 22), Base::Thesis);
+    assert!(
+        a.causes.is_empty() && a.tentative.is_empty(),
+        "{}",
+        a.verdict
+    );
+    assert!(!a.unexplained);
+    assert!(
+        a.verdict.starts_with("no significant effect"),
+        "{}",
+        a.verdict
+    );
+    assert!((a.chi2_dof_before - 1.0).abs() < 0.1);
+}
+
+/// Cross-talk between the pairs is outside the vocabulary: it must be reported as
+/// unexplained structure, with no confident false name.
+#[test]
+fn crosstalk_is_unexplained() {
+    let (a, _) = run(&sim(&["crosstalk=0.03"], 23), Base::Thesis);
+    assert!(a.unexplained, "{}", a.verdict);
+    assert!(a.causes.is_empty(), "false name: {:?}", names(&a));
+    assert!(a.verdict.contains("unexplained structure remains"));
+    assert!(!a.structure.is_empty(), "no indication of where");
+}
+
+/// From the 7-parameter pinhole model on thesis-physics data: proximity and intensity are
+/// found and the virtual eye is gone (d3 within 0.001 in of the truth, REFERENCE.md
+/// "beyond the thesis").
+#[test]
+fn from_pinhole_finds_the_near_field() {
+    let cfg = SimConfig {
+        separations: (2..=30).map(f64::from).collect(),
+        noise: NOISE,
+        samples: 200,
+        seed: 24,
+        ..Default::default()
+    };
+    let (a, t) = run(&cfg, Base::Pinhole);
+    let n = names(&a);
+    assert!(
+        n.contains(&"proximity") && n.contains(&"intensity"),
+        "{}",
+        a.verdict
+    );
+    assert!(!a.unexplained);
+    let d3_before = a
+        .params_before
+        .iter()
+        .find(|p| p.name == "d3")
+        .unwrap()
+        .value;
+    let d3 = a
+        .params_after
+        .iter()
+        .find(|p| p.name == "d3")
+        .unwrap()
+        .value;
+    // Weighted over 2-30 in the pinhole's virtual eye sits ~0.1 in off (more for far pairs
+    // alone, REFERENCE.md Table 3).
+    assert!(
+        (d3_before - t.d[2]).abs() > 0.05,
+        "pinhole d3 {d3_before}: where is the virtual eye?"
+    );
+    assert!((d3 - t.d[2]).abs() < 0.001, "d3 {d3} vs truth {}", t.d[2]);
+}
+
+#[test]
+fn one_separation_is_refused_with_reason() {
+    let mut cfg = sim(&["cell_gain=0.03,0"], 25);
+    cfg.separations = vec![10.0];
+    let (ds, _) = cfg.run();
+    let e = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap_err();
+    assert!(e.contains("at least 2 separations"), "{e}");
+    assert!(e.contains("No candidate could be tested"), "{e}");
+}
+
+#[test]
+fn two_separations_cannot_test_per_separation_effects() {
+    let mut cfg = sim(&["face_angle=1,0"], 26);
+    cfg.separations = vec![5.0, 20.0];
+    let (ds, _) = cfg.run();
+    let a = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
+    for e in ["plate_offset", "separation_error"] {
+        let u = a.untested.iter().find(|u| u.effect == e).unwrap();
+        assert!(u.reason.contains("at least 3 separations"), "{}", u.reason);
+    }
+    assert_eq!(names(&a), ["face_angle"], "{}", a.verdict);
+}
+
+/// A 2 x 2 grid cannot constrain everything: whatever cannot be tested is listed with a
+/// reason, and nothing is named on clean data.
+#[test]
+fn tiny_grid_names_nothing_false() {
+    let mut cfg = sim(&[], 27);
+    cfg.grid = (2, 2);
+    let (ds, _) = cfg.run();
+    let a = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
+    assert!(a.causes.is_empty(), "{}", a.verdict);
+    for u in &a.untested {
+        assert!(!u.reason.is_empty());
+    }
+}
