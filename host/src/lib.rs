@@ -26,3 +26,5 @@ pub mod demo;
 pub mod analyze;
 /// `cta noise`: the noise of repeated samples and the weighting it implies.
 pub mod noise;
+/// `cta sweep`: autonomous, resumable CTA data collection over serial (and the simulated CTA).
+pub mod sweep;

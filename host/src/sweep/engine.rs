@@ -1,0 +1,850 @@
+//! The run engine: walks the plan's points, drives both boards over serial, asks for the
+//! manual steps, commits every point, and survives what a lab throws at it.
+//!
+//! Per point: light the beacon (beacon board `Set`), set the sensitivity if it changed
+//! (sensor board), wait `settle_ms` (heartbeating the beacon board), switch the sensor board
+//! to stream mode and read its spot reports until `samples` of them carry the beacon's spot
+//! (or `no_signal_reports` carried none: "no signal"; or `max_reports` were read: "partial"),
+//! switch it back to idle, turn the beacon off, commit.
+//!
+//! Faults: a board that stops answering (or whose port fails, e.g. unplugged) or a sensor
+//! that stops reporting pauses the run: the point in progress is abandoned (nothing of it is
+//! written), the board is reopened and re-identified and its state restored, with a backoff
+//! that doubles up to `backoff_max_s`, and the point is measured again from the start. After
+//! `give_up_s` without success the run stops cleanly, resumable. Every fault and what was done
+//! is journalled. A refusal by a board (a plan the board cannot do) stops the run with the
+//! board's message.
+
+use std::io::{BufRead, Read, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Result};
+use cta_core::wire::beacon::{Beacon, BeaconRequest, FreqSet, LedMode, LedSetting};
+use cta_core::wire::sensor::{Mode, SensorProtocol, SensorRequest, SensorResponse, SpotReport};
+use cta_core::wire::{
+    encode_frame, ErrorReply, FrameDecoder, Header, Identity, Protocol, Reply, Request, Response,
+    MAX_FRAME, SEQ_NONE,
+};
+use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serialport::SerialPort;
+
+use super::plan::{Plan, Point};
+use super::sim::{separation_entry, SimCta};
+use super::store::{now, Event, PointStatus, RunDir, SeparationEntry};
+use crate::link::{open_serial, Link, LinkConfig, LinkError};
+use crate::measurement::Sample;
+
+/// Set by the Ctrl-C handler; checked between and inside points.
+pub static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+type Port = Box<dyn SerialPort>;
+
+/// Why a point attempt failed.
+#[derive(Debug)]
+pub enum Fault {
+    /// A board stopped answering or its port failed: reconnect it.
+    Lost(&'static str, String),
+    /// The sensor board answers but sends no reports.
+    Stalled(String),
+    /// A board refused a request: the plan asks for something it cannot do. Stops the run.
+    Fatal(anyhow::Error),
+    /// Ctrl-C.
+    Interrupted,
+}
+
+fn link_fault<E: std::fmt::Debug + std::fmt::Display>(board: &'static str, e: LinkError<E>) -> Fault {
+    match e {
+        LinkError::Io(_) | LinkError::Timeout { .. } | LinkError::BadFrame { .. } => {
+            Fault::Lost(board, e.to_string())
+        }
+        LinkError::Refused { .. } | LinkError::WrongBoard { .. } | LinkError::Encode(_) => {
+            Fault::Fatal(anyhow!("{board} board: {e}"))
+        }
+        LinkError::Unexpected { .. } => Fault::Lost(board, e.to_string()),
+    }
+}
+
+/// One board's connection, reopened by path when lost.
+struct Conn<P: Protocol> {
+    name: &'static str,
+    path: String,
+    config: LinkConfig,
+    link: Option<Link<P, Port>>,
+}
+
+impl<P: Protocol> Conn<P> {
+    fn connect(&mut self) -> Result<Identity, Fault> {
+        self.link = None;
+        let port = open_serial(&self.path).map_err(|e| Fault::Lost(self.name, e.to_string()))?;
+        let mut link = Link::new(port, self.config);
+        let id = link.check_board().map_err(|e| match e {
+            LinkError::WrongBoard { .. } => Fault::Fatal(anyhow!(
+                "{} port {}: {e}",
+                self.name,
+                self.path
+            )),
+            e => Fault::Lost(self.name, e.to_string()),
+        })?;
+        self.link = Some(link);
+        Ok(id)
+    }
+
+    fn link(&mut self) -> Result<&mut Link<P, Port>, Fault> {
+        self.link
+            .as_mut()
+            .ok_or_else(|| Fault::Lost(self.name, "not connected".into()))
+    }
+}
+
+/// What the operator does: the manual steps of a run.
+pub trait Operator {
+    /// The plate must be at `p.separation`: move it (or confirm it is still there, when
+    /// `previous` was recorded before a resume) and give the corner readings.
+    fn separation(&mut self, p: &Point, previous: Option<&SeparationEntry>) -> Result<SeparationEntry>;
+    /// Mount the array in quadrant `q` (quad layout). Returns who confirmed it.
+    fn quadrant(&mut self, q: usize) -> Result<String>;
+    /// Set the power switches to `level`. Returns who confirmed it.
+    fn power(&mut self, level: u8) -> Result<String>;
+}
+
+/// Scripted runs (`--yes`): nothing is asked; separations are the plan's nominal values,
+/// recorded as not measured.
+pub struct Scripted;
+
+impl Operator for Scripted {
+    fn separation(&mut self, p: &Point, previous: Option<&SeparationEntry>) -> Result<SeparationEntry> {
+        if let Some(e) = previous {
+            return Ok(e.clone());
+        }
+        Ok(separation_entry(
+            p.sep_idx,
+            p.separation,
+            Vec::new(),
+            "scripted (--yes): nominal, not measured".into(),
+        ))
+    }
+    fn quadrant(&mut self, _q: usize) -> Result<String> {
+        Ok("scripted (--yes)".into())
+    }
+    fn power(&mut self, _level: u8) -> Result<String> {
+        Ok("scripted (--yes)".into())
+    }
+}
+
+/// The simulated plate moves itself.
+pub struct SimOperator<'a>(pub &'a SimCta);
+
+impl Operator for SimOperator<'_> {
+    fn separation(&mut self, p: &Point, _previous: Option<&SeparationEntry>) -> Result<SeparationEntry> {
+        Ok(self.0.move_plate(p.sep_idx, p.separation, p.quadrant))
+    }
+    fn quadrant(&mut self, _q: usize) -> Result<String> {
+        // move_plate already placed the array in the point's quadrant.
+        Ok("simulated plate".into())
+    }
+    fn power(&mut self, level: u8) -> Result<String> {
+        self.0.set_power(level);
+        Ok("simulated power switches".into())
+    }
+}
+
+/// Prompts on the terminal (stderr) and reads the answers from stdin.
+pub struct Prompt {
+    /// Progress bars to hide while asking.
+    pub bars: MultiProgress,
+}
+
+impl Prompt {
+    fn ask(&self, question: &str) -> Result<String> {
+        self.bars.suspend(|| {
+            eprint!("{question}");
+            let _ = std::io::stderr().flush();
+            let mut s = String::new();
+            let n = std::io::stdin().lock().read_line(&mut s)?;
+            if n == 0 {
+                return Err(anyhow!(
+                    "stdin closed while waiting for the operator (use --yes for scripted runs)"
+                ));
+            }
+            Ok(s.trim().to_string())
+        })
+    }
+}
+
+impl Operator for Prompt {
+    fn separation(&mut self, p: &Point, previous: Option<&SeparationEntry>) -> Result<SeparationEntry> {
+        if let Some(prev) = previous {
+            let a = self.ask(&format!(
+                "\nResuming at separation {} in (recorded {:.4} in from corners {:?}). Is the plate \
+                 still there? [Y = yes / n = measure again] ",
+                p.separation, prev.mean, prev.corners
+            ))?;
+            if !a.to_lowercase().starts_with('n') {
+                return Ok(prev.clone());
+            }
+        }
+        loop {
+            let a = self.ask(&format!(
+                "\nMove the plate to {} in (all LEDs are off). Enter the four corner \
+                 separations in inches (e.g. `{0} {0} {0} {0}`): ",
+                p.separation
+            ))?;
+            let v: Result<Vec<f64>, _> = a
+                .split([' ', ',', '\t'])
+                .filter(|s| !s.is_empty())
+                .map(str::parse::<f64>)
+                .collect();
+            match v {
+                Ok(v) if v.len() == 4 && v.iter().all(|c| c.is_finite() && *c > 0.0) => {
+                    let e = separation_entry(p.sep_idx, p.separation, v, "operator".into());
+                    if (e.mean - p.separation).abs() > 0.5 {
+                        let ok = self.ask(&format!(
+                            "The mean {:.4} in is {:.3} in from the plan's {} in. Keep it? [y/N] ",
+                            e.mean,
+                            e.mean - p.separation,
+                            p.separation
+                        ))?;
+                        if !ok.to_lowercase().starts_with('y') {
+                            continue;
+                        }
+                    }
+                    return Ok(e);
+                }
+                _ => eprintln!("  need four positive numbers, got `{a}`"),
+            }
+        }
+    }
+    fn quadrant(&mut self, q: usize) -> Result<String> {
+        let names = ["-x,-y", "+x,-y", "-x,+y", "+x,+y"];
+        self.ask(&format!(
+            "\nMount the beacon array in quadrant {q} ({}) of the plate, then press Enter ",
+            names[q % 4]
+        ))?;
+        Ok("operator".into())
+    }
+    fn power(&mut self, level: u8) -> Result<String> {
+        let r = if level == 1 { "1 kOhm" } else { "360 Ohm" };
+        self.ask(&format!(
+            "\nSet every LED's slide switch to power level {level} ({r}), then press Enter "
+        ))?;
+        Ok("operator".into())
+    }
+}
+
+/// Counters of a session.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Stats {
+    /// Points committed, by outcome.
+    pub ok: usize,
+    /// "no signal" points.
+    pub no_signal: usize,
+    /// Partial points.
+    pub partial: usize,
+    /// Samples written.
+    pub samples: u64,
+    /// Faults.
+    pub faults: usize,
+    /// Point attempts repeated.
+    pub retries: usize,
+    /// Successful reconnections.
+    pub reconnects: usize,
+    /// Reports lost on the wire.
+    pub lost_reports: u64,
+}
+
+/// How a session ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Ending {
+    /// Every point measured.
+    Complete,
+    /// Ctrl-C.
+    Interrupted,
+    /// A board stayed lost past `give_up_s`.
+    GaveUp(String),
+}
+
+/// Result of one point's measurement.
+struct Measured {
+    status: PointStatus,
+    samples: Vec<(i16, i16, u16)>,
+    reports: u32,
+    lost: u32,
+}
+
+/// The engine.
+pub struct Engine<'a> {
+    plan: &'a Plan,
+    beacon: Conn<Beacon>,
+    sensor: Conn<SensorProtocol>,
+    stream_seq: u16,
+    decoder: FrameDecoder<MAX_FRAME>,
+    sensitivity: Option<u8>,
+    last_heartbeat: Instant,
+    /// Skip settle waits (the unthrottled simulated CTA has nothing to settle).
+    pub skip_settle: bool,
+    /// Session counters.
+    pub stats: Stats,
+}
+
+impl<'a> Engine<'a> {
+    /// An engine for `plan` with the boards at these paths (not yet connected).
+    pub fn new(plan: &'a Plan, beacon_path: &str, sensor_path: &str) -> Self {
+        let config = LinkConfig {
+            timeout: Duration::from_millis(plan.request_timeout_ms),
+            retries: plan.retries,
+        };
+        Engine {
+            plan,
+            beacon: Conn {
+                name: "beacon",
+                path: beacon_path.into(),
+                config,
+                link: None,
+            },
+            sensor: Conn {
+                name: "sensor",
+                path: sensor_path.into(),
+                config,
+                link: None,
+            },
+            stream_seq: 40_000,
+            decoder: FrameDecoder::new(),
+            sensitivity: None,
+            last_heartbeat: Instant::now(),
+            skip_settle: false,
+            stats: Stats::default(),
+        }
+    }
+
+    /// Connect both boards and check who answers (errors name the board and the answer).
+    pub fn connect(&mut self) -> Result<(Identity, Identity)> {
+        let b = self.beacon.connect().map_err(|f| fault_error(&self.beacon.path, f))?;
+        let s = self.sensor.connect().map_err(|f| fault_error(&self.sensor.path, f))?;
+        self.restore().map_err(|f| fault_error("", f))?;
+        Ok((b, s))
+    }
+
+    /// Put both boards in the state a point starts from: LEDs off, sensor idle at the
+    /// plan's rate.
+    fn restore(&mut self) -> Result<(), Fault> {
+        let rate = self.plan.rate_hz;
+        self.beacon
+            .link()?
+            .call(BeaconRequest::AllOff)
+            .map_err(|e| link_fault("beacon", e))?;
+        let s = self.sensor.link()?;
+        s.call(SensorRequest::SetMode(Mode::Idle))
+            .map_err(|e| link_fault("sensor", e))?;
+        s.call(SensorRequest::SetRate(rate))
+            .map_err(|e| link_fault("sensor", e))?;
+        self.sensitivity = None;
+        Ok(())
+    }
+
+    /// Measure points `from..` of the plan, committing each to `store`.
+    pub fn run(
+        &mut self,
+        store: &mut RunDir,
+        operator: &mut dyn Operator,
+        from: usize,
+        bars: &Bars,
+    ) -> Result<Ending> {
+        let plan = self.plan;
+        let mut place: Option<(usize, usize)> = None; // (sep_idx, quadrant) in place
+        let mut entry: Option<SeparationEntry> = None;
+        let mut power: Option<u8> = None;
+        // Resume: the last recorded plate position and power, to confirm.
+        let mut previous_entry = store.events.iter().rev().find_map(|e| match e {
+            Event::Separation(s) => Some(s.clone()),
+            _ => None,
+        });
+        bars.start(plan, from);
+        for i in from..plan.len() {
+            let p = plan.point(i);
+            if place != Some((p.sep_idx, p.quadrant)) {
+                let prev = previous_entry
+                    .take()
+                    .filter(|e| e.sep_idx == p.sep_idx);
+                let moved = place.map(|(s, _)| s) != Some(p.sep_idx);
+                if moved || entry.is_none() {
+                    let e = operator.separation(&p, prev.as_ref())?;
+                    store.log(Event::Separation(e.clone()))?;
+                    entry = Some(e);
+                    bars.separation(plan, &p);
+                }
+                if plan.layout.quadrants() > 1 {
+                    let source = operator.quadrant(p.quadrant)?;
+                    store.log(Event::Quadrant {
+                        quadrant: p.quadrant,
+                        source,
+                    })?;
+                }
+                place = Some((p.sep_idx, p.quadrant));
+            }
+            if power != Some(p.power) {
+                let source = operator.power(p.power)?;
+                store.log(Event::Power {
+                    level: p.power,
+                    source,
+                })?;
+                power = Some(p.power);
+            }
+            let e = entry.as_ref().expect("set above");
+            match self.point_with_retries(store, &p, bars)? {
+                Some((m, attempts)) => {
+                    let rows: Vec<Sample> = m
+                        .samples
+                        .iter()
+                        .enumerate()
+                        .map(|(k, &(x, y, mag))| Sample {
+                            separation_in: e.mean,
+                            r: p.position(&plan.layout, e.mean),
+                            x: x as f64,
+                            y: y as f64,
+                            beacon: Some(p.beacon_id()),
+                            frequency_hz: Some(p.frequency_hz),
+                            power: Some(p.power as f64),
+                            sensitivity: Some(p.sensitivity as f64),
+                            sample: Some(k as u32),
+                            magnitude: Some(mag as f64),
+                            line: 0,
+                        })
+                        .collect();
+                    let comment = match m.status {
+                        PointStatus::Ok => None,
+                        s => Some(format!(
+                            "{}: point {i} separation {} beacon {} frequency_hz {} power {} \
+                             sensitivity {}: {} of {} samples in {} reports",
+                            if s == PointStatus::NoSignal {
+                                "no signal"
+                            } else {
+                                "partial"
+                            },
+                            e.mean,
+                            p.beacon_id(),
+                            p.frequency_hz,
+                            p.power,
+                            p.sensitivity,
+                            m.samples.len(),
+                            plan.samples,
+                            m.reports
+                        )),
+                    };
+                    store.commit_point(
+                        i,
+                        m.status,
+                        &rows,
+                        comment.as_deref(),
+                        m.reports,
+                        m.lost,
+                        attempts,
+                    )?;
+                    match m.status {
+                        PointStatus::Ok => self.stats.ok += 1,
+                        PointStatus::NoSignal => self.stats.no_signal += 1,
+                        PointStatus::Partial => self.stats.partial += 1,
+                    }
+                    self.stats.samples += rows.len() as u64;
+                    self.stats.lost_reports += m.lost as u64;
+                    bars.point_done();
+                }
+                None if INTERRUPTED.load(Ordering::Relaxed) => {
+                    self.quiet_off();
+                    return Ok(Ending::Interrupted);
+                }
+                None => {
+                    let what = store
+                        .events
+                        .iter()
+                        .rev()
+                        .find_map(|e| match e {
+                            Event::Fault { what, .. } => Some(what.clone()),
+                            _ => None,
+                        })
+                        .unwrap_or_default();
+                    return Ok(Ending::GaveUp(what));
+                }
+            }
+        }
+        self.quiet_off();
+        Ok(Ending::Complete)
+    }
+
+    /// Best effort: LEDs off, sensor idle (at the end of a session).
+    fn quiet_off(&mut self) {
+        if let Ok(l) = self.beacon.link() {
+            let _ = l.call(BeaconRequest::AllOff);
+        }
+        if let Ok(l) = self.sensor.link() {
+            let _ = l.call(SensorRequest::SetMode(Mode::Idle));
+        }
+    }
+
+    /// Measure one point, retrying through faults. `None`: interrupted or gave up.
+    fn point_with_retries(
+        &mut self,
+        store: &mut RunDir,
+        p: &Point,
+        bars: &Bars,
+    ) -> Result<Option<(Measured, u32)>> {
+        let mut attempts = 0u32;
+        let mut first_failure: Option<Instant> = None;
+        let mut backoff = Duration::from_millis(100);
+        loop {
+            if INTERRUPTED.load(Ordering::Relaxed) {
+                return Ok(None);
+            }
+            attempts += 1;
+            let r = match self.beacon.link.is_some() && self.sensor.link.is_some() {
+                true => self.measure(p),
+                false => Err(Fault::Lost("host", "reconnecting".into())),
+            };
+            let fault = match r {
+                Ok(m) => {
+                    bars.message("");
+                    return Ok(Some((m, attempts)));
+                }
+                Err(Fault::Interrupted) => return Ok(None),
+                Err(Fault::Fatal(e)) => {
+                    store.log(Event::Fault {
+                        at: now(),
+                        point: p.index,
+                        board: "host".into(),
+                        what: format!("{e:#}"),
+                        action: "stop".into(),
+                    })?;
+                    self.quiet_off();
+                    return Err(e);
+                }
+                Err(f) => f,
+            };
+            let (board, what) = match &fault {
+                Fault::Lost(b, w) => (*b, w.clone()),
+                Fault::Stalled(w) => ("sensor", w.clone()),
+                _ => unreachable!("handled above"),
+            };
+            let since = *first_failure.get_or_insert_with(Instant::now);
+            if since.elapsed().as_secs_f64() > self.plan.give_up_s {
+                store.log(Event::Fault {
+                    at: now(),
+                    point: p.index,
+                    board: board.into(),
+                    what: what.clone(),
+                    action: format!("stop: no recovery within {} s", self.plan.give_up_s),
+                })?;
+                return Ok(None);
+            }
+            self.stats.faults += 1;
+            self.stats.retries += 1;
+            store.log(Event::Fault {
+                at: now(),
+                point: p.index,
+                board: board.into(),
+                what: what.clone(),
+                action: format!("pause {:.1} s, reconnect, retry point", backoff.as_secs_f64()),
+            })?;
+            bars.message(&format!(
+                "paused: {board}: {what}; retry in {:.1} s",
+                backoff.as_secs_f64()
+            ));
+            if !sleep_interruptible(backoff) {
+                return Ok(None);
+            }
+            backoff = (backoff * 2).min(Duration::from_secs_f64(self.plan.backoff_max_s));
+            // Reconnect what was lost (or both when unsure) and restore the state.
+            let reconnect = |c: &mut dyn FnMut() -> Result<Identity, Fault>| c();
+            let mut ok = true;
+            if matches!(fault, Fault::Lost(b, _) if b != "sensor") || self.beacon.link.is_none() {
+                ok &= reconnect(&mut || self.beacon.connect()).is_ok();
+            }
+            if ok && (matches!(fault, Fault::Lost(b, _) if b != "beacon") || self.sensor.link.is_none()) {
+                ok &= reconnect(&mut || self.sensor.connect()).is_ok();
+            }
+            if ok {
+                ok = self.restore().is_ok();
+            }
+            if ok && matches!(fault, Fault::Lost(..)) {
+                self.stats.reconnects += 1;
+            }
+            if !ok {
+                // Drop both links: the next attempt reconnects them after the backoff.
+                self.beacon.link = None;
+                self.sensor.link = None;
+            }
+        }
+    }
+
+    fn heartbeat(&mut self) -> Result<(), Fault> {
+        if self.last_heartbeat.elapsed() >= Duration::from_millis(self.plan.heartbeat_ms) {
+            self.beacon
+                .link()?
+                .heartbeat()
+                .map_err(|e| link_fault("beacon", e))?;
+            self.last_heartbeat = Instant::now();
+        }
+        Ok(())
+    }
+
+    fn set_led(&mut self, p: &Point, mode: LedMode) -> Result<(), Fault> {
+        self.beacon
+            .link()?
+            .call(BeaconRequest::Set(LedSetting { led: p.led, mode }))
+            .map_err(|e| link_fault("beacon", e))?;
+        self.last_heartbeat = Instant::now();
+        Ok(())
+    }
+
+    fn measure(&mut self, p: &Point) -> Result<Measured, Fault> {
+        self.set_led(p, LedMode::Modulated(FreqSet::single(p.channel)))?;
+        if self.sensitivity != Some(p.sensitivity) {
+            self.sensor
+                .link()?
+                .call(SensorRequest::SetSensitivity(p.sensitivity))
+                .map_err(|e| link_fault("sensor", e))?;
+            self.sensitivity = Some(p.sensitivity);
+        }
+        if !self.skip_settle && self.plan.settle_ms > 0 {
+            let end = Instant::now() + Duration::from_millis(self.plan.settle_ms);
+            while Instant::now() < end {
+                self.heartbeat()?;
+                if !sleep_interruptible((end - Instant::now()).min(Duration::from_millis(100))) {
+                    return Err(Fault::Interrupted);
+                }
+            }
+        }
+        self.sensor_mode(Mode::Stream, None)?;
+        let mut m = Measured {
+            status: PointStatus::Ok,
+            samples: Vec::with_capacity(self.plan.samples as usize),
+            reports: 0,
+            lost: 0,
+        };
+        let collected = self.collect(p, &mut m);
+        // Stop streaming even after a stall (best effort; a lost board is reconnected).
+        let stopped = self.sensor_mode(Mode::Idle, None);
+        collected?;
+        stopped?;
+        self.set_led(p, LedMode::Off)?;
+        Ok(m)
+    }
+
+    /// Send `SetMode(mode)` on the sensor port and wait for its acknowledgement, passing the
+    /// spot reports read meanwhile to `on_report` (discarded when `None`).
+    fn sensor_mode(
+        &mut self,
+        mode: Mode,
+        mut on_report: Option<&mut dyn FnMut(SpotReport)>,
+    ) -> Result<(), Fault> {
+        let attempts = self.plan.retries + 1;
+        let timeout = Duration::from_millis(self.plan.request_timeout_ms);
+        for _ in 0..attempts {
+            self.stream_seq = if self.stream_seq >= 65_000 {
+                40_000
+            } else {
+                self.stream_seq + 1
+            };
+            let seq = self.stream_seq;
+            let mut buf = [0u8; 64];
+            let frame = encode_frame(
+                Header::new(seq),
+                &Request::Board(SensorRequest::SetMode(mode)),
+                &mut buf,
+            )
+            .map_err(|e| Fault::Fatal(anyhow!("cannot frame a request: {e}")))?;
+            let port = self.sensor.link()?.port_mut();
+            port.write_all(frame)
+                .and_then(|_| port.flush())
+                .map_err(|e| Fault::Lost("sensor", format!("serial port error: {e}")))?;
+            let deadline = Instant::now() + timeout;
+            while Instant::now() < deadline {
+                let mut acked = false;
+                let mut refused = None;
+                self.read_sensor(&mut |h, reply| match reply {
+                    Ok(Response::Board(SensorResponse::Spots(r))) if h.seq == SEQ_NONE => {
+                        if let Some(f) = on_report.as_mut() {
+                            f(r)
+                        }
+                    }
+                    Ok(Response::Ack) if h.seq == seq => acked = true,
+                    Err(ErrorReply::Board(e)) if h.seq == seq => refused = Some(e.to_string()),
+                    _ => {}
+                })?;
+                if let Some(e) = refused {
+                    return Err(Fault::Fatal(anyhow!("sensor board refused SetMode: {e}")));
+                }
+                if acked {
+                    return Ok(());
+                }
+            }
+        }
+        Err(Fault::Lost(
+            "sensor",
+            format!("no reply to SetMode({mode:?}) after {attempts} attempt(s)"),
+        ))
+    }
+
+    /// One read of the sensor port (up to the port's 10 ms timeout); every decoded frame to
+    /// `f`.
+    fn read_sensor(
+        &mut self,
+        f: &mut dyn FnMut(Header, Reply<SensorResponse, cta_core::wire::sensor::SensorError>),
+    ) -> Result<(), Fault> {
+        let mut buf = [0u8; 4096];
+        let port = self.sensor.link()?.port_mut();
+        let n = match port.read(&mut buf) {
+            Ok(n) => n,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::TimedOut
+                        | std::io::ErrorKind::WouldBlock
+                        | std::io::ErrorKind::Interrupted
+                ) =>
+            {
+                0
+            }
+            Err(e) => return Err(Fault::Lost("sensor", format!("serial port error: {e}"))),
+        };
+        for &b in &buf[..n] {
+            if let Some(Ok((h, reply))) = self.decoder.push(b) {
+                f(h, reply);
+            }
+        }
+        Ok(())
+    }
+
+    fn collect(&mut self, p: &Point, m: &mut Measured) -> Result<(), Fault> {
+        let plan = self.plan;
+        let mut last_seq: Option<u32> = None;
+        let mut last_report = Instant::now();
+        let timeout = Duration::from_millis(plan.report_timeout_ms);
+        let done = |m: &Measured| {
+            m.samples.len() >= plan.samples as usize
+                || (m.samples.is_empty() && m.reports >= plan.no_signal_reports)
+                || m.reports >= plan.max_reports
+        };
+        while !done(m) {
+            let mut got = 0;
+            self.read_sensor(&mut |h, reply| {
+                if let (SEQ_NONE, Ok(Response::Board(SensorResponse::Spots(r)))) = (h.seq, reply) {
+                    if done(m) {
+                        return;
+                    }
+                    got += 1;
+                    if let Some(prev) = last_seq {
+                        m.lost += r.seq.wrapping_sub(prev).wrapping_sub(1).min(1_000_000);
+                    }
+                    last_seq = Some(r.seq);
+                    m.reports += 1;
+                    if let Some(s) = r.spots.iter().find(|s| s.id == p.channel) {
+                        m.samples.push((s.x, s.y, s.magnitude));
+                    }
+                }
+            })?;
+            if got > 0 {
+                last_report = Instant::now();
+            } else if last_report.elapsed() > timeout {
+                return Err(Fault::Stalled(format!(
+                    "no spot report for {} ms while streaming",
+                    plan.report_timeout_ms
+                )));
+            }
+            if INTERRUPTED.load(Ordering::Relaxed) {
+                return Err(Fault::Interrupted);
+            }
+            self.heartbeat()?;
+        }
+        m.status = if m.samples.len() >= plan.samples as usize {
+            PointStatus::Ok
+        } else if m.samples.is_empty() {
+            PointStatus::NoSignal
+        } else {
+            PointStatus::Partial
+        };
+        Ok(())
+    }
+}
+
+fn fault_error(path: &str, f: Fault) -> anyhow::Error {
+    match f {
+        Fault::Lost(b, w) => anyhow!("{b} board on {path}: {w}"),
+        Fault::Stalled(w) => anyhow!("sensor board on {path}: {w}"),
+        Fault::Fatal(e) => e,
+        Fault::Interrupted => anyhow!("interrupted"),
+    }
+}
+
+/// Sleep up to `d`; `false` if Ctrl-C came meanwhile.
+fn sleep_interruptible(d: Duration) -> bool {
+    let end = Instant::now() + d;
+    while Instant::now() < end {
+        if INTERRUPTED.load(Ordering::Relaxed) {
+            return false;
+        }
+        std::thread::sleep((end - Instant::now()).min(Duration::from_millis(50)));
+    }
+    !INTERRUPTED.load(Ordering::Relaxed)
+}
+
+/// The progress bars: the whole run and the current separation, with ETA.
+pub struct Bars {
+    /// The bars' container (prompts suspend it).
+    pub multi: MultiProgress,
+    total: ProgressBar,
+    sep: ProgressBar,
+}
+
+impl Bars {
+    /// Bars on stderr (hidden when `hidden` or when stderr is not a terminal).
+    pub fn new(hidden: bool) -> Bars {
+        let multi = MultiProgress::with_draw_target(if hidden {
+            ProgressDrawTarget::hidden()
+        } else {
+            ProgressDrawTarget::stderr_with_hz(10)
+        });
+        let style = |t: &str| {
+            ProgressStyle::with_template(t)
+                .unwrap_or_else(|_| ProgressStyle::default_bar())
+                .progress_chars("=> ")
+        };
+        let total = multi.add(ProgressBar::new(0).with_style(style(
+            "run        [{bar:40}] {pos}/{len} points  {elapsed_precise} ETA {eta_precise}  {msg}",
+        )));
+        let sep = multi.add(ProgressBar::new(0).with_style(style(
+            "{prefix:>10} [{bar:40}] {pos}/{len} points  ETA {eta}",
+        )));
+        Bars { multi, total, sep }
+    }
+
+    fn start(&self, plan: &Plan, from: usize) {
+        self.total.set_length(plan.len() as u64);
+        self.total.set_position(from as u64);
+        self.total.reset_eta();
+        self.sep.set_length(plan.per_separation() as u64);
+        self.sep
+            .set_position((from % plan.per_separation().max(1)) as u64);
+    }
+
+    fn separation(&self, plan: &Plan, p: &Point) {
+        self.sep.set_prefix(format!("{} in", p.separation));
+        self.sep
+            .set_position((p.index % plan.per_separation().max(1)) as u64);
+        self.sep.reset_eta();
+    }
+
+    fn point_done(&self) {
+        self.total.inc(1);
+        self.sep.inc(1);
+    }
+
+    fn message(&self, m: &str) {
+        self.total.set_message(m.to_string());
+    }
+
+    /// Remove the bars.
+    pub fn finish(&self) {
+        self.sep.finish_and_clear();
+        self.total.finish_and_clear();
+    }
+}

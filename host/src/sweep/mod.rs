@@ -1,0 +1,441 @@
+//! `cta sweep`: autonomous CTA data collection over serial, resumable, with a simulated CTA
+//! (thesis Ch IV "autonomy in data collection", Ch VI data-collection scheme).
+//!
+//! * [`plan`]: the plan file (TOML), validated with errors naming file, line and key.
+//! * [`engine`]: the run: both boards over the shared wire protocol ([`crate::link`]),
+//!   operator prompts, faults, retries with backoff, progress bars.
+//! * [`store`]: the run directory: measurement CSV appended and synced per point, journal,
+//!   manifest, exact resume.
+//! * [`sim`]: the simulated CTA (both boards' firmware logic behind pseudo-terminals,
+//!   coupled through the core emulator), with fault injection.
+//!
+//! The user documentation is `host/SWEEP.md`.
+
+pub mod engine;
+pub mod plan;
+pub mod sim;
+pub mod store;
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use serde_json::json;
+
+use engine::{Bars, Engine, Ending, Operator, Prompt, Scripted, SimOperator, INTERRUPTED};
+use plan::Plan;
+use sim::{Faults, SimCta, SimSettings};
+use store::{now, Event, PointStatus, RunDir};
+
+/// `cta sweep`: run a plan on the CTA (or the simulated CTA) into a run directory.
+#[derive(clap::Args, Debug, Clone, Default)]
+#[command(
+    about = "Collect CTA data autonomously: a plan of separations x beacons x frequencies x power \
+             levels x sensitivities, over serial, resumable",
+    long_about = "Collect CTA data autonomously (thesis Ch IV, Ch VI). A plan (TOML, see host/SWEEP.md and \
+host/plans/) lists the separations, beacons, frequencies, power levels, sensitivity settings, samples per point, \
+settle time and timeouts. For every point the beacon board lights one LED, the sensor board streams NorthStar \
+reports, and the samples are appended to RUN_DIR/data.csv (the measurement format of host/MEASUREMENTS.md) and \
+synced to disk before the point is journalled. The run asks the operator to move the plate (entering the four \
+corner measurements: their mean is recorded as the separation, their spread as its uncertainty) and to flip the \
+power switches; --yes runs without asking.\n\n\
+Nothing is lost and nothing is written twice: after Ctrl-C, a killed process or a power cut, \
+`cta sweep --resume RUN_DIR` continues with the next point. An unplugged or silent board pauses the run, which \
+retries with backoff and continues when the board is back. Every fault and retry is in RUN_DIR/journal.jsonl \
+and RUN_DIR/manifest.json.\n\n\
+Without --beacon/--sensor the run uses the simulated CTA: both boards' firmware behind pseudo-terminals, the \
+simulated NorthStar seeing what the beacon board lights through the emulator (eqs 60-63), the plate moving \
+itself. Example:\n  cta sweep --plan host/plans/short.toml --out run1 --sim-noise 20\n  \
+cta sweep --resume run1\n  cta sweep --plan plan.toml --out lab1 --beacon /dev/ttyUSB0 --sensor /dev/ttyUSB1"
+)]
+pub struct SweepArgs {
+    /// The plan (TOML; see host/SWEEP.md). Not needed with --resume (the run keeps its copy).
+    #[arg(long, value_name = "PLAN.toml")]
+    pub plan: Option<PathBuf>,
+    /// Run directory to create (data.csv, journal.jsonl, manifest.json, plan.toml).
+    #[arg(long, value_name = "RUN_DIR", conflicts_with = "resume")]
+    pub out: Option<PathBuf>,
+    /// Continue the run in RUN_DIR exactly where it stopped.
+    #[arg(long, value_name = "RUN_DIR")]
+    pub resume: Option<PathBuf>,
+    /// Overwrite an existing, non-empty --out directory.
+    #[arg(long)]
+    pub force: bool,
+    /// Serial port of the beacon board (e.g. /dev/ttyUSB0). With --sensor: real hardware.
+    #[arg(long, value_name = "PORT", requires = "sensor")]
+    pub beacon: Option<String>,
+    /// Serial port of the sensor board (e.g. /dev/ttyUSB1).
+    #[arg(long, value_name = "PORT", requires = "beacon")]
+    pub sensor: Option<String>,
+    /// Use the simulated CTA (the default when no ports are given).
+    #[arg(long, conflicts_with_all = ["beacon", "sensor"])]
+    pub sim: bool,
+    /// Simulated CTA: noise of a strong signal, counts 1-sigma (grows as the signal weakens).
+    #[arg(long, value_name = "COUNTS")]
+    pub sim_noise: Option<f64>,
+    /// Simulated CTA: inject an effect of the analysis vocabulary (repeatable), e.g.
+    /// `beacon_tilt=2,45`, `plate_offset=0.05`, `cell_gain=0.03`.
+    #[arg(long, value_name = "NAME=VALUE")]
+    pub sim_effect: Vec<String>,
+    /// Simulated CTA: random seed (noise, geometry draws).
+    #[arg(long, value_name = "N")]
+    pub sim_seed: Option<u64>,
+    /// Simulated CTA: run the simulated NorthStar at the plan's rate (10 Hz, as the real
+    /// sensor) and honour settle times, instead of unthrottled.
+    #[arg(long)]
+    pub sim_realtime: bool,
+    /// Simulated CTA: inject faults (testing): `drop=P`, `corrupt=P` (per byte, both lines),
+    /// `vanish=BOARD@N:MS` (unplugged), `silent=BOARD@N:MS`, `stall=sensor@N:MS`, triggered at
+    /// the N-th point attempt of the session, comma-separated.
+    #[arg(long, value_name = "SPEC")]
+    pub sim_fault: Option<String>,
+    /// Do not ask: separations are the plan's nominal values (recorded as not measured),
+    /// power switches assumed set. For scripted runs.
+    #[arg(long, short = 'y')]
+    pub yes: bool,
+    /// No progress bars (the summary is still printed).
+    #[arg(long, short = 'q')]
+    pub quiet: bool,
+    /// Do not fsync after each point (faster; a power cut may then lose the last points, a
+    /// killed process still loses nothing).
+    #[arg(long)]
+    pub no_sync: bool,
+}
+
+/// What a finished session did (for tests and callers).
+#[derive(Debug, Clone)]
+pub struct Summary {
+    /// The run directory.
+    pub dir: PathBuf,
+    /// How the session ended.
+    pub ending: Ending,
+    /// Session counters.
+    pub stats: engine::Stats,
+    /// Next point to measure (the plan's length when complete).
+    pub next_point: usize,
+    /// Points in the plan.
+    pub points: usize,
+    /// Session wall time, s.
+    pub seconds: f64,
+}
+
+/// `cta sweep`.
+pub fn run(args: &SweepArgs) -> Result<()> {
+    let _ = ctrlc::set_handler(|| {
+        if INTERRUPTED.swap(true, Ordering::Relaxed) {
+            // Second Ctrl-C: leave now (everything committed is on disk).
+            std::process::exit(130);
+        }
+    });
+    let s = sweep(args)?;
+    print_summary(&s);
+    if let Ending::GaveUp(what) = &s.ending {
+        bail!(
+            "a board stayed unreachable ({what}); the run is saved: continue with `cta sweep --resume {}`",
+            s.dir.display()
+        );
+    }
+    Ok(())
+}
+
+fn print_summary(s: &Summary) {
+    let st = &s.stats;
+    let state = match &s.ending {
+        Ending::Complete => "complete".to_string(),
+        Ending::Interrupted => format!(
+            "interrupted at point {} of {} (continue with `cta sweep --resume {}`)",
+            s.next_point,
+            s.points,
+            s.dir.display()
+        ),
+        Ending::GaveUp(_) => format!(
+            "stopped at point {} of {}: a board stayed unreachable",
+            s.next_point, s.points
+        ),
+    };
+    println!("sweep {}: {state}", s.dir.display());
+    println!(
+        "  points this session: {} ({} ok, {} no signal, {} partial); run: {}/{}",
+        st.ok + st.no_signal + st.partial,
+        st.ok,
+        st.no_signal,
+        st.partial,
+        s.next_point,
+        s.points
+    );
+    println!(
+        "  samples: {}   faults: {}   retries: {}   reconnections: {}   lost reports: {}",
+        st.samples, st.faults, st.retries, st.reconnects, st.lost_reports
+    );
+    println!(
+        "  time: {:.1} s ({:.0} samples/s)   data: {}",
+        s.seconds,
+        st.samples as f64 / s.seconds.max(1e-9),
+        s.dir.join(store::DATA).display()
+    );
+}
+
+/// Run (or resume) a sweep; returns the session summary. [`run`] is this plus the Ctrl-C
+/// handler and the printed summary.
+pub fn sweep(args: &SweepArgs) -> Result<Summary> {
+    INTERRUPTED.store(false, Ordering::Relaxed);
+    let t0 = Instant::now();
+    let sync = !args.no_sync;
+    let command: Vec<String> = std::env::args().collect();
+
+    // The run directory, the plan, and what simulates it.
+    let (mut store, plan, sim_settings) = if let Some(dir) = &args.resume {
+        let store = RunDir::open(dir, sync)?;
+        let plan_path = dir.join(store::PLAN);
+        let plan = Plan::load(&plan_path)?;
+        if let Some(p) = &args.plan {
+            let given = std::fs::read_to_string(p)
+                .with_context(|| format!("{}: cannot read", p.display()))?;
+            let kept = std::fs::read_to_string(&plan_path)?;
+            if given != kept {
+                bail!(
+                    "{} differs from the plan this run started with ({}); a resume continues the \
+                     same plan (leave out --plan)",
+                    p.display(),
+                    plan_path.display()
+                );
+            }
+        }
+        let first_sim = store.events.iter().find_map(|e| match e {
+            Event::Session { sim, .. } => Some(sim.clone()),
+            _ => None,
+        });
+        let sim = match first_sim {
+            Some(Some(v)) => {
+                if args.beacon.is_some() {
+                    bail!("{} was recorded on the simulated CTA: resume it without --beacon/--sensor", dir.display());
+                }
+                let mut s: SimSettings = serde_json::from_value(v)
+                    .context("journal: unreadable simulation settings")?;
+                let differs = args.sim_seed.is_some_and(|x| x != s.seed)
+                    || args.sim_noise.is_some_and(|x| x != s.noise)
+                    || (!args.sim_effect.is_empty() && args.sim_effect != s.effects);
+                if differs {
+                    bail!(
+                        "{} was simulated with seed {}, noise {}, effects {:?}; a resume simulates \
+                         the same (leave out --sim-seed/--sim-noise/--sim-effect)",
+                        dir.display(),
+                        s.seed,
+                        s.noise,
+                        s.effects
+                    );
+                }
+                s.realtime = args.sim_realtime;
+                s.faults = parse_faults(args)?;
+                Some(s)
+            }
+            Some(None) => {
+                if args.beacon.is_none() {
+                    bail!(
+                        "{} was recorded on real boards: give --beacon and --sensor to resume it",
+                        dir.display()
+                    );
+                }
+                None
+            }
+            None => sim_settings(args)?,
+        };
+        (store, plan, sim)
+    } else {
+        let Some(out) = &args.out else {
+            bail!("give --out RUN_DIR for a new run, or --resume RUN_DIR to continue one");
+        };
+        let Some(plan_path) = &args.plan else {
+            bail!("give --plan PLAN.toml (see host/plans/ and host/SWEEP.md)");
+        };
+        let src = std::fs::read_to_string(plan_path)
+            .with_context(|| format!("{}: cannot read the plan", plan_path.display()))?;
+        let plan = Plan::parse(&plan_path.display().to_string(), &src)?;
+        let sim = sim_settings(args)?;
+        let header = vec![
+            format!("cta {} sweep: plan `{}` ({})", env!("CARGO_PKG_VERSION"), plan.name, plan_path.display()),
+            format!(
+                "{} points x {} samples; {}",
+                plan.len(),
+                plan.samples,
+                if sim.is_some() { "simulated CTA" } else { "CTA hardware" }
+            ),
+            "no-signal and partial points are recorded as comment lines; see journal.jsonl".into(),
+        ];
+        let store = RunDir::create(out, &src, &header, args.force, sync)?;
+        (store, plan, sim)
+    };
+
+    // The boards.
+    let sim = match &sim_settings {
+        Some(s) => Some(SimCta::spawn(&plan, s)?),
+        None => None,
+    };
+    let (beacon_path, sensor_path) = match &sim {
+        Some(s) => (
+            s.beacon_path().display().to_string(),
+            s.sensor_path().display().to_string(),
+        ),
+        None => (
+            args.beacon.clone().unwrap_or_default(),
+            args.sensor.clone().unwrap_or_default(),
+        ),
+    };
+    let mut engine = Engine::new(&plan, &beacon_path, &sensor_path);
+    engine.skip_settle = sim_settings.as_ref().is_some_and(|s| !s.realtime);
+    let (bid, sid) = engine.connect()?;
+    let from = store.next_point();
+    let n = store.sessions() + 1;
+    store.log(Event::Session {
+        n,
+        at: now(),
+        software: format!("cta {}", env!("CARGO_PKG_VERSION")),
+        command,
+        boards: json!({ "beacon": identity_json(&bid, &beacon_path), "sensor": identity_json(&sid, &sensor_path) }),
+        sim: sim_settings.as_ref().map(|s| serde_json::to_value(s).unwrap_or_default()),
+        from_point: from,
+    })?;
+    if let Some(s) = &sim {
+        let truth = s.truth();
+        std::fs::write(
+            store.dir.join("data.truth.json"),
+            serde_json::to_string_pretty(&truth)?,
+        )?;
+    }
+    write_manifest(&store, &plan, "running")?;
+
+    let bars = Bars::new(args.quiet);
+    let mut operator: Box<dyn Operator + '_> = match &sim {
+        Some(s) => Box::new(SimOperator(s)),
+        None if args.yes => Box::new(Scripted),
+        None => Box::new(Prompt {
+            bars: bars.multi.clone(),
+        }),
+    };
+    let result = engine.run(&mut store, operator.as_mut(), from, &bars);
+    bars.finish();
+    let next = store.next_point();
+    let (ending, err) = match result {
+        Ok(e) => (e, None),
+        Err(e) => (Ending::GaveUp(format!("{e:#}")), Some(e)),
+    };
+    let reason = match (&ending, &err) {
+        (Ending::Complete, _) => "complete".to_string(),
+        (Ending::Interrupted, _) => "interrupted (Ctrl-C)".to_string(),
+        (_, Some(e)) => format!("error: {e:#}"),
+        (Ending::GaveUp(w), None) => format!("gave up: {w}"),
+    };
+    store.log(Event::Stop {
+        at: now(),
+        reason,
+        next_point: next,
+    })?;
+    write_manifest(
+        &store,
+        &plan,
+        if ending == Ending::Complete { "complete" } else { "stopped" },
+    )?;
+    if let Some(e) = err {
+        return Err(e.context(format!(
+            "sweep stopped at point {next}; the run is saved: continue with `cta sweep --resume {}`",
+            store.dir.display()
+        )));
+    }
+    Ok(Summary {
+        dir: store.dir.clone(),
+        ending,
+        stats: engine.stats,
+        next_point: next,
+        points: plan.len(),
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+fn parse_faults(args: &SweepArgs) -> Result<Faults> {
+    match &args.sim_fault {
+        Some(s) => Faults::parse(s).map_err(|e| anyhow::anyhow!("--sim-fault: {e}")),
+        None => Ok(Faults::default()),
+    }
+}
+
+fn sim_settings(args: &SweepArgs) -> Result<Option<SimSettings>> {
+    if args.beacon.is_some() {
+        let sim_only = args.sim_noise.is_some()
+            || !args.sim_effect.is_empty()
+            || args.sim_seed.is_some()
+            || args.sim_realtime
+            || args.sim_fault.is_some();
+        if sim_only {
+            bail!("--sim-* options apply to the simulated CTA, not to --beacon/--sensor hardware");
+        }
+        return Ok(None);
+    }
+    let d = SimSettings::default();
+    for e in &args.sim_effect {
+        crate::effects::Effect::parse(e).map_err(|m| anyhow::anyhow!("--sim-effect {e}: {m}"))?;
+    }
+    Ok(Some(SimSettings {
+        seed: args.sim_seed.unwrap_or(d.seed),
+        noise: args.sim_noise.unwrap_or(d.noise),
+        effects: args.sim_effect.clone(),
+        realtime: args.sim_realtime,
+        faults: parse_faults(args)?,
+    }))
+}
+
+fn identity_json(id: &cta_core::wire::Identity, path: &str) -> serde_json::Value {
+    json!({
+        "port": path,
+        "board": id.board.to_string(),
+        "protocol": id.protocol,
+        "firmware": id.firmware.as_str(),
+        "simulated": id.simulated,
+        "max_frame": id.max_frame,
+    })
+}
+
+/// Rebuild `manifest.json` from the journal.
+fn write_manifest(store: &RunDir, plan: &Plan, state: &str) -> Result<()> {
+    let mut sessions = Vec::new();
+    let mut operator = Vec::new();
+    let mut faults = Vec::new();
+    let (mut ok, mut no_signal, mut partial, mut samples) = (0u64, 0u64, 0u64, 0u64);
+    for e in &store.events {
+        match e {
+            Event::Session { .. } | Event::Stop { .. } => sessions.push(serde_json::to_value(e)?),
+            Event::Separation(_) | Event::Quadrant { .. } | Event::Power { .. } => {
+                operator.push(serde_json::to_value(e)?)
+            }
+            Event::Fault { .. } => faults.push(serde_json::to_value(e)?),
+            Event::Point {
+                status, samples: n, ..
+            } => {
+                samples += *n as u64;
+                match status {
+                    PointStatus::Ok => ok += 1,
+                    PointStatus::NoSignal => no_signal += 1,
+                    PointStatus::Partial => partial += 1,
+                }
+            }
+        }
+    }
+    let v = json!({
+        "software": format!("cta {}", env!("CARGO_PKG_VERSION")),
+        "state": state,
+        "updated": now(),
+        "plan": plan,
+        "points": { "total": plan.len(), "done": store.next_point(), "ok": ok, "no_signal": no_signal, "partial": partial },
+        "samples": samples,
+        "files": { "data": store::DATA, "journal": store::JOURNAL, "plan": store::PLAN },
+        "sessions": sessions,
+        "operator": operator,
+        "faults": faults,
+    });
+    store.write_manifest(&v)
+}
+
+/// The run directory's measurement file.
+pub fn data_path(dir: &Path) -> PathBuf {
+    dir.join(store::DATA)
+}

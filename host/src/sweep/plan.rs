@@ -1,0 +1,654 @@
+//! Sweep plans: what a run measures, as data (a TOML file, documented in `host/SWEEP.md`).
+//!
+//! A plan is parsed strictly: unknown keys, missing keys and impossible values are errors
+//! naming the file, the line and the key. A parsed [`Plan`] expands into an ordered list of
+//! [`Point`]s (one beacon, lit at one frequency, at one power level and one sensitivity
+//! setting, at one separation); the order is fixed by the plan alone, so a point's index
+//! identifies it across a resume.
+//!
+//! Loop order, outermost first (thesis Ch VI: "finish a separation before moving the
+//! plate"): separation, quadrant (quad layout only), power level, sensitivity, beacon,
+//! frequency. Power levels alternate direction from one plate position to the next
+//! (serpentine), so the operator flips the power switches once per plate position instead
+//! of twice.
+
+use std::fmt;
+use std::path::Path;
+
+use cta_core::emulator::grid_position;
+use cta_core::schedule::NORTHSTAR_TABLE_MHZ;
+use cta_core::wire::beacon::LED_COUNT;
+use serde::{Deserialize, Serialize};
+use toml::Spanned;
+
+use crate::measurement::parse_separations;
+
+/// How the beacon array is mounted on the plate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Layout {
+    /// One 10 x 10 array centred on the plate.
+    Single,
+    /// The quad-array layout: the array is mounted in each of the plate's four quadrants in
+    /// turn (a manual step), centres `spacing` inches apart in x and y. The row-major beacon
+    /// id written to the data is `100 * quadrant + led`.
+    Quad {
+        /// Distance between neighbouring array centres, inches (10 = no gap).
+        spacing: f64,
+    },
+}
+
+impl Layout {
+    /// Number of array placements per separation.
+    pub fn quadrants(&self) -> usize {
+        match self {
+            Layout::Single => 1,
+            Layout::Quad { .. } => 4,
+        }
+    }
+
+    /// Centre of the array in quadrant `q` (N frame, inches): quadrants 0..4 are
+    /// (-x,-y), (+x,-y), (-x,+y), (+x,+y).
+    pub fn centre(&self, q: usize) -> [f64; 2] {
+        match *self {
+            Layout::Single => [0.0, 0.0],
+            Layout::Quad { spacing } => {
+                let h = spacing / 2.0;
+                [
+                    if q % 2 == 0 { -h } else { h },
+                    if q < 2 { -h } else { h },
+                ]
+            }
+        }
+    }
+}
+
+/// A validated plan.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Plan {
+    /// Free-text name.
+    pub name: String,
+    /// Nominal plate separations, inches, in measurement order.
+    pub separations: Vec<f64>,
+    /// Array mounting.
+    pub layout: Layout,
+    /// Beacons (LED ids 0..99 on the array, row-major from the -x,-y corner).
+    pub beacons: Vec<u8>,
+    /// Modulation frequencies, Hz (each one of the NorthStar table).
+    pub frequencies_hz: Vec<f64>,
+    /// Drive levels (the array's slide switches: 1 = 1 kOhm, 2 = 360 Ohm).
+    pub power_levels: Vec<u8>,
+    /// NorthStar sensitivity settings, 1..=4.
+    pub sensitivities: Vec<u8>,
+    /// Samples (sensor reports with the beacon's spot) per point.
+    pub samples: u32,
+    /// Wait between lighting a beacon and sampling, ms.
+    pub settle_ms: u64,
+    /// NorthStar report rate, Hz (10 is the sensor's typical rate).
+    pub rate_hz: u8,
+    /// Wait for one reply, ms.
+    pub request_timeout_ms: u64,
+    /// Resends of an unanswered request before the board counts as gone.
+    pub retries: u32,
+    /// A streaming sensor that sends no report for this long is stalled, ms.
+    pub report_timeout_ms: u64,
+    /// Reports without the beacon's spot after which the point is recorded as "no signal".
+    pub no_signal_reports: u32,
+    /// Largest number of reports read for one point (samples missing beyond this: the point is
+    /// recorded as partial).
+    pub max_reports: u32,
+    /// Heartbeat the beacon board at least this often while sampling, ms.
+    pub heartbeat_ms: u64,
+    /// Longest wait between reconnection attempts to a lost board, s (backoff doubles up to it).
+    pub backoff_max_s: f64,
+    /// Give up (stop the run, resumable) after a board has been lost this long, s.
+    pub give_up_s: f64,
+}
+
+/// One measurement point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Point {
+    /// Index in the plan's order (0-based).
+    pub index: usize,
+    /// Index into [`Plan::separations`].
+    pub sep_idx: usize,
+    /// Nominal separation, inches.
+    pub separation: f64,
+    /// Quadrant (0 for the single layout).
+    pub quadrant: usize,
+    /// Power level.
+    pub power: u8,
+    /// Sensitivity setting.
+    pub sensitivity: u8,
+    /// LED id on the array, 0..99.
+    pub led: u8,
+    /// Frequency channel in the NorthStar table (the spot ID the sensor reports).
+    pub channel: u8,
+    /// Modulation frequency, Hz.
+    pub frequency_hz: f64,
+}
+
+impl Point {
+    /// Beacon id written to the data (`100 * quadrant + led`).
+    pub fn beacon_id(&self) -> u32 {
+        100 * self.quadrant as u32 + self.led as u32
+    }
+
+    /// Nominal beacon position in N for a plate at `separation` (recorded), inches.
+    pub fn position(&self, layout: &Layout, separation: f64) -> [f64; 3] {
+        let g = grid_position(10, 1.0, separation, self.led as usize);
+        let c = layout.centre(self.quadrant);
+        [g.x + c[0], g.y + c[1], g.z]
+    }
+}
+
+/// A plan error: file, line (when known), key, message.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanError {
+    /// The plan file.
+    pub file: String,
+    /// 1-based line, when known.
+    pub line: Option<usize>,
+    /// The key at fault, when known.
+    pub key: Option<String>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl fmt::Display for PlanError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file)?;
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+        }
+        if let Some(k) = &self.key {
+            write!(f, ": key `{k}`")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for PlanError {}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Raw {
+    name: Option<String>,
+    separations_in: Spanned<toml::Value>,
+    layout: Option<Spanned<String>>,
+    quad_spacing_in: Option<Spanned<f64>>,
+    beacons: Option<Spanned<toml::Value>>,
+    frequencies_hz: Option<Spanned<Vec<f64>>>,
+    power_levels: Option<Spanned<Vec<i64>>>,
+    sensitivities: Option<Spanned<Vec<i64>>>,
+    samples: Spanned<i64>,
+    settle_ms: Option<Spanned<i64>>,
+    rate_hz: Option<Spanned<i64>>,
+    timing: Option<RawTiming>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawTiming {
+    request_timeout_ms: Option<Spanned<i64>>,
+    retries: Option<Spanned<i64>>,
+    report_timeout_ms: Option<Spanned<i64>>,
+    no_signal_reports: Option<Spanned<i64>>,
+    max_reports: Option<Spanned<i64>>,
+    heartbeat_ms: Option<Spanned<i64>>,
+    backoff_max_s: Option<Spanned<f64>>,
+    give_up_s: Option<Spanned<f64>>,
+}
+
+impl Plan {
+    /// Read and validate a plan file.
+    pub fn load(path: &Path) -> Result<Plan, PlanError> {
+        let file = path.display().to_string();
+        let src = std::fs::read_to_string(path).map_err(|e| PlanError {
+            file: file.clone(),
+            line: None,
+            key: None,
+            message: format!("cannot read the plan: {e}"),
+        })?;
+        Plan::parse(&file, &src)
+    }
+
+    /// Parse and validate plan text; `file` names it in errors.
+    pub fn parse(file: &str, src: &str) -> Result<Plan, PlanError> {
+        let line_of = |offset: usize| src[..offset.min(src.len())].matches('\n').count() + 1;
+        let raw: Raw = toml::from_str(src).map_err(|e| {
+            // toml's messages name the key ("unknown field `x`", "missing field `y`"); we add
+            // the line of its span.
+            let line = e.span().map(|s| line_of(s.start));
+            PlanError {
+                file: file.into(),
+                line,
+                key: None,
+                message: e.message().trim().to_string(),
+            }
+        })?;
+        let err = |key: &str, span: std::ops::Range<usize>, message: String| PlanError {
+            file: file.into(),
+            line: Some(line_of(span.start)),
+            key: Some(key.into()),
+            message,
+        };
+        // Integers in a range, with the key and line on failure.
+        let int = |key: &str, v: &Spanned<i64>, lo: i64, hi: i64, what: &str| {
+            let x = *v.get_ref();
+            if x < lo || x > hi {
+                Err(err(key, v.span(), format!("{x} is not {what} ({lo}..={hi})")))
+            } else {
+                Ok(x)
+            }
+        };
+
+        let sv = &raw.separations_in;
+        let separations = match sv.get_ref() {
+            toml::Value::String(s) => parse_separations(s),
+            toml::Value::Array(a) => a
+                .iter()
+                .map(|v| match v {
+                    toml::Value::Integer(i) => Ok(*i as f64),
+                    toml::Value::Float(f) => Ok(*f),
+                    other => Err(format!("`{other}` is not a separation in inches")),
+                })
+                .collect::<Result<Vec<f64>, String>>()
+                .and_then(|v| {
+                    if v.is_empty() {
+                        Err("no separations given".into())
+                    } else {
+                        Ok(v)
+                    }
+                }),
+            other => Err(format!(
+                "expected a list of inches or a range string like \"2..30\", got `{other}`"
+            )),
+        }
+        .map_err(|m| err("separations_in", sv.span(), m))?;
+        if let Some(bad) = separations
+            .iter()
+            .find(|s| !(s.is_finite() && **s > 0.0 && **s <= 60.0))
+        {
+            return Err(err(
+                "separations_in",
+                sv.span(),
+                format!("{bad} in is not a plate separation (0 < s <= 60 in)"),
+            ));
+        }
+        for (i, a) in separations.iter().enumerate() {
+            if separations[..i].iter().any(|b| (a - b).abs() < 1e-9) {
+                return Err(err(
+                    "separations_in",
+                    sv.span(),
+                    format!("{a} in is listed twice"),
+                ));
+            }
+        }
+
+        let layout = match &raw.layout {
+            None => Layout::Single,
+            Some(l) => match l.get_ref().as_str() {
+                "single" => Layout::Single,
+                "quad" => Layout::Quad { spacing: 11.0 },
+                other => {
+                    return Err(err(
+                        "layout",
+                        l.span(),
+                        format!("`{other}`: expected \"single\" or \"quad\""),
+                    ))
+                }
+            },
+        };
+        let layout = match (layout, &raw.quad_spacing_in) {
+            (Layout::Quad { .. }, Some(s)) => {
+                let v = *s.get_ref();
+                if !(v.is_finite() && (10.0..=40.0).contains(&v)) {
+                    return Err(err(
+                        "quad_spacing_in",
+                        s.span(),
+                        format!("{v} in: arrays are 10 in wide, spacing must be 10..=40 in"),
+                    ));
+                }
+                Layout::Quad { spacing: v }
+            }
+            (Layout::Single, Some(s)) => {
+                return Err(err(
+                    "quad_spacing_in",
+                    s.span(),
+                    "only meaningful with layout = \"quad\"".into(),
+                ))
+            }
+            (l, None) => l,
+        };
+
+        let beacons: Vec<u8> = match &raw.beacons {
+            None => (0..LED_COUNT as u8).collect(),
+            Some(b) => match b.get_ref() {
+                toml::Value::String(s) if s == "all" => (0..LED_COUNT as u8).collect(),
+                toml::Value::Array(a) if !a.is_empty() => {
+                    let mut out = Vec::new();
+                    for v in a {
+                        let id = v.as_integer().filter(|i| (0..LED_COUNT as i64).contains(i));
+                        let Some(id) = id else {
+                            return Err(err(
+                                "beacons",
+                                b.span(),
+                                format!("`{v}` is not a beacon id (0..=99)"),
+                            ));
+                        };
+                        if out.contains(&(id as u8)) {
+                            return Err(err(
+                                "beacons",
+                                b.span(),
+                                format!("beacon {id} is listed twice"),
+                            ));
+                        }
+                        out.push(id as u8);
+                    }
+                    out
+                }
+                other => {
+                    return Err(err(
+                        "beacons",
+                        b.span(),
+                        format!("`{other}`: expected \"all\" or a non-empty list of ids 0..=99"),
+                    ))
+                }
+            },
+        };
+
+        let frequencies_hz = match &raw.frequencies_hz {
+            None => vec![NORTHSTAR_TABLE_MHZ[2] as f64 / 1000.0],
+            Some(f) => {
+                if f.get_ref().is_empty() {
+                    return Err(err("frequencies_hz", f.span(), "empty list".into()));
+                }
+                for &hz in f.get_ref() {
+                    if channel_of(hz).is_none() {
+                        let table: Vec<String> = NORTHSTAR_TABLE_MHZ
+                            .iter()
+                            .map(|m| format!("{}", *m as f64 / 1000.0))
+                            .collect();
+                        return Err(err(
+                            "frequencies_hz",
+                            f.span(),
+                            format!(
+                                "{hz} Hz is not a NorthStar frequency (the table: {})",
+                                table.join(", ")
+                            ),
+                        ));
+                    }
+                }
+                f.get_ref().clone()
+            }
+        };
+
+        let small_list = |key: &str,
+                          v: &Option<Spanned<Vec<i64>>>,
+                          default: Vec<u8>,
+                          lo: i64,
+                          hi: i64,
+                          what: &str|
+         -> Result<Vec<u8>, PlanError> {
+            let Some(v) = v else { return Ok(default) };
+            if v.get_ref().is_empty() {
+                return Err(err(key, v.span(), "empty list".into()));
+            }
+            let mut out = Vec::new();
+            for &x in v.get_ref() {
+                if x < lo || x > hi {
+                    return Err(err(
+                        key,
+                        v.span(),
+                        format!("{x} is not {what} ({lo}..={hi})"),
+                    ));
+                }
+                if out.contains(&(x as u8)) {
+                    return Err(err(key, v.span(), format!("{x} is listed twice")));
+                }
+                out.push(x as u8);
+            }
+            Ok(out)
+        };
+        let power_levels = small_list(
+            "power_levels",
+            &raw.power_levels,
+            vec![2],
+            1,
+            2,
+            "a power level (1 = 1 kOhm, 2 = 360 Ohm)",
+        )?;
+        let sensitivities = small_list(
+            "sensitivities",
+            &raw.sensitivities,
+            vec![4],
+            1,
+            4,
+            "a sensitivity setting",
+        )?;
+        let samples = int(
+            "samples",
+            &raw.samples,
+            1,
+            100_000,
+            "a number of samples",
+        )? as u32;
+        let opt = |key: &str, v: &Option<Spanned<i64>>, d: i64, lo: i64, hi: i64| match v {
+            None => Ok(d),
+            Some(v) => int(key, v, lo, hi, "allowed"),
+        };
+        let settle_ms = opt("settle_ms", &raw.settle_ms, 200, 0, 600_000)? as u64;
+        let rate_hz = opt("rate_hz", &raw.rate_hz, 10, 1, 50)? as u8;
+        let t = raw.timing.unwrap_or_default();
+        let key = |k: &str| format!("timing.{k}");
+        let request_timeout_ms = opt(
+            &key("request_timeout_ms"),
+            &t.request_timeout_ms,
+            500,
+            10,
+            60_000,
+        )? as u64;
+        let retries = opt(&key("retries"), &t.retries, 2, 0, 100)? as u32;
+        let report_timeout_ms = opt(
+            &key("report_timeout_ms"),
+            &t.report_timeout_ms,
+            2000,
+            10,
+            600_000,
+        )? as u64;
+        let no_signal_reports = opt(
+            &key("no_signal_reports"),
+            &t.no_signal_reports,
+            20,
+            1,
+            100_000,
+        )? as u32;
+        let max_reports = opt(
+            &key("max_reports"),
+            &t.max_reports,
+            (4 * samples as i64).max(no_signal_reports as i64),
+            1,
+            10_000_000,
+        )? as u32;
+        if max_reports < samples {
+            return Err(err(
+                &key("max_reports"),
+                t.max_reports.as_ref().map(|s| s.span()).unwrap_or(0..0),
+                format!("{max_reports} is fewer than the {samples} samples per point"),
+            ));
+        }
+        let heartbeat_ms = opt(&key("heartbeat_ms"), &t.heartbeat_ms, 2000, 50, 60_000)? as u64;
+        let secs = |k: &str, v: &Option<Spanned<f64>>, d: f64, lo: f64, hi: f64| match v {
+            None => Ok(d),
+            Some(s) => {
+                let x = *s.get_ref();
+                if x.is_finite() && (lo..=hi).contains(&x) {
+                    Ok(x)
+                } else {
+                    Err(err(
+                        &key(k),
+                        s.span(),
+                        format!("{x} s is not allowed ({lo}..={hi})"),
+                    ))
+                }
+            }
+        };
+        let backoff_max_s = secs("backoff_max_s", &t.backoff_max_s, 30.0, 0.01, 3600.0)?;
+        let give_up_s = secs("give_up_s", &t.give_up_s, 3600.0, 0.1, 7.0 * 86400.0)?;
+
+        Ok(Plan {
+            name: raw.name.unwrap_or_else(|| "unnamed".into()),
+            separations,
+            layout,
+            beacons,
+            frequencies_hz,
+            power_levels,
+            sensitivities,
+            samples,
+            settle_ms,
+            rate_hz,
+            request_timeout_ms,
+            retries,
+            report_timeout_ms,
+            no_signal_reports,
+            max_reports,
+            heartbeat_ms,
+            backoff_max_s,
+            give_up_s,
+        })
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.per_separation() * self.separations.len()
+    }
+
+    /// `true` if the plan has no points (never, once validated).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Points per separation.
+    pub fn per_separation(&self) -> usize {
+        self.layout.quadrants()
+            * self.power_levels.len()
+            * self.sensitivities.len()
+            * self.beacons.len()
+            * self.frequencies_hz.len()
+    }
+
+    /// Samples the plan asks for in all.
+    pub fn total_samples(&self) -> u64 {
+        self.len() as u64 * self.samples as u64
+    }
+
+    /// Point number `index` (in `0..len()`).
+    pub fn point(&self, index: usize) -> Point {
+        let mut r = index;
+        let nf = self.frequencies_hz.len();
+        let nb = self.beacons.len();
+        let ns = self.sensitivities.len();
+        let np = self.power_levels.len();
+        let nq = self.layout.quadrants();
+        let f = r % nf;
+        r /= nf;
+        let b = r % nb;
+        r /= nb;
+        let s = r % ns;
+        r /= ns;
+        let p = r % np;
+        r /= np;
+        let q = r % nq;
+        let sep_idx = r / nq;
+        // Serpentine power order: reversed on every other plate position.
+        let block = sep_idx * nq + q;
+        let p = if block % 2 == 1 { np - 1 - p } else { p };
+        let hz = self.frequencies_hz[f];
+        Point {
+            index,
+            sep_idx,
+            separation: self.separations[sep_idx],
+            quadrant: q,
+            power: self.power_levels[p],
+            sensitivity: self.sensitivities[s],
+            led: self.beacons[b],
+            channel: channel_of(hz).unwrap_or(0),
+            frequency_hz: hz,
+        }
+    }
+}
+
+/// The NorthStar table channel of a frequency in Hz (exact to 1 mHz).
+pub fn channel_of(hz: f64) -> Option<u8> {
+    NORTHSTAR_TABLE_MHZ
+        .iter()
+        .position(|&m| (m as f64 - hz * 1000.0).abs() < 0.5)
+        .map(|i| i as u8)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SHORT: &str = r#"
+name = "t"
+separations_in = [20, 25]
+beacons = [0, 45, 99]
+frequencies_hz = [4050]
+power_levels = [1, 2]
+sensitivities = [4]
+samples = 5
+settle_ms = 0
+"#;
+
+    #[test]
+    fn expands_in_order_with_serpentine_power() {
+        let p = Plan::parse("p.toml", SHORT).unwrap();
+        assert_eq!(p.len(), 2 * 2 * 3);
+        let pts: Vec<Point> = (0..p.len()).map(|i| p.point(i)).collect();
+        assert_eq!(
+            pts.iter().map(|p| p.power).collect::<Vec<_>>(),
+            [1, 1, 1, 2, 2, 2, 2, 2, 2, 1, 1, 1]
+        );
+        assert_eq!(pts[4].led, 45);
+        assert_eq!(pts[7].separation, 25.0);
+        assert_eq!(pts[0].channel, 2);
+        assert_eq!(pts[0].position(&p.layout, 20.0), [-4.5, -4.5, 20.0]);
+    }
+
+    #[test]
+    fn errors_name_key_and_line() {
+        let e = Plan::parse("p.toml", &SHORT.replace("samples = 5", "sample = 5")).unwrap_err();
+        let s = e.to_string();
+        assert!(s.starts_with("p.toml:9"), "{s}");
+        assert!(s.contains("sample"), "{s}");
+        let e = Plan::parse("p.toml", &SHORT.replace("[4]", "[5]")).unwrap_err();
+        assert_eq!(e.line, Some(7));
+        assert_eq!(e.key.as_deref(), Some("sensitivities"));
+        let e = Plan::parse("p.toml", &SHORT.replace("4050", "4000")).unwrap_err();
+        assert_eq!(
+            (e.line, e.key.as_deref()),
+            (Some(5), Some("frequencies_hz"))
+        );
+        let e = Plan::parse("p.toml", &SHORT.replace("samples = 5\n", "")).unwrap_err();
+        assert!(e.to_string().contains("missing field `samples`"), "{e}");
+        let e = Plan::parse("p.toml", &format!("{SHORT}[timing]\nretrys = 3\n")).unwrap_err();
+        assert!(e.to_string().contains("retrys"), "{e}");
+        assert_eq!(e.line, Some(11));
+        let e = Plan::parse("p.toml", &SHORT.replace("[20, 25]", "\"30..2\"")).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("separations_in"));
+    }
+
+    #[test]
+    fn quad_layout_offsets_quadrants() {
+        let p = Plan::parse(
+            "p.toml",
+            "separations_in = \"10..11\"\nlayout = \"quad\"\nbeacons = [0]\nsamples = 1\n",
+        )
+        .unwrap();
+        assert_eq!(p.len(), 8);
+        let q3 = p.point(3);
+        assert_eq!(q3.beacon_id(), 300);
+        assert_eq!(q3.position(&p.layout, 10.0), [1.0, 1.0, 10.0]);
+    }
+}

@@ -1,0 +1,391 @@
+//! The run directory: what a sweep leaves on disk, written so that nothing is lost and
+//! nothing is written twice, whatever stops the run.
+//!
+//! ```text
+//! RUN_DIR/plan.toml      the plan, as given (a resume reads it from here)
+//! RUN_DIR/data.csv       the measurements (host/MEASUREMENTS.md), appended per point
+//! RUN_DIR/journal.jsonl  one JSON event per line: sessions, operator entries, points, faults
+//! RUN_DIR/manifest.json  the run's metadata, rewritten from the journal at every session
+//!                        start and stop, operator entry and fault
+//! ```
+//!
+//! Commit protocol for a point: its rows (or its "no signal" comment) are appended to
+//! `data.csv` and synced to disk; then a `point` event carrying the file length after them
+//! is appended to the journal and synced. The journal is the authority: on resume,
+//! `data.csv` is cut back to the length of the last journalled point (dropping the rows of a
+//! point whose journal line never made it), a torn last journal line is dropped, and the run
+//! continues with the next point. No duplicate, no gap.
+
+use std::fs::{File, OpenOptions};
+use std::io::{BufRead, BufReader, BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use serde::{Deserialize, Serialize};
+
+use crate::measurement::{write_row, Sample, OPTIONAL, REQUIRED};
+
+/// What became of a point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PointStatus {
+    /// All samples taken.
+    Ok,
+    /// The sensor never reported the beacon's spot: recorded as a comment line, no rows.
+    NoSignal,
+    /// Some samples, fewer than asked, within the report limit.
+    Partial,
+}
+
+/// A corner reading of the plate separation (thesis Ch IV: four corners, mean and spread).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SeparationEntry {
+    /// Index in the plan's separations.
+    pub sep_idx: usize,
+    /// Nominal separation, in.
+    pub nominal: f64,
+    /// The four corner readings, in (empty when not measured: `--yes` without readings).
+    pub corners: Vec<f64>,
+    /// Recorded separation: the mean of the corners (the nominal if none), in.
+    pub mean: f64,
+    /// Its uncertainty: the sample standard deviation of the corners, in.
+    pub spread: f64,
+    /// Who entered it: "operator", "scripted (--yes, not measured)", "simulated plate".
+    pub source: String,
+}
+
+/// One journal line.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "event", rename_all = "snake_case")]
+pub enum Event {
+    /// A session (first run or a resume) started.
+    Session {
+        /// Session number, 1-based.
+        n: u32,
+        /// Wall-clock time, RFC 3339-like UTC seconds since the epoch.
+        at: f64,
+        /// `cta` version.
+        software: String,
+        /// The command line.
+        command: Vec<String>,
+        /// Board identities (`beacon`, `sensor`), as answered.
+        boards: serde_json::Value,
+        /// Simulation settings (`None` for real boards).
+        sim: Option<serde_json::Value>,
+        /// First point of this session.
+        from_point: usize,
+    },
+    /// The plate was moved (or its position confirmed on resume).
+    Separation(SeparationEntry),
+    /// The array was (re)mounted in a quadrant (quad layout).
+    Quadrant {
+        /// Quadrant 0..4.
+        quadrant: usize,
+        /// Who confirmed it.
+        source: String,
+    },
+    /// The power switches were set.
+    Power {
+        /// Power level.
+        level: u8,
+        /// Who confirmed it.
+        source: String,
+    },
+    /// A point was committed.
+    Point {
+        /// Point index in the plan.
+        i: usize,
+        /// Outcome.
+        status: PointStatus,
+        /// Samples written.
+        samples: u32,
+        /// Sensor reports read for it (with or without the spot).
+        reports: u32,
+        /// Reports lost on the wire (gaps in the board's report counter).
+        lost: u32,
+        /// Attempts it took (1 = first try).
+        attempts: u32,
+        /// Length of data.csv after its rows.
+        csv_end: u64,
+    },
+    /// Something went wrong, and what was done about it.
+    Fault {
+        /// Seconds since the epoch.
+        at: f64,
+        /// Point being measured.
+        point: usize,
+        /// "beacon", "sensor" or "host".
+        board: String,
+        /// What happened.
+        what: String,
+        /// What the run did ("retry point", "reconnect", "stop").
+        action: String,
+    },
+    /// A session ended.
+    Stop {
+        /// Seconds since the epoch.
+        at: f64,
+        /// "complete", "interrupted (Ctrl-C)", "gave up: ...".
+        reason: String,
+        /// Next point to measure.
+        next_point: usize,
+    },
+}
+
+/// Seconds since the Unix epoch.
+pub fn now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs_f64())
+        .unwrap_or(0.0)
+}
+
+/// An open run directory.
+pub struct RunDir {
+    /// The directory.
+    pub dir: PathBuf,
+    csv: BufWriter<File>,
+    csv_len: u64,
+    journal: File,
+    /// Every event so far (this and previous sessions).
+    pub events: Vec<Event>,
+    sync: bool,
+}
+
+/// Names of the files in a run directory.
+pub const PLAN: &str = "plan.toml";
+/// The measurement file.
+pub const DATA: &str = "data.csv";
+/// The event journal.
+pub const JOURNAL: &str = "journal.jsonl";
+/// The manifest.
+pub const MANIFEST: &str = "manifest.json";
+
+impl RunDir {
+    /// Start a new run in `dir` with the plan text `plan_src`. An existing non-empty `dir` is
+    /// refused unless `force` (then its sweep files are removed first).
+    pub fn create(dir: &Path, plan_src: &str, header: &[String], force: bool, sync: bool) -> Result<RunDir> {
+        if dir.exists() {
+            let nonempty = std::fs::read_dir(dir)
+                .with_context(|| format!("{}: cannot read the directory", dir.display()))?
+                .next()
+                .is_some();
+            if nonempty && !force {
+                bail!(
+                    "{} already exists and is not empty: continue it with `cta sweep --resume {}`, \
+                     or start over with --force (deletes its {DATA}, {JOURNAL}, {MANIFEST})",
+                    dir.display(),
+                    dir.display()
+                );
+            }
+            if nonempty {
+                for f in [PLAN, DATA, JOURNAL, MANIFEST, "data.truth.json"] {
+                    let p = dir.join(f);
+                    if p.exists() {
+                        std::fs::remove_file(&p)
+                            .with_context(|| format!("{}: cannot remove", p.display()))?;
+                    }
+                }
+            }
+        }
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+        std::fs::write(dir.join(PLAN), plan_src)
+            .with_context(|| format!("{}: cannot write", dir.join(PLAN).display()))?;
+        let mut csv = File::create(dir.join(DATA))
+            .with_context(|| format!("{}: cannot create", dir.join(DATA).display()))?;
+        let mut head = String::new();
+        for h in header {
+            head.push_str(&format!("# {h}\n"));
+        }
+        head.push_str(&format!("{},{}\n", REQUIRED.join(","), OPTIONAL.join(",")));
+        csv.write_all(head.as_bytes())?;
+        csv.sync_all()?;
+        let journal = File::create(dir.join(JOURNAL))?;
+        let csv_len = head.len() as u64;
+        Ok(RunDir {
+            dir: dir.to_path_buf(),
+            csv: BufWriter::with_capacity(1 << 16, csv),
+            csv_len,
+            journal,
+            events: Vec::new(),
+            sync,
+        })
+    }
+
+    /// Reopen `dir` to continue it: reads the journal (dropping a torn last line), cuts
+    /// `data.csv` back to the last committed point, and positions both files for appending.
+    pub fn open(dir: &Path, sync: bool) -> Result<RunDir> {
+        let jp = dir.join(JOURNAL);
+        let dp = dir.join(DATA);
+        if !jp.exists() || !dp.exists() {
+            bail!(
+                "{}: not a sweep run directory (no {JOURNAL} or {DATA}); start a run with --out",
+                dir.display()
+            );
+        }
+        let mut events = Vec::new();
+        let mut good_len = 0u64;
+        {
+            let f = File::open(&jp)?;
+            let mut r = BufReader::new(f);
+            let mut line = String::new();
+            let mut lineno = 0;
+            loop {
+                line.clear();
+                let n = r.read_line(&mut line)?;
+                if n == 0 {
+                    break;
+                }
+                lineno += 1;
+                if !line.ends_with('\n') {
+                    // Torn last line (the process died mid-write): dropped.
+                    break;
+                }
+                match serde_json::from_str::<Event>(line.trim_end()) {
+                    Ok(e) => events.push(e),
+                    Err(e) => bail!("{}:{lineno}: unreadable journal entry: {e}", jp.display()),
+                }
+                good_len += n as u64;
+            }
+        }
+        let journal = OpenOptions::new().write(true).open(&jp)?;
+        journal.set_len(good_len)?;
+        let mut journal = journal;
+        journal.seek(SeekFrom::End(0))?;
+        // The CSV ends where the last committed point ended (or after the header).
+        let header_len = csv_header_len(&dp)?;
+        let end = events
+            .iter()
+            .rev()
+            .find_map(|e| match e {
+                Event::Point { csv_end, .. } => Some(*csv_end),
+                _ => None,
+            })
+            .unwrap_or(header_len);
+        let mut csv = OpenOptions::new().write(true).open(&dp)?;
+        let len = csv.metadata()?.len();
+        if len < end {
+            bail!(
+                "{}: {len} bytes, but the journal says {end} were committed: the data file was \
+                 truncated or replaced; not resuming",
+                dp.display()
+            );
+        }
+        csv.set_len(end)?;
+        csv.seek(SeekFrom::End(0))?;
+        csv.sync_all()?;
+        Ok(RunDir {
+            dir: dir.to_path_buf(),
+            csv: BufWriter::with_capacity(1 << 16, csv),
+            csv_len: end,
+            journal,
+            events,
+            sync,
+        })
+    }
+
+    /// Index of the next point to measure (one past the last committed).
+    pub fn next_point(&self) -> usize {
+        self.events
+            .iter()
+            .rev()
+            .find_map(|e| match e {
+                Event::Point { i, .. } => Some(i + 1),
+                _ => None,
+            })
+            .unwrap_or(0)
+    }
+
+    /// Number of sessions so far.
+    pub fn sessions(&self) -> u32 {
+        self.events
+            .iter()
+            .filter(|e| matches!(e, Event::Session { .. }))
+            .count() as u32
+    }
+
+    /// Append an event to the journal (flushed, synced when configured).
+    pub fn log(&mut self, e: Event) -> Result<()> {
+        let mut line = serde_json::to_string(&e)?;
+        line.push('\n');
+        self.journal.write_all(line.as_bytes())?;
+        if self.sync {
+            self.journal.sync_data()?;
+        }
+        self.events.push(e);
+        Ok(())
+    }
+
+    /// Commit a point: its rows (or a `# no signal` comment), then its journal line.
+    #[allow(clippy::too_many_arguments)]
+    pub fn commit_point(
+        &mut self,
+        i: usize,
+        status: PointStatus,
+        rows: &[Sample],
+        comment: Option<&str>,
+        reports: u32,
+        lost: u32,
+        attempts: u32,
+    ) -> Result<()> {
+        let mut buf = Vec::with_capacity(64 * rows.len() + 64);
+        if let Some(c) = comment {
+            writeln!(buf, "# {c}")?;
+        }
+        for r in rows {
+            write_row(&mut buf, r)?;
+        }
+        self.csv.write_all(&buf)?;
+        self.csv.flush()?;
+        if self.sync {
+            self.csv.get_ref().sync_data()?;
+        }
+        self.csv_len += buf.len() as u64;
+        self.log(Event::Point {
+            i,
+            status,
+            samples: rows.len() as u32,
+            reports,
+            lost,
+            attempts,
+            csv_end: self.csv_len,
+        })
+    }
+
+    /// Write `manifest.json` (atomically: temp file + rename) from `value`.
+    pub fn write_manifest(&self, value: &serde_json::Value) -> Result<()> {
+        let tmp = self.dir.join(".manifest.json.tmp");
+        let mut f = File::create(&tmp)?;
+        f.write_all(serde_json::to_string_pretty(value)?.as_bytes())?;
+        f.write_all(b"\n")?;
+        if self.sync {
+            f.sync_all()?;
+        }
+        std::fs::rename(&tmp, self.dir.join(MANIFEST))?;
+        Ok(())
+    }
+
+    /// Path of the measurement file.
+    pub fn data_path(&self) -> PathBuf {
+        self.dir.join(DATA)
+    }
+}
+
+/// Length of the comment and header lines at the top of a measurement file.
+fn csv_header_len(path: &Path) -> Result<u64> {
+    let f = File::open(path)?;
+    let mut r = BufReader::new(f);
+    let mut len = 0u64;
+    let mut line = String::new();
+    loop {
+        line.clear();
+        let n = r.read_line(&mut line)?;
+        if n == 0 {
+            bail!("{}: no header line", path.display());
+        }
+        len += n as u64;
+        if !line.starts_with('#') && !line.trim().is_empty() {
+            return Ok(len);
+        }
+    }
+}

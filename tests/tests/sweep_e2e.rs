@@ -1,0 +1,74 @@
+//! `cta sweep` end to end on the simulated CTA (both boards behind pseudo-terminals).
+
+use std::path::{Path, PathBuf};
+
+use cta_host::measurement::Dataset;
+use cta_host::sweep::{self, engine::Ending, SweepArgs};
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("cta-sweep-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+const PLAN: &str = r#"
+name = "test"
+separations_in = [3, 12, 30]
+beacons = [0, 9, 45, 90, 99]
+frequencies_hz = [4050]
+power_levels = [1, 2]
+sensitivities = [1, 4]
+samples = 8
+settle_ms = 0
+[timing]
+no_signal_reports = 6
+"#;
+
+fn args(dir: &Path, plan: &Path) -> SweepArgs {
+    SweepArgs {
+        plan: Some(plan.to_path_buf()),
+        out: Some(dir.join("run")),
+        quiet: true,
+        sim_noise: Some(15.0),
+        sim_seed: Some(7),
+        no_sync: true,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn short_sweep_end_to_end() {
+    let d = tmp("e2e");
+    let plan = d.join("plan.toml");
+    std::fs::write(&plan, PLAN).unwrap();
+    let a = args(&d, &plan);
+    let s = sweep::sweep(&a).unwrap();
+    assert_eq!(s.ending, Ending::Complete);
+    assert_eq!(s.next_point, 3 * 5 * 2 * 2);
+    let st = s.stats;
+    assert_eq!(st.ok + st.no_signal + st.partial, 60);
+    assert!(st.no_signal > 0, "weak settings at 30 in must see nothing: {st:?}");
+    assert!(st.ok > 30, "{st:?}");
+    let data = Dataset::read(&sweep::data_path(&d.join("run"))).unwrap();
+    assert_eq!(data.samples.len() as u64, st.samples);
+    assert_eq!(data.points().len(), st.ok + st.partial);
+    // Recorded separation is the corners' mean; beacon 99 sits at +4.5, +4.5.
+    let s99 = data.samples.iter().find(|s| s.beacon == Some(99)).unwrap();
+    assert_eq!([s99.r[0], s99.r[1]], [4.5, 4.5]);
+    assert!([3.0, 12.0, 30.0].iter().any(|n| (s99.separation_in - n).abs() < 0.01));
+    // The sign of x follows the beacon's x (collinearity: far beacons at +x read +X or -X
+    // consistently; check the pair of opposite beacons disagree).
+    let x0 = data.samples.iter().find(|s| s.beacon == Some(0) && s.separation_in > 10.0).unwrap().x;
+    let x99 = data.samples.iter().find(|s| s.beacon == Some(99) && s.separation_in > 10.0).unwrap().x;
+    assert!(x0.signum() != x99.signum(), "{x0} {x99}");
+    // No overwrite without --force.
+    let e = sweep::sweep(&a).unwrap_err().to_string();
+    assert!(e.contains("--resume") && e.contains("--force"), "{e}");
+    // Manifest and journal exist and say complete.
+    let m = std::fs::read_to_string(d.join("run/manifest.json")).unwrap();
+    assert!(m.contains("\"state\": \"complete\""), "{m}");
+    assert!(m.contains("\"done\": 60"), "{m}");
+    assert!(d.join("run/data.truth.json").exists());
+    let _ = std::fs::remove_dir_all(&d);
+}
