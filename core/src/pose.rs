@@ -868,6 +868,48 @@ pub fn cta_constellation() -> Constellation {
     }
 }
 
+/// The benchmark of the on-chip solve (QEMU instruction count and the f32-vs-f64 check):
+/// the [`cta_constellation`] seen through the eq 63 physics by the Table 3 head, the target
+/// at `t = (0.3, -0.2, 8.0)` in, rotated 3 deg about `(0.3, -0.5, 1.0)`; frame 2 after a
+/// step of `(0.02, -0.01, 0.05)` in and 0.1 deg (a docking control loop at 50 Hz). Both
+/// frames carry deterministic pseudo-random noise of 0.1 % of beta (uniform, same
+/// variance as the Gaussian) and are rounded to counts, so every machine produces the same
+/// integer spots. Returns `(frame1, frame2, true t2, true q2)`.
+pub fn benchmark_frames() -> (
+    Vec<Spot, MAX_BEACONS>,
+    Vec<Spot, MAX_BEACONS>,
+    Vector3<f64>,
+    Vector3<f64>,
+) {
+    let cal = Calibration::table3();
+    let em = Emulator::new(
+        Head::northstar(),
+        HeadPose {
+            d: v3(&cal.d),
+            p: v3(&cal.p),
+        },
+        Effects::default(),
+    );
+    let con = cta_constellation();
+    let axis = Vector3::new(0.3, -0.5, 1.0);
+    let t1 = Vector3::new(0.3, -0.2, 8.0);
+    let q1 = mrp::from_axis_angle(&axis, rad(3.0));
+    let t2 = t1 + Vector3::new(0.02, -0.01, 0.05);
+    let q2 = mrp::from_axis_angle(&axis, rad(3.1));
+    let mut seed = 0x2545_f491_u32;
+    let sigma = 0.001 * crate::emulator::BETA;
+    let mut noise = move |_| {
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        // Uniform on [-sqrt(3), sqrt(3)] sigma: unit variance times sigma.
+        ((seed as f64) / 4294967296.0 - 0.5) * 2.0 * 1.7320508075688772 * sigma
+    };
+    let f1 = simulate_spots(&em, &con, &t1, &q1, &mut noise);
+    let f2 = simulate_spots(&em, &con, &t2, &q2, &mut noise);
+    (f1, f2, t2, q2)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -11,7 +11,8 @@
 //! information; everything else in the firmware sees only [`SpotFrame`] and
 //! [`NsCommand`], so the real format replaces this file and nothing else.
 //!
-//! All multi-byte fields little-endian. A frame is
+//! The UART runs at [`NS_BAUD`] 8N1 (assumed). All multi-byte fields little-endian.
+//! A frame is
 //!
 //! | offset | size | field |
 //! |---|---|---|
@@ -44,6 +45,8 @@
 use cta_core::pose::Spot;
 use heapless::Vec;
 
+/// Assumed baud rate of the NorthStar's UART (8N1).
+pub const NS_BAUD: u32 = 115_200;
 /// Most spots the NorthStar reports in one frame (10 beacon pairs).
 pub const MAX_SPOTS: usize = 20;
 /// Bytes per spot in a report body.

@@ -20,6 +20,34 @@ use cta_qemu::{done, fail, mark};
 
 /// Measured solves (each from the same warm start).
 const RUNS: usize = 3;
+/// Stack region painted below the current stack pointer to measure the solver's peak use.
+const PAINT: usize = 16 * 1024;
+const PATTERN: u32 = 0xC0FF_EE55;
+
+/// Fill the `PAINT` bytes below the current stack pointer (minus a safety gap for this
+/// function's own frame) with `PATTERN`; returns the painted range `[lo, hi)`.
+#[inline(never)]
+fn paint_stack() -> (usize, usize) {
+    let sp = cortex_m::register::msp::read() as usize;
+    let hi = (sp - 256) & !3;
+    let lo = hi - PAINT;
+    for a in (lo..hi).step_by(4) {
+        // SAFETY: unused stack memory below the live frames (64 KiB of RAM on the
+        // lm3s6965; this program's statics are far below).
+        unsafe { (a as *mut u32).write_volatile(PATTERN) };
+    }
+    (lo, sp)
+}
+
+/// Bytes of stack used below `sp` since `paint_stack`: the lowest overwritten word.
+fn stack_used(lo: usize, sp: usize) -> usize {
+    let mut a = lo;
+    // SAFETY: reads of the painted region.
+    while a < sp && unsafe { (a as *const u32).read_volatile() } == PATTERN {
+        a += 4;
+    }
+    sp - a
+}
 
 #[entry]
 fn main() -> ! {
@@ -37,6 +65,7 @@ fn main() -> ! {
     else {
         fail("solver rejected the configuration")
     };
+    let (lo, sp) = paint_stack();
     let first = solver.solve(&f1);
     if first.status != PoseStatus::Ok {
         fail("cold-start solve of frame 1 failed");
@@ -57,6 +86,10 @@ fn main() -> ! {
     if sol.status != PoseStatus::Ok {
         fail("warm solve of frame 2 failed");
     }
+    hprintln!(
+        "STACK solve_peak_bytes={} (cold and warm solves, below the caller's frame)",
+        stack_used(lo, sp)
+    );
     hprintln!(
         "POSE f32 model={} beacons={} iterations={} cold_iterations={} t= {:.6} {:.6} {:.6} q= {:.8} {:.8} {:.8}",
         if model == ModelKind::Pinhole { "pinhole" } else { "nearfield" },

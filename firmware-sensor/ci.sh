@@ -1,0 +1,98 @@
+#!/usr/bin/env bash
+# Sensor-board firmware checks (called by the root .ci/run as `bash firmware-sensor/ci.sh`):
+#
+#  1. build the firmware for the STM32F103C8 (thumbv7m-none-eabi) in its own cargo
+#     invocation, from this folder (so its .cargo/config.toml profile is the one used by
+#     `cargo run --release`), and print flash and static RAM;
+#  2. run the QEMU pose program (tests/qemu, Cortex-M3 lm3s6965evb) for the pinhole and
+#     the near-field model: instructions of one warm-started 10-beacon solve, and the
+#     solver's peak stack;
+#  3. compare the on-target f32 answer with the host's f64 answer (example pose_reference);
+#  4. fail when over budget: flash <= 48 KiB, RAM (static + measured peak stack) <= 12 KiB,
+#     one warm solve <= 1,000,000 instructions.
+#
+# The peak stack is the solver's (measured in QEMU by painting the stack) plus
+# MAIN_FRAMES_ALLOWANCE for the firmware's main loop and board frames (TX frame buffer
+# 512 B, receive chunk 64 B, request decoding), which QEMU cannot run (STM32 peripherals).
+#
+# CTA_SENSOR_BUDGETS=report prints the same figures and verdicts but exits 0 on budget
+# overruns (build, QEMU or f32/f64 mismatches still fail).
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(cd "$here/.." && pwd)
+mode=${CTA_SENSOR_BUDGETS:-enforce}
+FLASH_BUDGET=$((48 * 1024))
+RAM_BUDGET=$((12 * 1024))
+INSN_BUDGET=1000000
+MAIN_FRAMES_ALLOWANCE=1024
+over=0
+
+rustup target add thumbv7m-none-eabi >/dev/null 2>&1 || true
+rustup component add llvm-tools >/dev/null 2>&1 || true
+host=$(rustc -vV | sed -n 's/^host: //p')
+size_tool="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-size"
+[ -x "$size_tool" ] || size_tool=$(command -v llvm-size || true)
+[ -n "$size_tool" ] || { echo "ci.sh: llvm-size not found (rustup component add llvm-tools)" >&2; exit 1; }
+
+echo "== firmware-sensor: build for thumbv7m-none-eabi (STM32F103C8)"
+(cd "$here" && cargo build --release --target thumbv7m-none-eabi -p cta-firmware-sensor)
+target_dir=${CARGO_TARGET_DIR:-$root/target}
+elf="$target_dir/thumbv7m-none-eabi/release/cta-firmware-sensor"
+sec() { "$size_tool" -A "$elf" | awk -v s="$1" '$1 == s { print $2 }'; }
+n() { local v; v=$(sec "$1"); echo "${v:-0}"; }
+flash=$(( $(n .vector_table) + $(n .text) + $(n .rodata) + $(n .data) ))
+ram_static=$(( $(n .data) + $(n .bss) + $(n .uninit) ))
+
+echo "== QEMU pose benchmark (Cortex-M3, lm3s6965evb)"
+declare -A insn stack f32line
+for model in pinhole nearfield; do
+  out=$(POSE_MODEL=$model bash "$root/tests/qemu/run.sh" pose)
+  echo "$out"
+  insn[$model]=$(echo "$out" | sed -n 's/^pose: .* mean=\([0-9.]*\) max=\([0-9]*\).*/\2/p')
+  stack[$model]=$(echo "$out" | sed -n 's/^STACK solve_peak_bytes=\([0-9]*\).*/\1/p')
+  f32line[$model]=$(echo "$out" | grep '^POSE f32')
+  [ -n "${insn[$model]}" ] && [ -n "${stack[$model]}" ] && [ -n "${f32line[$model]}" ] \
+    || { echo "ci.sh: QEMU pose run ($model) printed no count" >&2; exit 1; }
+done
+
+echo "== f32 on target vs f64 on the host"
+(cd "$root" && cargo build --quiet -p cta-firmware-sensor --example pose_reference)
+for model in pinhole nearfield; do
+  ref=$(cd "$root" && cargo run --quiet -p cta-firmware-sensor --example pose_reference -- "$model" | grep '^POSE f64')
+  echo "target: ${f32line[$model]}"
+  echo "host:   $ref"
+  # Position within 1e-3 in and MRP within 1e-4 (0.03 deg): far below the noise floor.
+  printf '%s\n%s\n' "${f32line[$model]}" "$ref" | awk '
+    { for (i = 1; i <= NF; i++) if ($i == "t=") { for (k = 0; k < 3; k++) t[NR, k] = $(i + 1 + k); for (k = 0; k < 3; k++) q[NR, k] = $(i + 5 + k) } }
+    END {
+      dt = 0; dq = 0
+      for (k = 0; k < 3; k++) { a = t[1, k] - t[2, k]; if (a < 0) a = -a; if (a > dt) dt = a; b = q[1, k] - q[2, k]; if (b < 0) b = -b; if (b > dq) dq = b }
+      printf "  max |dt| = %.2e in, max |dq| = %.2e\n", dt, dq
+      exit !(dt <= 1e-3 && dq <= 1e-4)
+    }' || { echo "ci.sh: f32 answer ($model) does not match the host f64 answer" >&2; exit 1; }
+done
+
+peak=${stack[nearfield]}
+[ "${stack[pinhole]}" -gt "$peak" ] && peak=${stack[pinhole]}
+ram=$(( ram_static + peak + MAIN_FRAMES_ALLOWANCE ))
+verdict() { if [ "$1" -le "$2" ]; then echo "ok"; else echo "OVER BUDGET"; fi; }
+check() { [ "$1" -le "$2" ] || over=1; }
+check "$flash" "$FLASH_BUDGET"; check "$ram" "$RAM_BUDGET"
+for model in pinhole nearfield; do check "${insn[$model]}" "$INSN_BUDGET"; done
+echo "== firmware-sensor figures"
+printf 'flash                        %6d B (%.1f KiB) / %d B: %s\n' "$flash" "$(awk -v f="$flash" 'BEGIN { print f / 1024 }')" "$FLASH_BUDGET" "$(verdict "$flash" "$FLASH_BUDGET")"
+printf 'RAM static                   %6d B\n' "$ram_static"
+printf 'RAM peak stack (solve)       %6d B (+ %d B main-loop allowance)\n' "$peak" "$MAIN_FRAMES_ALLOWANCE"
+printf 'RAM total                    %6d B / %d B: %s\n' "$ram" "$RAM_BUDGET" "$(verdict "$ram" "$RAM_BUDGET")"
+for model in pinhole nearfield; do
+  printf 'warm 10-beacon solve, %-9s %8d instructions / %d: %s\n' "$model" "${insn[$model]}" "$INSN_BUDGET" "$(verdict "${insn[$model]}" "$INSN_BUDGET")"
+done
+if [ "$over" -ne 0 ]; then
+  if [ "$mode" = report ]; then
+    echo "firmware-sensor: OVER BUDGET (CTA_SENSOR_BUDGETS=report: not failing)"
+  else
+    echo "firmware-sensor: OVER BUDGET" >&2
+    exit 1
+  fi
+fi
+echo "firmware-sensor: done"

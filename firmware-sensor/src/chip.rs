@@ -1,0 +1,250 @@
+//! Wiring of the sensor board (STM32F103C8): clocks, the two USARTs, the flash pages and
+//! the watchdog around the library's [`Board`]. Compiled for the chip only.
+//!
+//! * USART1 (PA9 TX, PA10 RX, 115200 8N1): the PC link.
+//! * USART2 (PA2 TX, PA3 RX, [`NS_BAUD`] 8N1): the NorthStar link.
+//! * Both receive interrupts push bytes into bounded queues; the main loop feeds them to
+//!   the board (a pose solve takes tens of milliseconds, during which bytes keep arriving
+//!   into the queues instead of overrunning the USARTs).
+//! * Flash pages 62 and 63 (the last 2 KiB of the 64 KiB) hold the A/B configuration
+//!   records ([`crate::storage`]); the firmware itself is budgeted to 48 KiB.
+//! * Independent watchdog (~1 s), fed by the main loop.
+
+use core::cell::RefCell;
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cortex_m::peripheral::NVIC;
+use cortex_m_rt::{entry, exception, ExceptionFrame};
+use critical_section::Mutex;
+use defmt_rtt as _;
+use heapless::Deque;
+use panic_probe as _;
+use stm32f1xx_hal::{
+    flash::{FlashSize, Parts as FlashParts, SectorSize},
+    pac::{self, interrupt, Interrupt},
+    prelude::*,
+    rcc,
+    serial::{Config, Rx, Tx},
+    watchdog::IndependentWatchdog,
+};
+
+use cta_firmware_sensor::board::{Board, Io};
+use cta_firmware_sensor::northstar::NS_BAUD;
+use cta_firmware_sensor::storage::{FlashPages, StorageError, MAX_RECORD};
+
+/// Core clock, Hz (8 MHz crystal x 9).
+const SYSCLK_HZ: u32 = 72_000_000;
+/// Receive queues between the USART interrupts and the main loop.
+const PC_QUEUE: usize = 1024;
+const NS_QUEUE: usize = 512;
+/// Offsets (from the start of flash) of the two configuration pages.
+const PAGES: [u32; 2] = [62 * 1024, 63 * 1024];
+const FLASH_BASE: u32 = 0x0800_0000;
+
+static PC_RX: Mutex<RefCell<Option<Rx<pac::USART1>>>> = Mutex::new(RefCell::new(None));
+static NS_RX: Mutex<RefCell<Option<Rx<pac::USART2>>>> = Mutex::new(RefCell::new(None));
+static PC_BYTES: Mutex<RefCell<Deque<u8, PC_QUEUE>>> = Mutex::new(RefCell::new(Deque::new()));
+static NS_BYTES: Mutex<RefCell<Deque<u8, NS_QUEUE>>> = Mutex::new(RefCell::new(Deque::new()));
+/// Receive errors (USART errors and queue overflows), for the debug log.
+static RX_ERRORS: AtomicU32 = AtomicU32::new(0);
+
+/// The two configuration pages through the HAL's flash writer.
+struct ChipFlash {
+    parts: FlashParts,
+}
+
+impl FlashPages for ChipFlash {
+    fn read(&self, page: usize) -> &[u8] {
+        let addr = FLASH_BASE + PAGES[page & 1];
+        // SAFETY: a readable, memory-mapped flash region of MAX_RECORD bytes inside the
+        // page, which only this type modifies (and not while the slice is alive: `&self`).
+        unsafe { core::slice::from_raw_parts(addr as *const u8, MAX_RECORD) }
+    }
+    fn erase(&mut self, page: usize) -> Result<(), StorageError> {
+        let mut w = self.parts.writer(SectorSize::Sz1K, FlashSize::Sz64K);
+        w.page_erase(PAGES[page & 1])
+            .map_err(|_| StorageError::Erase)
+    }
+    fn write(&mut self, page: usize, data: &[u8]) -> Result<(), StorageError> {
+        let mut w = self.parts.writer(SectorSize::Sz1K, FlashSize::Sz64K);
+        w.write(PAGES[page & 1], data)
+            .map_err(|_| StorageError::Write)
+    }
+}
+
+/// Microseconds since boot from the DWT cycle counter, extended to 64 bits (the main loop
+/// polls it far more often than the 59 s wrap period).
+struct Clock {
+    last: u32,
+    cycles: u64,
+}
+
+impl Clock {
+    fn now_us(&mut self) -> u64 {
+        let c = cortex_m::peripheral::DWT::cycle_count();
+        self.cycles += c.wrapping_sub(self.last) as u64;
+        self.last = c;
+        self.cycles / (SYSCLK_HZ as u64 / 1_000_000)
+    }
+}
+
+struct ChipIo {
+    pc: Tx<pac::USART1>,
+    ns: Tx<pac::USART2>,
+    clock: Clock,
+}
+
+impl Io for ChipIo {
+    fn now_us(&mut self) -> u64 {
+        self.clock.now_us()
+    }
+    fn send_pc(&mut self, bytes: &[u8]) -> bool {
+        for &b in bytes {
+            if nb::block!(self.pc.write_u8(b)).is_err() {
+                return false;
+            }
+        }
+        true
+    }
+    fn send_ns(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            let _ = nb::block!(self.ns.write_u8(b));
+        }
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    let dp = pac::Peripherals::take().unwrap();
+    let mut cp = cortex_m::Peripherals::take().unwrap();
+
+    let mut flash = dp.FLASH.constrain();
+    let mut rcc = dp.RCC.freeze(
+        rcc::Config::hse(8.MHz())
+            .sysclk(SYSCLK_HZ.Hz())
+            .pclk1(36.MHz()),
+        &mut flash.acr,
+    );
+    let mut watchdog = IndependentWatchdog::new(dp.IWDG);
+    watchdog.start(1000.millis());
+
+    let mut gpioa = dp.GPIOA.split(&mut rcc);
+    let pc_tx = gpioa.pa9.into_alternate_push_pull(&mut gpioa.crh);
+    let (pc_tx, mut pc_rx) = dp
+        .USART1
+        .serial(
+            (pc_tx, gpioa.pa10),
+            Config::default().baudrate(115_200.bps()),
+            &mut rcc,
+        )
+        .split();
+    let ns_tx = gpioa.pa2.into_alternate_push_pull(&mut gpioa.crl);
+    let (ns_tx, mut ns_rx) = dp
+        .USART2
+        .serial(
+            (ns_tx, gpioa.pa3),
+            Config::default().baudrate(NS_BAUD.bps()),
+            &mut rcc,
+        )
+        .split();
+    pc_rx.listen();
+    ns_rx.listen();
+    critical_section::with(|cs| {
+        PC_RX.borrow(cs).replace(Some(pc_rx));
+        NS_RX.borrow(cs).replace(Some(ns_rx));
+    });
+
+    cp.DCB.enable_trace();
+    cp.DWT.enable_cycle_counter();
+    let mut io = ChipIo {
+        pc: pc_tx,
+        ns: ns_tx,
+        clock: Clock {
+            last: cortex_m::peripheral::DWT::cycle_count(),
+            cycles: 0,
+        },
+    };
+
+    let mut board = Board::new(ChipFlash { parts: flash }, false);
+    // SAFETY: the handlers only use the statics above.
+    unsafe {
+        cp.NVIC.set_priority(Interrupt::USART1, 0x40);
+        cp.NVIC.set_priority(Interrupt::USART2, 0x40);
+        NVIC::unmask(Interrupt::USART1);
+        NVIC::unmask(Interrupt::USART2);
+    }
+    board.start(&mut io);
+    defmt::info!("sensor board up");
+
+    let mut chunk = [0u8; 64];
+    loop {
+        let n = drain(&PC_BYTES, &mut chunk);
+        board.on_pc_bytes(&chunk[..n], &mut io);
+        let n = drain(&NS_BYTES, &mut chunk);
+        board.on_ns_bytes(&chunk[..n], &mut io);
+        let errors = RX_ERRORS.swap(0, Ordering::Relaxed);
+        if errors != 0 {
+            defmt::warn!("{} receive errors", errors);
+        }
+        watchdog.feed();
+    }
+}
+
+/// Move up to `out.len()` queued bytes into `out`.
+fn drain<const N: usize>(q: &Mutex<RefCell<Deque<u8, N>>>, out: &mut [u8]) -> usize {
+    critical_section::with(|cs| {
+        let mut q = q.borrow_ref_mut(cs);
+        let mut n = 0;
+        while n < out.len() {
+            match q.pop_front() {
+                Some(b) => {
+                    out[n] = b;
+                    n += 1;
+                }
+                None => break,
+            }
+        }
+        n
+    })
+}
+
+fn receive<U, const N: usize>(rx: &Mutex<RefCell<Option<Rx<U>>>>, q: &Mutex<RefCell<Deque<u8, N>>>)
+where
+    U: stm32f1xx_hal::serial::Instance,
+{
+    critical_section::with(|cs| {
+        let mut rx = rx.borrow_ref_mut(cs);
+        let Some(rx) = rx.as_mut() else { return };
+        let mut q = q.borrow_ref_mut(cs);
+        for _ in 0..4 {
+            match rx.read() {
+                Ok(b) => {
+                    if q.push_back(b).is_err() {
+                        RX_ERRORS.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+                Err(nb::Error::WouldBlock) => break,
+                Err(nb::Error::Other(_)) => {
+                    RX_ERRORS.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+    });
+}
+
+#[interrupt]
+fn USART1() {
+    receive(&PC_RX, &PC_BYTES);
+}
+
+#[interrupt]
+fn USART2() {
+    receive(&NS_RX, &NS_BYTES);
+}
+
+#[exception]
+unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
+    loop {
+        cortex_m::asm::nop();
+    }
+}
