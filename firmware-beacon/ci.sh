@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# CI for the beacon board (called by the root .ci/run as `bash firmware-beacon/ci.sh`):
+#  1. build the firmware for thumbv7m-none-eabi in its own cargo invocation;
+#  2. print its flash and RAM use and fail if over the root memory.x budget;
+#  3. count the instructions of the modulator tick under QEMU (Cortex-M3) with all 100
+#     LEDs modulated, and print the interrupt load at 72 MHz; fail above 25 %.
+# Needs rustup, and qemu-system-arm for step 3 (installed by .ci/run).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+rustup target add thumbv7m-none-eabi >/dev/null
+rustup component add llvm-tools >/dev/null
+bin_dir="$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin"
+target_dir=${CARGO_TARGET_DIR:-$root/target}
+
+echo "== firmware-beacon: build (thumbv7m-none-eabi, release)"
+cargo build --release --target thumbv7m-none-eabi -p cta-firmware-beacon
+elf="$target_dir/thumbv7m-none-eabi/release/cta-firmware-beacon"
+
+# Budget: the FLASH and RAM lengths of the root memory.x (e.g. "LENGTH = 64K").
+len() {
+  sed -n "s/^ *$1 *:.*LENGTH *= *\([0-9]*\)\([KM]\?\).*/\1 \2/p" memory.x |
+    awk '{ m = ($2 == "K") ? 1024 : ($2 == "M") ? 1048576 : 1; print $1 * m }'
+}
+flash_budget=$(len FLASH)
+ram_budget=$(len RAM)
+# Section sizes (sysv format: name size addr). Flash holds the vector table, code,
+# read-only data and the initial values of .data; RAM holds .data, .bss and .uninit.
+read -r flash ram < <("$bin_dir/llvm-size" -A "$elf" | awk '
+  $1 == ".vector_table" || $1 == ".text" || $1 == ".rodata" { f += $2 }
+  $1 == ".data" { f += $2; r += $2 }
+  $1 == ".bss" || $1 == ".uninit" { r += $2 }
+  END { print f, r }')
+printf 'firmware-beacon flash: %d bytes of %d (%.1f %%)\n' "$flash" "$flash_budget" "$(echo "$flash $flash_budget" | awk '{print 100*$1/$2}')"
+printf 'firmware-beacon RAM (static): %d bytes of %d (%.1f %%), %d left for the stack\n' "$ram" "$ram_budget" "$(echo "$ram $ram_budget" | awk '{print 100*$1/$2}')" $((ram_budget - ram))
+if [ "$flash" -gt "$flash_budget" ] || [ "$ram" -gt "$ram_budget" ]; then
+  echo "firmware-beacon: over the memory.x budget" >&2
+  exit 1
+fi
+
+echo "== firmware-beacon: tick cost under QEMU (all 100 LEDs modulated)"
+tick_hz=$(sed -n 's/^pub const TICK_HZ: u32 = \([0-9_]*\);.*/\1/p' core/src/schedule.rs | tr -d _)
+line=$(CARGO_TARGET_DIR="$target_dir/qemu" bash tests/qemu/run.sh beacon_tick | tee /dev/stderr | grep '^beacon_tick: segments=')
+mean=$(echo "$line" | sed 's/.*mean=\([0-9.]*\).*/\1/')
+max=$(echo "$line" | sed 's/.*max=\([0-9]*\).*/\1/')
+echo "$mean $max $tick_hz" | awk '{
+  load = 100 * $1 * $3 / 72e6
+  printf "beacon tick: %.1f instructions per tick on average (max %d) at %d Hz: interrupt load %.1f %% of 72 MHz (target <= 25 %%)\n", $1, $2, $3, load
+  if (load > 25) { print "beacon tick: interrupt load over 25 %" > "/dev/stderr"; exit 1 }
+}'
