@@ -102,6 +102,14 @@ pub enum BeaconCommand {
     },
     /// Print the pin map: LED id, grid cell, position (in) and GPIO.
     Pins,
+    /// Measure the modulation on the simulated tick stream (no board needed): all 100 LEDs
+    /// modulated (LED i at table entry i mod 20), mean frequency error and edge jitter per
+    /// LED against the NorthStar table.
+    Measure {
+        /// Simulated duration, s.
+        #[arg(long, default_value_t = 2.0)]
+        seconds: f64,
+    },
 }
 
 /// Parse an LED mode: `off`, `on`, or comma-separated table indices.
@@ -159,6 +167,7 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
             print_pins();
             return Ok(());
         }
+        BeaconCommand::Measure { seconds } => return measure(*seconds),
         _ => {}
     }
     let path = args.port.as_deref().context(
@@ -291,7 +300,9 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
             }
             println!("{sent} heartbeat(s) acknowledged");
         }
-        BeaconCommand::Sim { .. } | BeaconCommand::Pins => unreachable!("handled above"),
+        BeaconCommand::Sim { .. } | BeaconCommand::Pins | BeaconCommand::Measure { .. } => {
+            unreachable!("handled above")
+        }
     }
     Ok(())
 }
@@ -315,6 +326,52 @@ fn run_sim(seconds: Option<f64>) -> Result<()> {
         }
     }
     sim.stop().context("simulated beacon board")?;
+    Ok(())
+}
+
+/// Frequency error and jitter of every table frequency on the simulated tick stream.
+pub fn measure(seconds: f64) -> Result<()> {
+    use cta_core::schedule::{measure::run, Modulator, NORTHSTAR_TABLE_MHZ, TICK_HZ};
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 600.0) {
+        bail!("--seconds {seconds}: expected 0 < seconds <= 600");
+    }
+    let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS)
+        .map_err(|e| anyhow::anyhow!("default table rejected: {e:?}"))?;
+    let modes: [LedMode; LED_COUNT] =
+        std::array::from_fn(|i| LedMode::Modulated(FreqSet::single((i % 20) as u8)));
+    m.configure(&modes);
+    let ticks = (seconds * TICK_HZ as f64).round() as u32;
+    let (stats, load) = run(&mut m, &modes, &NORTHSTAR_TABLE_MHZ, ticks)
+        .map_err(|t| anyhow::anyhow!("incremental outputs diverged at tick {t}"))?;
+    println!(
+        "{} LEDs, {ticks} ticks at {TICK_HZ} Hz ({seconds} s simulated); {:.2} port operations per tick (max {})",
+        stats.len(),
+        load.mean_writes,
+        load.max_writes
+    );
+    println!("index  nominal Hz   worst |error|   worst jitter p-p   worst jitter rms");
+    let (mut worst_err, mut worst_pp, mut worst_rms) = (0f64, 0f64, 0f64);
+    for i in 0..NORTHSTAR_TABLE_MHZ.len() as u8 {
+        let of_i: Vec<_> = stats.iter().filter(|s| s.index == i).collect();
+        let e = of_i.iter().map(|s| s.rel_error.abs()).fold(0.0, f64::max);
+        let pp = of_i.iter().map(|s| s.jitter_pp_us).fold(0.0, f64::max);
+        let rms = of_i.iter().map(|s| s.jitter_rms_us).fold(0.0, f64::max);
+        println!(
+            "{i:5}  {:10.3}   {:11.2e} %   {pp:12.3} us   {rms:12.3} us",
+            NORTHSTAR_TABLE_MHZ[i as usize] as f64 / 1000.0,
+            e * 100.0
+        );
+        worst_err = worst_err.max(e);
+        worst_pp = worst_pp.max(pp);
+        worst_rms = worst_rms.max(rms);
+    }
+    println!(
+        "worst: frequency error {:.2e} % (target 0.05 %), jitter {worst_pp:.3} us peak-to-peak, {worst_rms:.3} us rms (target 10 us)",
+        worst_err * 100.0
+    );
+    if worst_err > 5e-4 || worst_pp > 10.0 {
+        bail!("modulation outside its targets");
+    }
     Ok(())
 }
 
@@ -347,5 +404,11 @@ mod tests {
         assert_eq!((s.led, s.mode), (12, LedMode::On));
         assert!(parse_setting("12").is_err());
         assert!(parse_setting("x=on").is_err());
+    }
+
+    #[test]
+    fn simulated_modulation_meets_its_targets() {
+        measure(0.2).unwrap();
+        assert!(measure(0.0).is_err());
     }
 }
