@@ -279,6 +279,7 @@ pub struct Engine<'a> {
     sensor: Conn<SensorProtocol>,
     stream_seq: u16,
     decoder: FrameDecoder<MAX_FRAME>,
+    early: Vec<SpotReport>,
     sensitivity: Option<u8>,
     last_heartbeat: Instant,
     /// Skip settle waits (the unthrottled simulated CTA has nothing to settle).
@@ -310,6 +311,7 @@ impl<'a> Engine<'a> {
             },
             stream_seq: 40_000,
             decoder: FrameDecoder::new(),
+            early: Vec::new(),
             sensitivity: None,
             last_heartbeat: Instant::now(),
             skip_settle: false,
@@ -613,7 +615,7 @@ impl<'a> Engine<'a> {
                 }
             }
         }
-        self.sensor_mode(Mode::Stream, None)?;
+        self.sensor_mode(Mode::Stream)?;
         let mut m = Measured {
             status: PointStatus::Ok,
             samples: Vec::with_capacity(self.plan.samples as usize),
@@ -622,20 +624,18 @@ impl<'a> Engine<'a> {
         };
         let collected = self.collect(p, &mut m);
         // Stop streaming even after a stall (best effort; a lost board is reconnected).
-        let stopped = self.sensor_mode(Mode::Idle, None);
+        let stopped = self.sensor_mode(Mode::Idle);
         collected?;
         stopped?;
         self.set_led(p, LedMode::Off)?;
         Ok(m)
     }
 
-    /// Send `SetMode(mode)` on the sensor port and wait for its acknowledgement, passing the
-    /// spot reports read meanwhile to `on_report` (discarded when `None`).
-    fn sensor_mode(
-        &mut self,
-        mode: Mode,
-        mut on_report: Option<&mut dyn FnMut(SpotReport)>,
-    ) -> Result<(), Fault> {
+    /// Send `SetMode(mode)` on the sensor port and wait for its acknowledgement. Spot reports
+    /// read before the acknowledgement are stale (discarded); those read after it, in the same
+    /// chunk, are the new stream's first and are kept in `self.early` for [`Self::collect`].
+    fn sensor_mode(&mut self, mode: Mode) -> Result<(), Fault> {
+        self.early.clear();
         let attempts = self.plan.retries + 1;
         let timeout = Duration::from_millis(self.plan.request_timeout_ms);
         for _ in 0..attempts {
@@ -660,10 +660,11 @@ impl<'a> Engine<'a> {
             while Instant::now() < deadline {
                 let mut acked = false;
                 let mut refused = None;
+                let mut early = Vec::new();
                 self.read_sensor(&mut |h, reply| match reply {
                     Ok(Response::Board(SensorResponse::Spots(r))) if h.seq == SEQ_NONE => {
-                        if let Some(f) = on_report.as_mut() {
-                            f(r)
+                        if acked && mode == Mode::Stream {
+                            early.push(r)
                         }
                     }
                     Ok(Response::Ack) if h.seq == seq => acked = true,
@@ -674,6 +675,7 @@ impl<'a> Engine<'a> {
                     return Err(Fault::Fatal(anyhow!("sensor board refused SetMode: {e}")));
                 }
                 if acked {
+                    self.early = early;
                     return Ok(());
                 }
             }
@@ -724,22 +726,28 @@ impl<'a> Engine<'a> {
                 || (m.samples.is_empty() && m.reports >= plan.no_signal_reports)
                 || m.reports >= plan.max_reports
         };
+        let mut absorb = |r: SpotReport, m: &mut Measured| {
+            if done(m) {
+                return;
+            }
+            if let Some(prev) = last_seq {
+                m.lost += r.seq.wrapping_sub(prev).wrapping_sub(1).min(1_000_000);
+            }
+            last_seq = Some(r.seq);
+            m.reports += 1;
+            if let Some(s) = r.spots.iter().find(|s| s.id == p.channel) {
+                m.samples.push((s.x, s.y, s.magnitude));
+            }
+        };
+        for r in std::mem::take(&mut self.early) {
+            absorb(r, m);
+        }
         while !done(m) {
             let mut got = 0;
             self.read_sensor(&mut |h, reply| {
                 if let (SEQ_NONE, Ok(Response::Board(SensorResponse::Spots(r)))) = (h.seq, reply) {
-                    if done(m) {
-                        return;
-                    }
                     got += 1;
-                    if let Some(prev) = last_seq {
-                        m.lost += r.seq.wrapping_sub(prev).wrapping_sub(1).min(1_000_000);
-                    }
-                    last_seq = Some(r.seq);
-                    m.reports += 1;
-                    if let Some(s) = r.spots.iter().find(|s| s.id == p.channel) {
-                        m.samples.push((s.x, s.y, s.magnitude));
-                    }
+                    absorb(r, m);
                 }
             })?;
             if got > 0 {
