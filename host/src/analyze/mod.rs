@@ -158,6 +158,20 @@ pub struct Cause {
     pub chi2_dof_after: f64,
 }
 
+impl Cause {
+    /// The global (not per-separation) parameters as `name = value PM sigma` strings.
+    pub fn global_params(&self, pm: &str) -> Vec<String> {
+        self.params
+            .iter()
+            .filter(|(n, _)| !n.contains('@'))
+            .map(|(n, v)| match self.sigma.get(n) {
+                Some(sg) => format!("{n} = {} {pm} {}", g(*v), g(*sg)),
+                None => format!("{n} = {}", g(*v)),
+            })
+            .collect()
+    }
+}
+
 /// A candidate that could not be tested.
 #[derive(Debug, Clone, Serialize)]
 pub struct Untested {
@@ -634,15 +648,7 @@ pub fn render_text(a: &Analysis) -> String {
             c.dbic,
             c.chi2_dof_after
         );
-        let shown: Vec<String> = c
-            .params
-            .iter()
-            .filter(|(n, _)| !n.contains('@'))
-            .map(|(n, v)| match c.sigma.get(n) {
-                Some(sg) => format!("{n} = {} +/- {}", g(*v), g(*sg)),
-                None => format!("{n} = {}", g(*v)),
-            })
-            .collect();
+        let shown = c.global_params("+/-");
         if !shown.is_empty() {
             let _ = writeln!(s, "     {}", shown.join(", "));
         }

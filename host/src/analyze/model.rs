@@ -649,7 +649,7 @@ pub struct FitFailure(pub String);
 /// finite-difference Jacobians.
 pub fn settings() -> Settings<f64> {
     Settings {
-        max_iter: 60,
+        max_iter: 40,
         step_tol: 1e-7,
         cost_tol: 1e-10,
         weights_absolute: true,

@@ -25,15 +25,7 @@ pub fn write(dir: &Path, a: &Analysis) -> anyhow::Result<()> {
 
 fn cause_rows(s: &mut String, causes: &[Cause]) {
     for (k, c) in causes.iter().enumerate() {
-        let params: Vec<String> = c
-            .params
-            .iter()
-            .filter(|(n, _)| !n.contains('@'))
-            .map(|(n, v)| match c.sigma.get(n) {
-                Some(sg) => format!("{n} = {} &plusmn; {}", g(*v), g(*sg)),
-                None => format!("{n} = {}", g(*v)),
-            })
-            .collect();
+        let params = c.global_params("&plusmn;");
         let _ = write!(
             s,
             "<tr><td>{}</td><td><b>{}</b></td><td>{}</td><td>{:.1} &rarr; {:.1} (gain {:.1})</td>\
@@ -273,27 +265,11 @@ pub fn render(a: &Analysis) -> Result<String, String> {
         );
         s.push_str(&quivers(a, d)?);
     }
-    s.push_str("<h2>Final parameters (1-sigma)</h2><table><tr><th>parameter</th><th>value</th><th>1-sigma</th></tr>");
-    for p in &a.params_after {
-        let _ = write!(
-            s,
-            "<tr><td>{}</td><td>{}</td><td>{}</td></tr>",
-            p.name,
-            g(p.value),
-            g(p.sigma)
-        );
-    }
-    s.push_str("</table><h3>Starting model</h3><table><tr><th>parameter</th><th>value</th><th>1-sigma</th></tr>");
-    for p in &a.params_before {
-        let _ = write!(
-            s,
-            "<tr><td>{}</td><td>{}</td><td>{}</td></tr>",
-            p.name,
-            g(p.value),
-            g(p.sigma)
-        );
-    }
-    s.push_str("</table><h2>Residual diagnostics (chi2 per residual; 1 = noise)</h2><table><tr><th>bin</th><th>before</th><th>after</th></tr>");
+    s.push_str("<h2>Final parameters (1-sigma)</h2>");
+    param_table(&mut s, &a.params_after);
+    s.push_str("<h3>Starting model</h3>");
+    param_table(&mut s, &a.params_before);
+    s.push_str("<h2>Residual diagnostics (chi2 per residual; 1 = noise)</h2><table><tr><th>bin</th><th>before</th><th>after</th></tr>");
     let (b, af) = (&a.diagnostics_before, &a.diagnostics_after);
     for (x, y) in b
         .by_axis
@@ -314,6 +290,20 @@ pub fn render(a: &Analysis) -> Result<String, String> {
     }
     s.push_str("</ul><p>Method: host/ANALYZE.md. Equation numbers are Stancliffe (2010)'s.</p></body></html>");
     Ok(s)
+}
+
+fn param_table(s: &mut String, params: &[super::Param]) {
+    s.push_str("<table><tr><th>parameter</th><th>value</th><th>1-sigma</th></tr>");
+    for p in params {
+        let _ = write!(
+            s,
+            "<tr><td>{}</td><td>{}</td><td>{}</td></tr>",
+            p.name,
+            g(p.value),
+            g(p.sigma)
+        );
+    }
+    s.push_str("</table>");
 }
 
 /// Quiver maps: up to 8 separations spread over the range, before and after side by side.
