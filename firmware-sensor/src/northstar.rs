@@ -40,7 +40,9 @@
 //! line noise, truncated frames, a sync pattern inside a payload — it never panics and
 //! resynchronises on the next valid frame: on any inconsistency (bad kind, impossible
 //! length, CRC mismatch) it discards one byte and searches for the next sync pattern in
-//! what it already holds, so a valid frame that follows garbage is still found.
+//! what it already holds, so a valid frame that follows garbage is still found; and while
+//! it waits for the rest of a frame whose header may be false (a truncated frame, noise),
+//! a complete CRC-valid frame ending at the newest byte is taken at once.
 
 use cta_core::pose::Spot;
 use heapless::Vec;
@@ -183,6 +185,23 @@ enum Scan {
     Frame(usize),
     /// A complete frame with a wrong CRC.
     BadCrc,
+    /// A CRC-valid frame starts at this offset and ends at the last byte received.
+    Embedded(usize),
+}
+
+/// Whether a header (kind, body length) can start a frame.
+fn plausible(kind: u8, n: usize) -> bool {
+    match kind {
+        KIND_REPORT => n >= 3 && n <= MAX_BODY && (n - 3) % SPOT_BYTES == 0,
+        KIND_ACK => n == 2,
+        _ => false,
+    }
+}
+
+/// CRC check of a whole frame (sync .. CRC).
+fn crc_ok(f: &[u8]) -> bool {
+    let end = f.len() - 2;
+    CRC16.checksum(&f[2..end]).to_le_bytes() == [f[end], f[end + 1]]
 }
 
 impl NsDecoder {
@@ -228,6 +247,10 @@ impl NsDecoder {
                     self.stats.discarded += 1;
                     self.drop_front(1);
                 }
+                Scan::Embedded(p) => {
+                    self.stats.discarded += p as u32;
+                    self.drop_front(p);
+                }
                 Scan::Frame(len) => {
                     if let Some(ev) = parse(&self.buf[..len]) {
                         self.stats.frames += 1;
@@ -259,24 +282,36 @@ impl NsDecoder {
             return Scan::More;
         }
         let (kind, n) = (b[2], b[3] as usize);
-        let plausible = match kind {
-            KIND_REPORT => n >= 3 && n <= MAX_BODY && (n - 3) % SPOT_BYTES == 0,
-            KIND_ACK => n == 2,
-            _ => false,
-        };
-        if !plausible {
+        if !plausible(kind, n) {
             return Scan::Skip;
         }
         let total = 4 + n + 2;
         if b.len() < total {
-            return Scan::More;
+            // The head may be a false start (a truncated frame, noise looking like a
+            // header): a complete valid frame ending at the newest byte wins at once.
+            return match self.embedded_frame() {
+                Some(p) => Scan::Embedded(p),
+                None => Scan::More,
+            };
         }
-        let crc = CRC16.checksum(&b[2..4 + n]).to_le_bytes();
-        if crc == [b[4 + n], b[5 + n]] {
+        if crc_ok(&b[..total]) {
             Scan::Frame(total)
         } else {
             Scan::BadCrc
         }
+    }
+
+    /// Offset of a CRC-valid frame that starts after the head and ends at the last byte.
+    fn embedded_frame(&self) -> Option<usize> {
+        let b = &self.buf;
+        let len = b.len();
+        (1..len.saturating_sub(5)).find(|&p| {
+            b[p] == SYNC[0]
+                && b[p + 1] == SYNC[1]
+                && plausible(b[p + 2], b[p + 3] as usize)
+                && p + 6 + b[p + 3] as usize == len
+                && crc_ok(&b[p..])
+        })
     }
 
     fn drop_front(&mut self, k: usize) {

@@ -33,7 +33,6 @@ use cta_core::wire::sensor::{
     Mode, SensorProtocol, SensorRequest, SensorResponse, SensorStatus, SpotReport,
 };
 use cta_core::wire::{FrameDecoder, Reply, Response, MAX_FRAME, SEQ_NONE};
-use nalgebra::Vector3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
@@ -42,6 +41,8 @@ use serde::Serialize;
 /// The sensor firmware's library (board logic, NorthStar link, simulated board).
 pub use cta_firmware_sensor as firmware;
 use cta_firmware_sensor::sim::{SimBoard, SimNorthStar};
+/// The vector type of the pose API (for callers without their own nalgebra dependency).
+pub use nalgebra::Vector3;
 
 use crate::link::{open_serial, Link, LinkConfig};
 
@@ -445,8 +446,9 @@ fn read_json<T: serde::de::DeserializeOwned>(file: &str) -> Result<T> {
     })
 }
 
-/// Read unsolicited reports (seq SEQ_NONE) until `count` arrived (0: forever).
-fn read_reports<S: std::io::Read + std::io::Write>(
+/// Read unsolicited reports (seq SEQ_NONE) until `count` arrived (0: forever); fails after
+/// 5 s without a report.
+pub fn read_reports<S: std::io::Read + std::io::Write>(
     link: &mut Link<SensorProtocol, S>,
     count: u64,
     mut on_report: impl FnMut(SensorResponse),

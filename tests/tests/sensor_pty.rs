@@ -1,0 +1,212 @@
+//! End-to-end: the host's `Link` and the simulated sensor board (the firmware's `Board`,
+//! fed by a simulated NorthStar running the eq 63 physics) over a pseudo-terminal: the
+//! protocol (identify, configuration errors named, flash read-back, stream, pose, status,
+//! garbage on both links) and the pose itself.
+
+use std::io::Write;
+use std::time::Duration;
+
+use cta_core::mrp;
+use cta_core::pose::{
+    cta_constellation, CalField, Calibration, ConfigError, ModelKind, PoseStatus,
+};
+use cta_core::wire::sensor::{
+    Mode, PoseReport, SensorError, SensorProtocol, SensorRequest, SensorResponse, SensorStatus,
+};
+use cta_core::wire::BoardKind;
+use cta_host::link::{open_serial, Link, LinkConfig, LinkError};
+use cta_host::sensor_cmd::firmware::sim::{SimBoard, SimNorthStar};
+use cta_host::sensor_cmd::{read_reports, Vector3};
+
+type SensorLink = Link<SensorProtocol, Box<dyn serialport::SerialPort>>;
+
+fn connect(sim: &SimBoard) -> SensorLink {
+    let port = open_serial(sim.path()).expect("open the pty");
+    Link::new(
+        port,
+        LinkConfig {
+            timeout: Duration::from_millis(1500),
+            retries: 1,
+        },
+    )
+}
+
+fn refused(r: Result<Option<SensorResponse>, LinkError<SensorError>>) -> SensorError {
+    match r {
+        Err(LinkError::Refused { error, .. }) => error,
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+}
+
+fn status(l: &mut SensorLink) -> SensorStatus {
+    match l.call(SensorRequest::Status).unwrap() {
+        Some(SensorResponse::Status(s)) => s,
+        other => panic!("{other:?}"),
+    }
+}
+
+fn scene(range: f64, garbage: f64) -> (SimNorthStar, Vector3<f64>, Vector3<f64>) {
+    let t = Vector3::new(0.2, -0.1, range);
+    let q = mrp::from_axis_angle(&Vector3::new(0.2, 0.3, 1.0), 2f64.to_radians());
+    let mut ns = SimNorthStar::new(&Calibration::table3(), cta_constellation(), t, q, 32.768, 7);
+    ns.garbage = garbage;
+    ns.rate_hz = 50;
+    (ns, t, q)
+}
+
+fn poses(l: &mut SensorLink, n: u64) -> Vec<PoseReport> {
+    let mut out = Vec::new();
+    read_reports(l, n, |r| {
+        if let SensorResponse::Pose(p) = r {
+            out.push(p);
+        }
+    })
+    .unwrap();
+    out
+}
+
+#[test]
+fn protocol_and_pose_over_a_pty() {
+    let (ns, t, q) = scene(12.0, 0.0);
+    let sim = SimBoard::spawn(ns).unwrap();
+    let mut l = connect(&sim);
+    let id = l.check_board().unwrap();
+    assert_eq!(id.board, BoardKind::Sensor);
+    assert!(id.simulated);
+
+    // Nothing stored yet: pose mode is refused, naming what is missing.
+    assert_eq!(
+        refused(l.call(SensorRequest::SetMode(Mode::Pose(ModelKind::NearField)))),
+        SensorError::NotConfigured {
+            calibration: false,
+            constellation: false
+        }
+    );
+    // Bad configurations are refused by name.
+    let mut con = cta_constellation();
+    con.beacons[4].id = con.beacons[1].id;
+    assert_eq!(
+        refused(l.call(SensorRequest::LoadConstellation(con))),
+        SensorError::Config(ConfigError::DuplicateId { id: 1 })
+    );
+    let mut con = cta_constellation();
+    con.beacons.truncate(3);
+    assert_eq!(
+        refused(l.call(SensorRequest::LoadConstellation(con))),
+        SensorError::Config(ConfigError::TooFewBeacons { count: 3, min: 4 })
+    );
+    let mut cal = Calibration::table3();
+    cal.p = [0.9, 0.9, 0.0];
+    let err = refused(l.call(SensorRequest::LoadCalibration(cal)));
+    assert_eq!(
+        err,
+        SensorError::Config(ConfigError::CalibrationOutOfRange { field: CalField::P })
+    );
+    assert!(err.to_string().contains("|p| <= 1"), "{err}");
+    assert_eq!(
+        refused(l.call(SensorRequest::SetSensitivity(0))),
+        SensorError::SensitivityOutOfRange { got: 0 }
+    );
+
+    // Good configuration, read back from flash.
+    l.call(SensorRequest::LoadCalibration(Calibration::table3()))
+        .unwrap();
+    l.call(SensorRequest::LoadConstellation(cta_constellation()))
+        .unwrap();
+    match l.call(SensorRequest::GetConfig).unwrap() {
+        Some(SensorResponse::Config(c)) => {
+            assert_eq!(c.generation, 2);
+            assert_eq!(c.calibration, Some(Calibration::table3()));
+            assert_eq!(c.constellation, Some(cta_constellation()));
+        }
+        other => panic!("{other:?}"),
+    }
+
+    // Stream mode: spot reports with a running sequence number and board time.
+    l.call(SensorRequest::SetMode(Mode::Stream)).unwrap();
+    let mut reports = Vec::new();
+    read_reports(&mut l, 3, |r| {
+        if let SensorResponse::Spots(s) = r {
+            reports.push(s);
+        }
+    })
+    .unwrap();
+    assert_eq!(reports.len(), 3);
+    assert!(reports
+        .windows(2)
+        .all(|w| w[1].seq > w[0].seq && w[1].t_us > w[0].t_us));
+    assert!(reports
+        .iter()
+        .all(|r| r.spots.len() == 10 && r.sensitivity == 4));
+
+    // Pose mode, near-field model: at 12 in the noise floor is ~0.02 in and ~0.4 deg.
+    l.call(SensorRequest::SetSensitivity(3)).unwrap();
+    l.call(SensorRequest::SetMode(Mode::Pose(ModelKind::NearField)))
+        .unwrap();
+    let ps = poses(&mut l, 6);
+    assert!(ps[0].cold_start || ps.iter().any(|p| p.cold_start) || ps.len() == 6);
+    for p in &ps[1..] {
+        assert_eq!(p.status, PoseStatus::Ok, "{p:?}");
+        assert_eq!(p.beacons, 10);
+        let pos = Vector3::new(
+            p.position[0] as f64,
+            p.position[1] as f64,
+            p.position[2] as f64,
+        );
+        assert!((pos - t).norm() < 0.1, "{p:?}");
+        let qe = Vector3::new(p.mrp[0] as f64, p.mrp[1] as f64, p.mrp[2] as f64);
+        let err = mrp::angle(&mrp::from_dcm(&(mrp::dcm(&qe) * mrp::dcm(&q).transpose())));
+        assert!(err.to_degrees() < 2.0, "{p:?}");
+        assert!(
+            p.sigma_position.iter().all(|s| *s > 0.0 && *s < 0.2),
+            "{p:?}"
+        );
+        assert!(!p.cold_start, "warm start after the first pose: {p:?}");
+    }
+
+    // Moving the target far away: fewer beacons are not an issue, but a blocked view is.
+    sim.with_northstar(|ns| ns.constellation.beacons.truncate(3));
+    let ps = poses(&mut l, 3);
+    assert!(
+        ps.iter()
+            .all(|p| p.status == PoseStatus::TooFewBeacons
+                && p.position.iter().all(|v| v.is_finite()))
+    );
+
+    let s = status(&mut l);
+    assert_eq!(s.mode, Mode::Pose(ModelKind::NearField));
+    assert_eq!(s.sensitivity, 3);
+    assert!(s.calibrated && s.constellation);
+    assert_eq!(s.last_pose, Some(PoseStatus::TooFewBeacons));
+    assert!(s.reports >= 12 && s.northstar.frames >= 12);
+    l.call(SensorRequest::SetMode(Mode::Idle)).unwrap();
+}
+
+#[test]
+fn garbage_on_both_links_is_survived() {
+    let (ns, t, _) = scene(20.0, 0.5);
+    let sim = SimBoard::spawn(ns).unwrap();
+    let mut l = connect(&sim);
+    // Line noise from the host side, then normal requests.
+    l.port_mut()
+        .write_all(&[0x00, 0x13, 0x37, 0xff, 0x00, 0x42, 0x00, 0x99, 0x98])
+        .unwrap();
+    l.check_board().unwrap();
+    l.call(SensorRequest::LoadCalibration(Calibration::table3()))
+        .unwrap();
+    l.call(SensorRequest::LoadConstellation(cta_constellation()))
+        .unwrap();
+    l.call(SensorRequest::SetMode(Mode::Pose(ModelKind::NearField)))
+        .unwrap();
+    // Half the NorthStar frames are preceded by random bytes: poses still arrive.
+    let ps = poses(&mut l, 8);
+    let ok: Vec<_> = ps.iter().filter(|p| p.status == PoseStatus::Ok).collect();
+    assert!(ok.len() >= 6, "{ps:?}");
+    for p in ok {
+        // At 20 in the near-field pose's noise floor is ~0.05 in.
+        assert!((p.position[2] as f64 - t.z).abs() < 0.3, "{p:?}");
+    }
+    let s = status(&mut l);
+    assert!(s.pc.bad() >= 1, "{s:?}");
+    assert!(s.northstar.discarded > 0, "{s:?}");
+}
