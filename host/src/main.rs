@@ -44,6 +44,18 @@ enum Cmd {
     /// uncertainty, a simulated characterization with a hidden effect, calibration and
     /// evaluation, with plots, in one folder.
     Demo(cta_host::demo::DemoArgs),
+    /// From measured data to a named cause: where the model disagrees with the data, the
+    /// physical effect responsible, the extended model and its held-out gain.
+    Analyze(cta_host::analyze::AnalyzeArgs),
+    /// The noise of repeated samples by separation, angle, magnitude, frequency, power and
+    /// sensitivity (the Ch VI questions), and the weighting it implies for fit and analyze.
+    Noise(cta_host::noise::NoiseArgs),
+    /// Talk to the beacon array board (STM32F103ZET6) by hand: identify, light beacons,
+    /// status, heartbeat; or serve a simulated board on a pseudo-terminal.
+    Beacon(cta_host::beacon_cmd::BeaconArgs),
+    /// Talk to the sensor board (STM32F103C8): identify, stream spots, load a calibration
+    /// and constellation, read poses; simulated board; the pose accuracy table.
+    Sensor(cta_host::sensor_cmd::SensorArgs),
 }
 
 fn main() {
@@ -55,6 +67,10 @@ fn main() {
         Cmd::Fit(a) => commands::fit_cmd(a),
         Cmd::Evaluate(a) => commands::evaluate_cmd(a),
         Cmd::Demo(a) => cta_host::demo::run(a),
+        Cmd::Analyze(a) => cta_host::analyze::run(a),
+        Cmd::Noise(a) => cta_host::noise::run(a),
+        Cmd::Beacon(a) => cta_host::beacon_cmd::run(a),
+        Cmd::Sensor(a) => cta_host::sensor_cmd::run(a),
     };
     if let Err(e) = r {
         eprintln!("cta: error: {e:#}");
