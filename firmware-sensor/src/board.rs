@@ -42,6 +42,12 @@ pub struct Stored {
 
 type SensorReply = Reply<SensorResponse, SensorError>;
 
+/// `us / 1000` without a 64-bit division (a libcall on the Cortex-M3): multiply by
+/// `ceil(2^64 / 1000)` and keep the high word; exact for any `us` below ~1500 years.
+fn us_to_ms(us: u64) -> u64 {
+    ((us as u128 * 18_446_744_073_709_552u128) >> 64) as u64
+}
+
 /// The sensor board.
 pub struct Board<F: FlashPages> {
     flash: F,
@@ -251,7 +257,7 @@ impl<F: FlashPages> Board<F> {
         let now = io.now_us();
         let ns = self.ns.stats();
         SensorStatus {
-            uptime_ms: now / 1000,
+            uptime_ms: us_to_ms(now),
             mode: self.mode,
             sensitivity: self.sensitivity,
             rate_hz: self.rate_hz,
@@ -267,7 +273,7 @@ impl<F: FlashPages> Board<F> {
             reports: self.reports,
             dropped: self.dropped,
             refused: self.refused,
-            since_host_ms: (now.saturating_sub(self.last_host_us) / 1000).min(u32::MAX as u64)
+            since_host_ms: us_to_ms(now.saturating_sub(self.last_host_us)).min(u32::MAX as u64)
                 as u32,
             last_pose: self.last_pose,
         }
@@ -509,6 +515,21 @@ mod tests {
                 assert!((p.position[2] - 20.0).abs() < 0.05, "{p:?}");
             }
             other => panic!("expected a pose, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn milliseconds_are_exact() {
+        for us in [
+            0u64,
+            999,
+            1000,
+            1999,
+            123_456_789,
+            u32::MAX as u64 * 1000 + 999,
+            1 << 50,
+        ] {
+            assert_eq!(us_to_ms(us), us / 1000, "{us}");
         }
     }
 

@@ -73,18 +73,27 @@ impl FlashPages for ChipFlash {
 }
 
 /// Microseconds since boot from the DWT cycle counter, extended to 64 bits (the main loop
-/// polls it far more often than the 59 s wrap period).
+/// polls it far more often than the 59 s wrap period). Only 32-bit divisions (the
+/// Cortex-M3 has them in hardware; a 64-bit division would pull in a libcall).
 struct Clock {
     last: u32,
-    cycles: u64,
+    rem: u32,
+    us: u64,
 }
 
 impl Clock {
     fn now_us(&mut self) -> u64 {
+        const PER_US: u32 = SYSCLK_HZ / 1_000_000;
         let c = cortex_m::peripheral::DWT::cycle_count();
-        self.cycles += c.wrapping_sub(self.last) as u64;
+        let d = c.wrapping_sub(self.last) as u64 + self.rem as u64;
         self.last = c;
-        self.cycles / (SYSCLK_HZ as u64 / 1_000_000)
+        // d < 2^33: split so the division stays 32-bit.
+        let (hi, lo) = ((d >> 16) as u32, (d & 0xffff) as u32);
+        let q_hi = hi / PER_US;
+        let r = ((hi % PER_US) << 16) | lo;
+        self.us += ((q_hi as u64) << 16) + (r / PER_US) as u64;
+        self.rem = r % PER_US;
+        self.us
     }
 }
 
@@ -161,7 +170,8 @@ fn main() -> ! {
         ns: ns_tx,
         clock: Clock {
             last: cortex_m::peripheral::DWT::cycle_count(),
-            cycles: 0,
+            rem: 0,
+            us: 0,
         },
     };
 

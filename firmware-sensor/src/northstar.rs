@@ -65,7 +65,9 @@ const KIND_ACK: u8 = 0x81;
 const KIND_SET_SENSITIVITY: u8 = 0x10;
 const KIND_SET_RATE: u8 = 0x11;
 
-const CRC16: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_XMODEM);
+/// Bitwise (table-free) CRC-16: a frame is at most 148 bytes, and the 512-byte table
+/// would cost flash the sensor board does not have.
+const CRC16: crc::Crc<u16, crc::NoTable> = crc::Crc::<u16, crc::NoTable>::new(&crc::CRC_16_XMODEM);
 
 /// One report from the detector: every spot it currently tracks.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]

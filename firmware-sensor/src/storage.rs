@@ -11,7 +11,7 @@
 //! | 6 | 2 | payload length `n` (bytes) |
 //! | 8 | 4 | generation (higher is newer) |
 //! | 12 | n | payload: postcard encoding of the stored value |
-//! | 12+n | 4 | CRC-32 (ISO-HDLC) over bytes 0 .. 12+n |
+//! | 12+n | 4 | CRC-32C (the wire protocol's) over bytes 0 .. 12+n |
 //!
 //! The whole record is padded to an even length (the STM32F1 programs half-words).
 //! Loading picks the valid record with the highest generation; a record with a wrong
@@ -28,7 +28,8 @@ pub const FORMAT_VERSION: u16 = 1;
 pub const MAX_RECORD: usize = 512;
 const HEADER: usize = 12;
 const MAGIC: [u8; 4] = *b"CTAS";
-const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+/// The wire protocol's CRC-32C (one lookup table in flash for both).
+const CRC32: crc::Crc<u32> = cta_core::wire::CRC;
 
 /// Flash failure (from the device), or a value too large to store.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
