@@ -48,7 +48,10 @@ fn short_sweep_end_to_end() {
     assert_eq!(s.next_point, 3 * 5 * 2 * 2);
     let st = s.stats;
     assert_eq!(st.ok + st.no_signal + st.partial, 60);
-    assert!(st.no_signal > 0, "weak settings at 30 in must see nothing: {st:?}");
+    assert!(
+        st.no_signal > 0,
+        "weak settings at 30 in must see nothing: {st:?}"
+    );
     assert!(st.ok > 30, "{st:?}");
     let data = Dataset::read(&sweep::data_path(&d.join("run"))).unwrap();
     assert_eq!(data.samples.len() as u64, st.samples);
@@ -56,11 +59,23 @@ fn short_sweep_end_to_end() {
     // Recorded separation is the corners' mean; beacon 99 sits at +4.5, +4.5.
     let s99 = data.samples.iter().find(|s| s.beacon == Some(99)).unwrap();
     assert_eq!([s99.r[0], s99.r[1]], [4.5, 4.5]);
-    assert!([3.0, 12.0, 30.0].iter().any(|n| (s99.separation_in - n).abs() < 0.01));
+    assert!([3.0, 12.0, 30.0]
+        .iter()
+        .any(|n| (s99.separation_in - n).abs() < 0.01));
     // The sign of x follows the beacon's x (collinearity: far beacons at +x read +X or -X
     // consistently; check the pair of opposite beacons disagree).
-    let x0 = data.samples.iter().find(|s| s.beacon == Some(0) && s.separation_in > 10.0).unwrap().x;
-    let x99 = data.samples.iter().find(|s| s.beacon == Some(99) && s.separation_in > 10.0).unwrap().x;
+    let x0 = data
+        .samples
+        .iter()
+        .find(|s| s.beacon == Some(0) && s.separation_in > 10.0)
+        .unwrap()
+        .x;
+    let x99 = data
+        .samples
+        .iter()
+        .find(|s| s.beacon == Some(99) && s.separation_in > 10.0)
+        .unwrap()
+        .x;
     assert!(x0.signum() != x99.signum(), "{x0} {x99}");
     // No overwrite without --force.
     let e = sweep::sweep(&a).unwrap_err().to_string();

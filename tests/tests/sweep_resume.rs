@@ -49,7 +49,11 @@ fn child_sweep() {
 
 fn journal_points(dir: &Path) -> usize {
     std::fs::read_to_string(dir.join("journal.jsonl"))
-        .map(|s| s.lines().filter(|l| l.contains("\"event\":\"point\"")).count())
+        .map(|s| {
+            s.lines()
+                .filter(|l| l.contains("\"event\":\"point\""))
+                .count()
+        })
         .unwrap_or(0)
 }
 
@@ -71,7 +75,10 @@ fn killed_and_resumed_equals_uninterrupted() {
     for (k, at) in [15usize, 150].into_iter().enumerate() {
         let mut cmd = Command::new(std::env::current_exe().unwrap());
         cmd.args(["child_sweep", "--exact", "--nocapture", "--test-threads=1"])
-            .env("CTA_SWEEP_CHILD", format!("{}|{}", run.display(), plan.display()));
+            .env(
+                "CTA_SWEEP_CHILD",
+                format!("{}|{}", run.display(), plan.display()),
+            );
         let mut child = if k == 0 {
             cmd.spawn().unwrap()
         } else {

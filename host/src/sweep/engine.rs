@@ -53,7 +53,10 @@ pub enum Fault {
     Interrupted,
 }
 
-fn link_fault<E: std::fmt::Debug + std::fmt::Display>(board: &'static str, e: LinkError<E>) -> Fault {
+fn link_fault<E: std::fmt::Debug + std::fmt::Display>(
+    board: &'static str,
+    e: LinkError<E>,
+) -> Fault {
     match e {
         LinkError::Io(_) | LinkError::Timeout { .. } | LinkError::BadFrame { .. } => {
             Fault::Lost(board, e.to_string())
@@ -79,11 +82,9 @@ impl<P: Protocol> Conn<P> {
         let port = open_serial(&self.path).map_err(|e| Fault::Lost(self.name, e.to_string()))?;
         let mut link = Link::new(port, self.config);
         let id = link.check_board().map_err(|e| match e {
-            LinkError::WrongBoard { .. } => Fault::Fatal(anyhow!(
-                "{} port {}: {e}",
-                self.name,
-                self.path
-            )),
+            LinkError::WrongBoard { .. } => {
+                Fault::Fatal(anyhow!("{} port {}: {e}", self.name, self.path))
+            }
             e => Fault::Lost(self.name, e.to_string()),
         })?;
         self.link = Some(link);
@@ -101,7 +102,11 @@ impl<P: Protocol> Conn<P> {
 pub trait Operator {
     /// The plate must be at `p.separation`: move it (or confirm it is still there, when
     /// `previous` was recorded before a resume) and give the corner readings.
-    fn separation(&mut self, p: &Point, previous: Option<&SeparationEntry>) -> Result<SeparationEntry>;
+    fn separation(
+        &mut self,
+        p: &Point,
+        previous: Option<&SeparationEntry>,
+    ) -> Result<SeparationEntry>;
     /// Mount the array in quadrant `q` (quad layout). Returns who confirmed it.
     fn quadrant(&mut self, q: usize) -> Result<String>;
     /// Set the power switches to `level`. Returns who confirmed it.
@@ -113,7 +118,11 @@ pub trait Operator {
 pub struct Scripted;
 
 impl Operator for Scripted {
-    fn separation(&mut self, p: &Point, previous: Option<&SeparationEntry>) -> Result<SeparationEntry> {
+    fn separation(
+        &mut self,
+        p: &Point,
+        previous: Option<&SeparationEntry>,
+    ) -> Result<SeparationEntry> {
         if let Some(e) = previous {
             return Ok(e.clone());
         }
@@ -136,7 +145,11 @@ impl Operator for Scripted {
 pub struct SimOperator<'a>(pub &'a SimCta);
 
 impl Operator for SimOperator<'_> {
-    fn separation(&mut self, p: &Point, _previous: Option<&SeparationEntry>) -> Result<SeparationEntry> {
+    fn separation(
+        &mut self,
+        p: &Point,
+        _previous: Option<&SeparationEntry>,
+    ) -> Result<SeparationEntry> {
         Ok(self.0.move_plate(p.sep_idx, p.separation, p.quadrant))
     }
     fn quadrant(&mut self, _q: usize) -> Result<String> {
@@ -173,7 +186,11 @@ impl Prompt {
 }
 
 impl Operator for Prompt {
-    fn separation(&mut self, p: &Point, previous: Option<&SeparationEntry>) -> Result<SeparationEntry> {
+    fn separation(
+        &mut self,
+        p: &Point,
+        previous: Option<&SeparationEntry>,
+    ) -> Result<SeparationEntry> {
         if let Some(prev) = previous {
             let a = self.ask(&format!(
                 "\nResuming at separation {} in (recorded {:.4} in from corners {:?}). Is the plate \
@@ -321,8 +338,14 @@ impl<'a> Engine<'a> {
 
     /// Connect both boards and check who answers (errors name the board and the answer).
     pub fn connect(&mut self) -> Result<(Identity, Identity)> {
-        let b = self.beacon.connect().map_err(|f| fault_error(&self.beacon.path, f))?;
-        let s = self.sensor.connect().map_err(|f| fault_error(&self.sensor.path, f))?;
+        let b = self
+            .beacon
+            .connect()
+            .map_err(|f| fault_error(&self.beacon.path, f))?;
+        let s = self
+            .sensor
+            .connect()
+            .map_err(|f| fault_error(&self.sensor.path, f))?;
         self.restore().map_err(|f| fault_error("", f))?;
         Ok((b, s))
     }
@@ -365,9 +388,7 @@ impl<'a> Engine<'a> {
         for i in from..plan.len() {
             let p = plan.point(i);
             if place != Some((p.sep_idx, p.quadrant)) {
-                let prev = previous_entry
-                    .take()
-                    .filter(|e| e.sep_idx == p.sep_idx);
+                let prev = previous_entry.take().filter(|e| e.sep_idx == p.sep_idx);
                 let moved = place.map(|(s, _)| s) != Some(p.sep_idx);
                 if moved || entry.is_none() {
                     let e = operator.separation(&p, prev.as_ref())?;
@@ -544,7 +565,10 @@ impl<'a> Engine<'a> {
                 point: p.index,
                 board: board.into(),
                 what: what.clone(),
-                action: format!("pause {:.1} s, reconnect, retry point", backoff.as_secs_f64()),
+                action: format!(
+                    "pause {:.1} s, reconnect, retry point",
+                    backoff.as_secs_f64()
+                ),
             })?;
             bars.message(&format!(
                 "paused: {board}: {what}; retry in {:.1} s",
@@ -560,7 +584,10 @@ impl<'a> Engine<'a> {
             if matches!(fault, Fault::Lost(b, _) if b != "sensor") || self.beacon.link.is_none() {
                 ok &= reconnect(&mut || self.beacon.connect()).is_ok();
             }
-            if ok && (matches!(fault, Fault::Lost(b, _) if b != "beacon") || self.sensor.link.is_none()) {
+            if ok
+                && (matches!(fault, Fault::Lost(b, _) if b != "beacon")
+                    || self.sensor.link.is_none())
+            {
                 ok &= reconnect(&mut || self.sensor.connect()).is_ok();
             }
             if ok {

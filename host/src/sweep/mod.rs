@@ -23,7 +23,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use serde_json::json;
 
-use engine::{Bars, Engine, Ending, Operator, Prompt, Scripted, SimOperator, INTERRUPTED};
+use engine::{Bars, Ending, Engine, Operator, Prompt, Scripted, SimOperator, INTERRUPTED};
 use plan::Plan;
 use sim::{Faults, SimCta, SimSettings};
 use store::{now, Event, PointStatus, RunDir};
@@ -185,7 +185,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     let command: Vec<String> = std::env::args().collect();
 
     // The run directory, the plan, and what simulates it.
-    let (mut store, plan, sim_settings) = if let Some(dir) = &args.resume {
+    let (store, plan, sim_settings) = if let Some(dir) = &args.resume {
         let store = RunDir::open(dir, sync)?;
         let plan_path = dir.join(store::PLAN);
         let plan = Plan::load(&plan_path)?;
@@ -209,10 +209,13 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         let sim = match first_sim {
             Some(Some(v)) => {
                 if args.beacon.is_some() {
-                    bail!("{} was recorded on the simulated CTA: resume it without --beacon/--sensor", dir.display());
+                    bail!(
+                        "{} was recorded on the simulated CTA: resume it without --beacon/--sensor",
+                        dir.display()
+                    );
                 }
-                let mut s: SimSettings = serde_json::from_value(v)
-                    .context("journal: unreadable simulation settings")?;
+                let mut s: SimSettings =
+                    serde_json::from_value(v).context("journal: unreadable simulation settings")?;
                 let differs = args.sim_seed.is_some_and(|x| x != s.seed)
                     || args.sim_noise.is_some_and(|x| x != s.noise)
                     || (!args.sim_effect.is_empty() && args.sim_effect != s.effects);
@@ -241,7 +244,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             }
             None => sim_settings(args)?,
         };
-        (store, plan, sim)
+        (Ok(store), plan, sim)
     } else {
         let Some(out) = &args.out else {
             bail!("give --out RUN_DIR for a new run, or --resume RUN_DIR to continue one");
@@ -254,17 +257,27 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         let plan = Plan::parse(&plan_path.display().to_string(), &src)?;
         let sim = sim_settings(args)?;
         let header = vec![
-            format!("cta {} sweep: plan `{}` ({})", env!("CARGO_PKG_VERSION"), plan.name, plan_path.display()),
+            format!(
+                "cta {} sweep: plan `{}` ({})",
+                env!("CARGO_PKG_VERSION"),
+                plan.name,
+                plan_path.display()
+            ),
             format!(
                 "{} points x {} samples; {}",
                 plan.len(),
                 plan.samples,
-                if sim.is_some() { "simulated CTA" } else { "CTA hardware" }
+                if sim.is_some() {
+                    "simulated CTA"
+                } else {
+                    "CTA hardware"
+                }
             ),
             "no-signal and partial points are recorded as comment lines; see journal.jsonl".into(),
         ];
-        let store = RunDir::create(out, &src, &header, args.force, sync)?;
-        (store, plan, sim)
+        // Refuse an existing directory now; create it once both boards answered.
+        RunDir::check_new(out, args.force)?;
+        (Err((out.clone(), src, header)), plan, sim)
     };
 
     // The boards.
@@ -285,6 +298,10 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     let mut engine = Engine::new(&plan, &beacon_path, &sensor_path);
     engine.skip_settle = sim_settings.as_ref().is_some_and(|s| !s.realtime);
     let (bid, sid) = engine.connect()?;
+    let mut store = match store {
+        Ok(s) => s,
+        Err((out, src, header)) => RunDir::create(&out, &src, &header, args.force, sync)?,
+    };
     let from = store.next_point();
     let n = store.sessions() + 1;
     store.log(Event::Session {
@@ -334,7 +351,11 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     write_manifest(
         &store,
         &plan,
-        if ending == Ending::Complete { "complete" } else { "stopped" },
+        if ending == Ending::Complete {
+            "complete"
+        } else {
+            "stopped"
+        },
     )?;
     if let Some(e) = err {
         return Err(e.context(format!(

@@ -53,10 +53,7 @@ impl Layout {
             Layout::Single => [0.0, 0.0],
             Layout::Quad { spacing } => {
                 let h = spacing / 2.0;
-                [
-                    if q % 2 == 0 { -h } else { h },
-                    if q < 2 { -h } else { h },
-                ]
+                [if q % 2 == 0 { -h } else { h }, if q < 2 { -h } else { h }]
             }
         }
     }
@@ -236,7 +233,11 @@ impl Plan {
         let int = |key: &str, v: &Spanned<i64>, lo: i64, hi: i64, what: &str| {
             let x = *v.get_ref();
             if x < lo || x > hi {
-                Err(err(key, v.span(), format!("{x} is not {what} ({lo}..={hi})")))
+                Err(err(
+                    key,
+                    v.span(),
+                    format!("{x} is not {what} ({lo}..={hi})"),
+                ))
             } else {
                 Ok(x)
             }
@@ -426,13 +427,7 @@ impl Plan {
             4,
             "a sensitivity setting",
         )?;
-        let samples = int(
-            "samples",
-            &raw.samples,
-            1,
-            100_000,
-            "a number of samples",
-        )? as u32;
+        let samples = int("samples", &raw.samples, 1, 100_000, "a number of samples")? as u32;
         let opt = |key: &str, v: &Option<Spanned<i64>>, d: i64, lo: i64, hi: i64| match v {
             None => Ok(d),
             Some(v) => int(key, v, lo, hi, "allowed"),
@@ -620,7 +615,7 @@ settle_ms = 0
     fn errors_name_key_and_line() {
         let e = Plan::parse("p.toml", &SHORT.replace("samples = 5", "sample = 5")).unwrap_err();
         let s = e.to_string();
-        assert!(s.starts_with("p.toml:9"), "{s}");
+        assert!(s.starts_with("p.toml:8"), "{s}");
         assert!(s.contains("sample"), "{s}");
         let e = Plan::parse("p.toml", &SHORT.replace("[4]", "[5]")).unwrap_err();
         assert_eq!(e.line, Some(7));

@@ -130,7 +130,9 @@ impl Faults {
                 "drop" => f.drop = prob(v)?,
                 "corrupt" => f.corrupt = prob(v)?,
                 "vanish" | "silent" | "stall" => {
-                    let bad = || format!("fault `{part}`: expected {k}=BOARD@N:MS, e.g. {k}=sensor@5:1500");
+                    let bad = || {
+                        format!("fault `{part}`: expected {k}=BOARD@N:MS, e.g. {k}=sensor@5:1500")
+                    };
                     let (b, rest) = v.split_once('@').ok_or_else(bad)?;
                     let (n, ms) = rest.split_once(':').ok_or_else(bad)?;
                     let board = match b {
@@ -153,7 +155,11 @@ impl Faults {
                         for_ms: ms.parse().map_err(|_| bad())?,
                     });
                 }
-                _ => return Err(format!("unknown fault `{k}` (drop, corrupt, vanish, silent, stall)")),
+                _ => {
+                    return Err(format!(
+                        "unknown fault `{k}` (drop, corrupt, vanish, silent, stall)"
+                    ))
+                }
             }
         }
         Ok(f)
@@ -225,8 +231,8 @@ impl World {
         let (off, err) = self.geometry[si];
         let sep = self.separations[si] + err;
         let c = self.layout.centre(st.quadrant);
-        let gain = if st.power == 1 { POWER1_GAIN } else { 1.0 }
-            * f64::powi(2.0, sensitivity as i32 - 4);
+        let gain =
+            if st.power == 1 { POWER1_GAIN } else { 1.0 } * f64::powi(2.0, sensitivity as i32 - 4);
         // Scale: an on-axis beacon at 30 in, power 2, sensitivity 4 reads MAG_AT_30.
         let on_axis_30 = self.em.magnitude(&nalgebra::Vector3::new(0.0, 0.0, 30.0));
         let scale = MAG_AT_30 / on_axis_30;
@@ -666,7 +672,10 @@ impl SimCta {
             .map(|s| Effect::parse(s).map_err(|e| anyhow::anyhow!("--sim-effect {s}: {e}")))
             .collect::<Result<Vec<_>>>()?;
         if !(settings.noise.is_finite() && settings.noise >= 0.0) {
-            bail!("--sim-noise {}: must be a non-negative number of counts", settings.noise);
+            bail!(
+                "--sim-noise {}: must be a non-negative number of counts",
+                settings.noise
+            );
         }
         let config = SimConfig {
             separations: plan.separations.clone(),
@@ -698,7 +707,8 @@ impl SimCta {
             std::process::id(),
             COUNTER.fetch_add(1, Ordering::Relaxed)
         ));
-        std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create {}", dir.display()))?;
         let beacon = Endpoint::new(dir.join("beacon"))?;
         let sensor = Endpoint::new(dir.join("sensor"))?;
         let (w1, w2) = (world.clone(), world.clone());
@@ -737,7 +747,8 @@ impl SimCta {
             st.sep_idx = Some(sep_idx);
             st.quadrant = quadrant;
         }
-        let mut rng = StdRng::seed_from_u64(mix(&[self.world.settings.seed, 0x7117, sep_idx as u64]));
+        let mut rng =
+            StdRng::seed_from_u64(mix(&[self.world.settings.seed, 0x7117, sep_idx as u64]));
         // Tilt of the plate, in/in, across the corners 8 in from the centre.
         let (a, b): (f64, f64) = (rng.sample(StandardNormal), rng.sample(StandardNormal));
         let l = 8.0 * 0.002;

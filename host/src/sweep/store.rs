@@ -10,8 +10,12 @@
 //! ```
 //!
 //! Commit protocol for a point: its rows (or its "no signal" comment) are appended to
-//! `data.csv` and synced to disk; then a `point` event carrying the file length after them
-//! is appended to the journal and synced. The journal is the authority: on resume,
+//! `data.csv` and flushed to the operating system; its `point` event, carrying the file length
+//! after them, is appended to the journal only once `data.csv` is synced to disk, then the
+//! journal is synced. Syncs are grouped: at most one pair every [`SYNC_INTERVAL`] (a slow
+//! point, as on the real CTA, is synced as soon as it is done; the unthrottled simulated CTA
+//! commits many points per sync), and always before any other event and at the end of a
+//! session. So the journal never runs ahead of the data on disk, whatever stops the run. The journal is the authority: on resume,
 //! `data.csv` is cut back to the length of the last journalled point (dropping the rows of a
 //! point whose journal line never made it), a torn last journal line is dropped, and the run
 //! continues with the next point. No duplicate, no gap.
@@ -150,7 +154,13 @@ pub struct RunDir {
     /// Every event so far (this and previous sessions).
     pub events: Vec<Event>,
     sync: bool,
+    /// Journal lines of points whose rows are not yet synced.
+    pending: Vec<u8>,
+    last_sync: std::time::Instant,
 }
+
+/// Longest time between two syncs while points complete.
+pub const SYNC_INTERVAL: std::time::Duration = std::time::Duration::from_millis(250);
 
 /// Names of the files in a run directory.
 pub const PLAN: &str = "plan.toml";
@@ -164,7 +174,28 @@ pub const MANIFEST: &str = "manifest.json";
 impl RunDir {
     /// Start a new run in `dir` with the plan text `plan_src`. An existing non-empty `dir` is
     /// refused unless `force` (then its sweep files are removed first).
-    pub fn create(dir: &Path, plan_src: &str, header: &[String], force: bool, sync: bool) -> Result<RunDir> {
+    pub fn create(
+        dir: &Path,
+        plan_src: &str,
+        header: &[String],
+        force: bool,
+        sync: bool,
+    ) -> Result<RunDir> {
+        RunDir::check_new(dir, force)?;
+        if dir.exists() {
+            for f in [PLAN, DATA, JOURNAL, MANIFEST, "data.truth.json"] {
+                let p = dir.join(f);
+                if p.exists() {
+                    std::fs::remove_file(&p)
+                        .with_context(|| format!("{}: cannot remove", p.display()))?;
+                }
+            }
+        }
+        RunDir::create_files(dir, plan_src, header, sync)
+    }
+
+    /// Refuse to start a new run in an existing, non-empty `dir` unless `force`.
+    pub fn check_new(dir: &Path, force: bool) -> Result<()> {
         if dir.exists() {
             let nonempty = std::fs::read_dir(dir)
                 .with_context(|| format!("{}: cannot read the directory", dir.display()))?
@@ -178,17 +209,13 @@ impl RunDir {
                     dir.display()
                 );
             }
-            if nonempty {
-                for f in [PLAN, DATA, JOURNAL, MANIFEST, "data.truth.json"] {
-                    let p = dir.join(f);
-                    if p.exists() {
-                        std::fs::remove_file(&p)
-                            .with_context(|| format!("{}: cannot remove", p.display()))?;
-                    }
-                }
-            }
         }
-        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+        Ok(())
+    }
+
+    fn create_files(dir: &Path, plan_src: &str, header: &[String], sync: bool) -> Result<RunDir> {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
         std::fs::write(dir.join(PLAN), plan_src)
             .with_context(|| format!("{}: cannot write", dir.join(PLAN).display()))?;
         let mut csv = File::create(dir.join(DATA))
@@ -209,6 +236,8 @@ impl RunDir {
             journal,
             events: Vec::new(),
             sync,
+            pending: Vec::new(),
+            last_sync: std::time::Instant::now(),
         })
     }
 
@@ -281,6 +310,8 @@ impl RunDir {
             journal,
             events,
             sync,
+            pending: Vec::new(),
+            last_sync: std::time::Instant::now(),
         })
     }
 
@@ -304,15 +335,29 @@ impl RunDir {
             .count() as u32
     }
 
-    /// Append an event to the journal (flushed, synced when configured).
+    /// Append an event to the journal (after any pending points; synced when configured).
     pub fn log(&mut self, e: Event) -> Result<()> {
         let mut line = serde_json::to_string(&e)?;
         line.push('\n');
-        self.journal.write_all(line.as_bytes())?;
-        if self.sync {
-            self.journal.sync_data()?;
-        }
+        self.pending.extend_from_slice(line.as_bytes());
         self.events.push(e);
+        self.sync_now()
+    }
+
+    /// Sync `data.csv`, then write and sync the pending journal lines.
+    pub fn sync_now(&mut self) -> Result<()> {
+        self.csv.flush()?;
+        if self.sync {
+            self.csv.get_ref().sync_data()?;
+        }
+        if !self.pending.is_empty() {
+            self.journal.write_all(&self.pending)?;
+            self.pending.clear();
+            if self.sync {
+                self.journal.sync_data()?;
+            }
+        }
+        self.last_sync = std::time::Instant::now();
         Ok(())
     }
 
@@ -337,11 +382,8 @@ impl RunDir {
         }
         self.csv.write_all(&buf)?;
         self.csv.flush()?;
-        if self.sync {
-            self.csv.get_ref().sync_data()?;
-        }
         self.csv_len += buf.len() as u64;
-        self.log(Event::Point {
+        let e = Event::Point {
             i,
             status,
             samples: rows.len() as u32,
@@ -349,7 +391,15 @@ impl RunDir {
             lost,
             attempts,
             csv_end: self.csv_len,
-        })
+        };
+        let mut line = serde_json::to_string(&e)?;
+        line.push('\n');
+        self.pending.extend_from_slice(line.as_bytes());
+        self.events.push(e);
+        if !self.sync || self.last_sync.elapsed() >= SYNC_INTERVAL {
+            self.sync_now()?;
+        }
+        Ok(())
     }
 
     /// Write `manifest.json` (atomically: temp file + rename) from `value`.
@@ -368,6 +418,12 @@ impl RunDir {
     /// Path of the measurement file.
     pub fn data_path(&self) -> PathBuf {
         self.dir.join(DATA)
+    }
+}
+
+impl Drop for RunDir {
+    fn drop(&mut self) {
+        let _ = self.sync_now();
     }
 }
 
