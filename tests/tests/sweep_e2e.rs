@@ -87,3 +87,21 @@ fn short_sweep_end_to_end() {
     assert!(d.join("run/data.truth.json").exists());
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn realtime_sensor_runs_at_the_plan_rate() {
+    let d = tmp("realtime");
+    let plan = d.join("plan.toml");
+    std::fs::write(
+        &plan,
+        "separations_in = [20]\nbeacons = [44, 55]\nsamples = 3\nsettle_ms = 50\nrate_hz = 10\n",
+    )
+    .unwrap();
+    let mut a = args(&d, &plan);
+    a.sim_realtime = true;
+    let s = sweep::sweep(&a).unwrap();
+    assert_eq!(s.stats.ok, 2);
+    // 6 reports at 10 Hz (the first of each point may come at once) plus two settles.
+    assert!(s.seconds > 0.4, "{} s: not throttled to 10 Hz", s.seconds);
+    let _ = std::fs::remove_dir_all(&d);
+}
