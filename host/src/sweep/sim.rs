@@ -246,7 +246,7 @@ impl World {
                 continue;
             };
             let mag = self.em.magnitude(&r) * scale * gain;
-            if !(mag >= NO_SIGNAL) {
+            if mag.is_nan() || mag < NO_SIGNAL {
                 continue;
             }
             let sigma = self.settings.noise * (STRONG / mag).sqrt().max(1.0);
@@ -401,11 +401,8 @@ fn write_some(ep: &mut Endpoint, pending: &mut Vec<u8>, wait: Duration) {
         return;
     }
     let _ = m.set_timeout(wait);
-    match m.write(pending) {
-        Ok(n) => {
-            pending.drain(..n);
-        }
-        Err(_) => {}
+    if let Ok(n) = m.write(pending) {
+        pending.drain(..n);
     }
 }
 
