@@ -1,13 +1,14 @@
 //! `cta demo`: the whole job on the built-in simulated CTA, no hardware.
 
-use crate::commands::{self, EvaluateArgs, FitArgs, NearfieldArgs, Profile, SimulateArgs, UncertaintyArgs};
+use crate::commands::{self, EvaluateArgs, FitArgs, NearfieldArgs, Profile, UncertaintyArgs};
 use crate::fit::Weights;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use std::path::PathBuf;
 
-/// Run the main job on the simulated CTA: near-field analysis, uncertainty, a simulated
-/// characterization (thesis physics, noise, a hidden effect), calibration, evaluation.
+/// Run the main job on the simulated CTA: near-field analysis, uncertainty, an unattended
+/// sweep of the simulated apparatus with a hidden effect, calibration, evaluation, and the
+/// analysis that names the hidden effect, ending in an HTML report.
 #[derive(Debug, Args)]
 pub struct DemoArgs {
     /// Output folder (created; must not exist unless --force).
@@ -17,11 +18,29 @@ pub struct DemoArgs {
     #[arg(long)]
     pub force: bool,
     /// The hidden effect injected into the simulated data (NAME=VALUE).
-    #[arg(long, default_value = "beacon_tilt=3,30")]
+    #[arg(long, default_value = "cell_gain=0.02,-0.01")]
     pub effect: String,
     /// Random seed.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
+}
+
+/// The demo sweep plan (also shipped as `host/plans/demo.toml`).
+const DEMO_PLAN: &str = include_str!("../plans/demo.toml");
+
+fn path_str(p: &std::path::Path) -> Result<&str> {
+    p.to_str().ok_or_else(|| anyhow::anyhow!("{}: not a UTF-8 path", p.display()))
+}
+
+/// Build a subcommand's arguments exactly as its command line would.
+fn parse_args<A: clap::Args>(args: &[&str]) -> Result<A> {
+    #[derive(clap::Parser)]
+    struct Wrap<B: clap::Args> {
+        #[command(flatten)]
+        inner: B,
+    }
+    let argv = std::iter::once("cta").chain(args.iter().copied());
+    Ok(<Wrap<A> as clap::Parser>::try_parse_from(argv)?.inner)
 }
 
 /// Run `cta demo`.
@@ -47,28 +66,36 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     })?;
     println!("\n== 2. Ch IV: CTA uncertainty");
     commands::uncertainty_cmd(&UncertaintyArgs { budget: None, diameter_in: 0.35, plot: Some(p("uncertainty.svg")), json: false })?;
-    println!("\n== 3. Ch V: a simulated characterization, 2-30 in, noise 0.1 % of beta, hidden effect `{}`", a.effect);
-    let data = p("cta.csv");
-    commands::simulate(&SimulateArgs {
-        out: data.clone(),
-        separations: "2..30".into(),
-        grid: "10x10".into(),
-        profile: Profile::Lambertian,
-        half_angle: 60.0,
-        far_field: false,
-        effects: vec![a.effect.clone()],
-        noise: 32.8,
-        samples: 8,
-        round: true,
-        seed: a.seed,
-        d: "0.6,0.1,0.062".into(),
-        p: "0.001,0.002,0.001".into(),
-    })?;
-    println!("\n== 4. Ch V: calibrate the pinhole model at 25-30 in (thesis recommendation)");
+    let run_dir = p("run");
+    let plan = p("plan.toml");
+    std::fs::write(&plan, DEMO_PLAN).with_context(|| format!("{}", plan.display()))?;
+    println!(
+        "\n== 3. Ch VI: an unattended sweep of the simulated CTA (both boards on pseudo-terminals), \
+         4-30 in, noise 0.1 % of beta, hidden effect `{}`",
+        a.effect
+    );
+    let seed = a.seed.to_string();
+    let sweep = parse_args::<crate::sweep::SweepArgs>(&[
+        "--plan",
+        path_str(&plan)?,
+        "--out",
+        path_str(&run_dir)?,
+        "--sim",
+        "--sim-noise",
+        "32.8",
+        "--sim-effect",
+        &a.effect,
+        "--sim-seed",
+        &seed,
+        "--yes",
+    ])?;
+    crate::sweep::run(&sweep)?;
+    let data = run_dir.join("data.csv");
+    println!("\n== 4. Ch V: calibrate the pinhole model at 20-30 in (thesis recommendation)");
     let fit = p("fit.json");
     commands::fit_cmd(&FitArgs {
         file: data.clone(),
-        separations: Some("25..30".into()),
+        separations: Some("20..30:2".into()),
         weights: Weights::Repeat,
         save: Some(fit.clone()),
         json: false,
@@ -81,6 +108,15 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         plot: Some(p("figure57.svg")),
         json: false,
     })?;
-    println!("\nDemo output in {}: nearfield.svg, uncertainty.svg, cta.csv (+ truth), fit.json, figure57.svg", a.out.display());
+    println!("\n== 6. What the simulation gets wrong, why, and the gain of the extended model");
+    let report = p("report");
+    let analyze = parse_args::<crate::analyze::AnalyzeArgs>(&[path_str(&data)?, "--report", path_str(&report)?])?;
+    crate::analyze::run(&analyze)?;
+    println!(
+        "\nDemo output in {}: nearfield.svg, uncertainty.svg, run/ (sweep data, manifest, truth), fit.json, \
+         figure57.svg, and the analysis report: open {}",
+        a.out.display(),
+        report.join("index.html").display()
+    );
     Ok(())
 }

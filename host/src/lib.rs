@@ -19,12 +19,12 @@ pub mod measurement;
 pub mod plot;
 /// Emulated CTA data with injectable effects and a truth sidecar.
 pub mod simulate;
-/// `cta demo`: the main job on the simulated CTA.
-pub mod demo;
 
 /// `cta analyze`: from measured data to a named cause, an extended model and a measured gain.
 pub mod analyze;
 /// `cta noise`: the noise of repeated samples and the weighting it implies.
 pub mod noise;
+/// `cta demo`: the main job on the simulated CTA.
+pub mod demo;
 /// `cta sweep`: autonomous, resumable CTA data collection over serial (and the simulated CTA).
 pub mod sweep;

@@ -44,6 +44,10 @@ enum Cmd {
     /// uncertainty, a simulated characterization with a hidden effect, calibration and
     /// evaluation, with plots, in one folder.
     Demo(cta_host::demo::DemoArgs),
+    /// Autonomous CTA data collection over serial (or on the simulated CTA with --sim):
+    /// a plan of separations, beacons, frequencies, power levels and sensitivities,
+    /// resumable after any interruption, never losing or duplicating a point.
+    Sweep(cta_host::sweep::SweepArgs),
     /// From measured data to a named cause: where the model disagrees with the data, the
     /// physical effect responsible, the extended model and its held-out gain.
     Analyze(cta_host::analyze::AnalyzeArgs),
@@ -67,6 +71,7 @@ fn main() {
         Cmd::Fit(a) => commands::fit_cmd(a),
         Cmd::Evaluate(a) => commands::evaluate_cmd(a),
         Cmd::Demo(a) => cta_host::demo::run(a),
+        Cmd::Sweep(a) => cta_host::sweep::run(a),
         Cmd::Analyze(a) => cta_host::analyze::run(a),
         Cmd::Noise(a) => cta_host::noise::run(a),
         Cmd::Beacon(a) => cta_host::beacon_cmd::run(a),
