@@ -106,3 +106,21 @@ fn one_separation_names_the_parallel_pair() {
     assert!(cta(&["simulate", "--out", s(&sim), "--separations", "20", "--far-field", "--p", "0,0,0"]).status.success());
     fails_with(&cta(&["fit", s(&sim)]), "d3");
 }
+
+/// The README's main command: the demo on the simulated CTA names its hidden effect and ends
+/// in an HTML report.
+#[test]
+fn demo_runs_end_to_end() {
+    let d = tmpdir("demo");
+    let out = d.join("demo");
+    let o = cta(&["demo", "--out", s(&out)]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}\n{}", stdout, String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("named: cell_gain"), "{stdout}");
+    for f in ["nearfield.svg", "uncertainty.svg", "fit.json", "figure57.svg", "run/data.csv", "report/index.html"] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    // Never overwritten without --force.
+    let again = cta(&["demo", "--out", s(&out)]);
+    assert!(!again.status.success() && String::from_utf8_lossy(&again.stderr).contains("--force"));
+}
