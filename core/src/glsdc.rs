@@ -175,8 +175,6 @@ where
 {
     n: OMatrix<T, D, D>,
     g: OVector<T, D>,
-    wss: T,
-    ss: T,
 }
 
 impl<T: Real, D: Dim> Normal<T, D>
@@ -232,12 +230,8 @@ where
     let nn = d.value();
     let mut n = OMatrix::<T, P::D, P::D>::zeros_generic(d, d);
     let mut g = OVector::<T, P::D>::zeros_generic(d, U1);
-    let mut wss = T::zero();
-    let mut ss = T::zero();
     prob.rows(x, true, &mut |r, w, j| {
         debug_assert_eq!(j.len(), nn);
-        wss += w * r * r;
-        ss += r * r;
         for a in 0..nn {
             let wja = w * j[a];
             if wja == T::zero() {
@@ -254,10 +248,10 @@ where
             n[(a, b)] = n[(b, a)];
         }
     }
-    if !(wss.is_finite() && n.iter().all(|v| v.is_finite())) {
+    if !(g.iter().all(|v| v.is_finite()) && n.iter().all(|v| v.is_finite())) {
         return Err(ModelError::NonFinite);
     }
-    Ok(Normal { n, g, wss, ss })
+    Ok(Normal { n, g })
 }
 
 /// Extreme eigenvalues of a symmetric positive semi-definite matrix and the eigenvector of
@@ -272,6 +266,9 @@ where
     // Power iteration for lambda_max.
     let mut v = OVector::<T, D>::from_element_generic(dim, U1, T::one());
     v /= v.norm();
+    // Relative change at which an eigenvalue estimate is taken as converged: the
+    // condition number is reported to a few digits, not to working precision.
+    let tol = T::default_epsilon().sqrt();
     let mut lmax = T::zero();
     for _ in 0..60 {
         let w = a * &v;
@@ -279,8 +276,13 @@ where
         if nw == T::zero() {
             break;
         }
-        lmax = v.dot(&w);
+        let l = v.dot(&w);
         v = w / nw;
+        let done = (l - lmax).abs() <= tol * l.abs();
+        lmax = l;
+        if done {
+            break;
+        }
     }
     // Inverse iteration on (A + shift I) for lambda_min.
     let mut shifted = a.clone();
@@ -292,6 +294,7 @@ where
     u /= u.norm();
     let mut lmin = lmax;
     if let Some(ch) = shifted.cholesky() {
+        let mut mu = T::zero();
         for _ in 0..60 {
             let w = ch.solve(&u);
             let nw = w.norm();
@@ -299,6 +302,12 @@ where
                 break;
             }
             u = w / nw;
+            // u . (A + shift)^-1 u converges to 1 / (lambda_min + shift).
+            let done = (nw - mu).abs() <= tol * nw;
+            mu = nw;
+            if done {
+                break;
+            }
         }
         lmin = u.dot(&(a * &u)).max(T::zero());
     }
@@ -322,10 +331,11 @@ where
     }
     let half = T::lit(0.5);
     let mut x = x0;
-    let (mut wss, _) = cost_at(prob, &x).map_err(Error::Model)?;
+    let (mut wss, mut ss) = cost_at(prob, &x).map_err(Error::Model)?;
     let mut lambda = T::zero();
     let mut iterations = 0;
     let mut stop = None;
+    let mut last = None;
     while iterations < settings.max_iter {
         iterations += 1;
         let ne = accumulate(prob, &x).map_err(Error::Model)?;
@@ -335,6 +345,7 @@ where
         if let Some(err) = rank_check(&ns, &scale, &x, settings) {
             return Err(err);
         }
+        last = Some((ns.clone(), scale.clone()));
         // Gauss-Newton first, Levenberg damping when the cost rises.
         let mut accepted = false;
         for _ in 0..settings.max_damping {
@@ -356,7 +367,7 @@ where
             let xn = &x + &step;
             let trial = cost_at(prob, &xn);
             match trial {
-                Ok((wn, _)) if wn <= wss => {
+                Ok((wn, sn)) if wn <= wss => {
                     let small_step = (0..n).all(|i| {
                         step[i].abs() <= settings.step_tol * (x[i].abs() + settings.step_tol)
                     });
@@ -364,6 +375,7 @@ where
                     x = xn;
                     let prev = wss;
                     wss = wn;
+                    ss = sn;
                     accepted = true;
                     lambda = if lambda <= T::lit(1e-7) {
                         T::zero()
@@ -402,7 +414,20 @@ where
             iterations,
         });
     };
-    finish(prob, x, iterations, stop, settings)
+    let (ns, scale) = last.expect("at least one iteration ran");
+    finish(
+        Final {
+            x,
+            ns,
+            scale,
+            wss,
+            ss,
+            m,
+            iterations,
+            stop,
+        },
+        settings,
+    )
 }
 
 fn rank_check<T: Real, D: Dim>(
@@ -433,6 +458,20 @@ where
             });
         }
     }
+    // Cheap certificate first: the scaled matrix has a unit diagonal, so
+    // lambda_max <= trace = n and lambda_min >= 1 / trace(N^-1); when that lower bound on
+    // lambda_min / lambda_max clears the tolerance, no eigen iteration is needed (the usual
+    // case, and the one that matters on the chip).
+    if let Some(ch) = ns.clone().cholesky() {
+        let inv = ch.inverse();
+        let tr = (0..n).fold(T::zero(), |a, i| a + inv[(i, i)]);
+        if tr.is_finite()
+            && tr > T::zero()
+            && T::one() / (T::lit(n as f64) * tr) >= settings.rank_tol
+        {
+            return None;
+        }
+    }
     let (lmax, lmin, v) = extreme_eigen(ns, settings.rank_tol * T::lit(1e-3));
     let ratio = if lmax > T::zero() {
         lmin / lmax
@@ -449,30 +488,42 @@ where
     None
 }
 
-fn finish<T: Real, P: Problem<T>>(
-    prob: &P,
-    x: OVector<T, P::D>,
+/// The state GLSDC stops in: the solution, the scaled normal matrix of the last
+/// linearisation (at most one sub-tolerance step before `x`, so it is reused for the
+/// covariance rather than paying one more Jacobian pass), and the final residual sums.
+struct Final<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    x: OVector<T, D>,
+    ns: OMatrix<T, D, D>,
+    scale: OVector<T, D>,
+    wss: T,
+    ss: T,
+    m: usize,
     iterations: usize,
     stop: Stop,
+}
+
+fn finish<T: Real, D: Dim>(
+    f: Final<T, D>,
     settings: &Settings<T>,
-) -> Result<Solution<T, P::D>, Error<T, P::D>>
+) -> Result<Solution<T, D>, Error<T, D>>
 where
-    DefaultAllocator: Allocator<P::D> + Allocator<P::D, P::D>,
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
 {
-    let d = prob.dim();
-    let n = d.value();
-    let m = prob.n_rows();
-    let ne = accumulate(prob, &x).map_err(Error::Model)?;
-    let (ns, scale) = ne.scaled();
-    if let Some(err) = rank_check(&ns, &scale, &x, settings) {
-        return Err(err);
-    }
-    let (lmax, lmin, _) = extreme_eigen(&ns, T::zero());
-    let condition = if lmin > T::zero() {
-        (lmax / lmin).sqrt()
-    } else {
-        T::max_value().unwrap_or(T::lit(1e300))
-    };
+    let Final {
+        x,
+        ns,
+        scale,
+        wss,
+        ss,
+        m,
+        iterations,
+        stop,
+    } = f;
+    let (dim, _) = ns.shape_generic();
+    let n = dim.value();
     let inv = match ns.clone().cholesky() {
         Some(ch) => ch.inverse(),
         None => {
@@ -484,8 +535,14 @@ where
             });
         }
     };
+    let (lmax, lmin, _) = extreme_eigen(&ns, T::zero());
+    let condition = if lmin > T::zero() {
+        (lmax / lmin).sqrt()
+    } else {
+        T::max_value().unwrap_or(T::lit(1e300))
+    };
     let dof = if m > n { m - n } else { 1 };
-    let variance_factor = ne.wss / T::lit(dof as f64);
+    let variance_factor = wss / T::lit(dof as f64);
     let mut cov = inv;
     for a in 0..n {
         for b in 0..n {
@@ -495,14 +552,13 @@ where
     if !settings.weights_absolute {
         cov *= variance_factor;
     }
-    let sigma =
-        OVector::<T, P::D>::from_fn_generic(d, U1, |i, _| cov[(i, i)].max(T::zero()).sqrt());
+    let sigma = OVector::<T, D>::from_fn_generic(dim, U1, |i, _| cov[(i, i)].max(T::zero()).sqrt());
     Ok(Solution {
         x,
         covariance: cov,
         sigma,
-        cost: T::lit(0.5) * ne.wss,
-        rms: (ne.ss / T::lit(m as f64)).sqrt(),
+        cost: T::lit(0.5) * wss,
+        rms: (ss / T::lit(m as f64)).sqrt(),
         variance_factor,
         m,
         iterations,
