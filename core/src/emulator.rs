@@ -181,10 +181,15 @@ pub struct Emulator<T: Real> {
     pub pose: Pose<T>,
     /// Physics switches and effects.
     pub effects: Effects<T>,
-    // Cached: normals and centres in N.
+    // Cached: normals and centres in N, and the LED boresight unit vector in N.
     n_n: [Vector3<T>; 4],
     o_n: [Vector3<T>; 4],
+    bore: Vector3<T>,
 }
+
+/// Cell signals with their gradients with respect to the beacon position `r` and to the
+/// LED boresight unit vector `e` (both in N).
+type CellGrads<T> = ([T; 4], [[Vector3<T>; 2]; 4]);
 
 impl<T: Real> Emulator<T> {
     /// Build an emulator (caches the cell geometry in N).
@@ -196,58 +201,158 @@ impl<T: Real> Emulator<T> {
         let o_o = Head::centres(s);
         let n_n = core::array::from_fn(|k| ct * n_o[k]);
         let o_n = core::array::from_fn(|k| pose.d + ct * o_o[k]);
+        let bore = effects.boresight();
         Emulator {
             head,
             pose,
             effects,
             n_n,
             o_n,
+            bore,
         }
+    }
+
+    /// The same emulator with the LEDs' boresight set directly to the unit vector `b` (N):
+    /// for a target whose attitude rotates its LEDs (the pose solver), without trigonometry.
+    /// `effects.tilt`/`tilt_az` are left as they were (they only describe the default).
+    pub fn with_boresight(&self, b: &Vector3<T>) -> Self {
+        let mut e = *self;
+        e.bore = *b;
+        e
+    }
+
+    /// The LED boresight unit vector in use (N).
+    pub fn boresight(&self) -> Vector3<T> {
+        self.bore
     }
 
     /// The cell signals `S_k` (after gain, bias, cross-talk and saturation) for a beacon at
     /// `r` (N, inches). Cells in shadow give 0 before bias.
     pub fn signals(&self, r: &Vector3<T>) -> [T; 4] {
+        self.cells(r, false).0
+    }
+
+    /// Cell signals and, when `grad`, their gradients (see [`CellGrads`]). With
+    /// `b = r - o_k`, `bh = b/|b|`, `w = -bh . e` (cosine of the angle off the LED boresight):
+    /// `dV/dr = (n - V bh)/|b|`, `dI/dr = -2 I bh/|b|`, `dw/dr = -(e + w bh)/|b|`,
+    /// `dw/de = -bh`, and `S = c I V` differentiates by the product rule.
+    fn cells(&self, r: &Vector3<T>, grad: bool) -> CellGrads<T> {
         let e = &self.effects;
-        let bore = e.boresight();
+        let bore = self.bore;
+        let z = Vector3::zeros();
         let mut raw = [T::zero(); 4];
+        let mut g = [[z; 2]; 4];
         for k in 0..4 {
             let b = r - self.o_n[k];
             let len2 = b.norm_squared();
             let len = len2.sqrt();
-            let v = (self.n_n[k].dot(&b) / len).max(T::zero());
+            let inv_len = T::one() / len;
+            let bh = b * inv_len;
+            let v = self.n_n[k].dot(&bh);
+            if v <= T::zero() {
+                continue; // in shadow: no signal, no gradient
+            }
             let i = if e.intensity {
                 T::one() / len2
             } else {
                 T::one()
             };
-            // Angle between the LED boresight and the ray beacon -> cell (-b).
-            let cosg = (-b.dot(&bore) / len).max(-T::one()).min(T::one());
-            let c = match e.pattern {
-                Pattern::Uniform => T::one(),
-                Pattern::Lambertian { m } if m == T::one() => cosg.max(T::zero()),
-                p => p.eval(cosg.acos()),
+            // Cosine of the angle between the LED boresight and the ray beacon -> cell (-b).
+            let w = (-bh.dot(&bore)).max(-T::one()).min(T::one());
+            // c and dc/dw.
+            let (c, dcdw) = match e.pattern {
+                Pattern::Uniform => (T::one(), T::zero()),
+                Pattern::Lambertian { m } => {
+                    if w <= T::zero() {
+                        (T::zero(), T::zero())
+                    } else if m == T::one() {
+                        (w, T::one())
+                    } else {
+                        let c = w.powf(m);
+                        (c, m * c / w)
+                    }
+                }
+                p => {
+                    let gam = w.acos();
+                    let c = p.eval(gam);
+                    let dcdw = if grad {
+                        // d/dgamma by a central difference of the (polynomial) pattern,
+                        // dgamma/dw = -1/sqrt(1 - w^2).
+                        let h = T::lit(1e-4);
+                        let dcdg = (p.eval(gam + h) - p.eval(gam - h)) / (h + h);
+                        -dcdg / (T::one() - w * w).max(T::lit(1e-12)).sqrt()
+                    } else {
+                        T::zero()
+                    };
+                    (c, dcdw)
+                }
             };
             raw[k] = c * i * v;
+            if grad {
+                let dv = (self.n_n[k] - bh * v) * inv_len;
+                let di = if e.intensity {
+                    bh * (T::lit(-2.0) * i * inv_len)
+                } else {
+                    z
+                };
+                let dw_dr = -(bore + bh * w) * inv_len;
+                let dw_de = -bh;
+                g[k][0] = dw_dr * (dcdw * i * v) + di * (c * v) + dv * (c * i);
+                g[k][1] = dw_de * (dcdw * i * v);
+            }
         }
         let x = e.crosstalk;
-        let mixed = if x == T::zero() {
-            raw
+        let (mixed, mg) = if x == T::zero() {
+            (raw, g)
         } else {
-            [
-                raw[0] + x * raw[2],
-                raw[1] + x * raw[3],
-                raw[2] + x * raw[0],
-                raw[3] + x * raw[1],
-            ]
+            let mix = |a: usize, b: usize| raw[a] + x * raw[b];
+            let mixg = |a: usize, b: usize| [g[a][0] + g[b][0] * x, g[a][1] + g[b][1] * x];
+            (
+                [mix(0, 2), mix(1, 3), mix(2, 0), mix(3, 1)],
+                [mixg(0, 2), mixg(1, 3), mixg(2, 0), mixg(3, 1)],
+            )
         };
-        core::array::from_fn(|k| {
+        let mut out = [T::zero(); 4];
+        let mut og = [[z; 2]; 4];
+        for k in 0..4 {
             let s = mixed[k] * e.gain[k] + e.bias[k];
             match e.saturation {
-                Some(sat) => s.min(sat),
-                None => s,
+                Some(sat) if s >= sat => out[k] = sat, // clipped: flat
+                _ => {
+                    out[k] = s;
+                    og[k] = [mg[k][0] * e.gain[k], mg[k][1] * e.gain[k]];
+                }
             }
-        })
+        }
+        (out, og)
+    }
+
+    /// The output of eq 63 with its gradients: `(y, dy/dr, dy/de)` for a beacon at `r` (N)
+    /// and the LED boresight `e`: `dX/dr = 2 beta (S2 dS1 - S1 dS2)/(S1 + S2)^2`, likewise
+    /// for Y and for `e`. `None` when a pair has no signal. Costs about three outputs, where
+    /// a finite-difference Jacobian over `r` and the attitude costs seven.
+    #[allow(clippy::type_complexity)]
+    pub fn output_gradient(
+        &self,
+        r: &Vector3<T>,
+    ) -> Option<([T; 2], [Vector3<T>; 2], [Vector3<T>; 2])> {
+        let (s, g) = self.cells(r, true);
+        let b = self.head.beta;
+        let two_b = b + b;
+        let mut y = [T::zero(); 2];
+        let mut dr = [Vector3::zeros(); 2];
+        let mut de = [Vector3::zeros(); 2];
+        for (a, (p, q)) in [(0usize, 1usize), (2, 3)].into_iter().enumerate() {
+            let sum = s[p] + s[q];
+            if !(sum > T::zero()) {
+                return None;
+            }
+            y[a] = b * (s[p] - s[q]) / sum;
+            let f = two_b / (sum * sum);
+            dr[a] = (g[p][0] * s[q] - g[q][0] * s[p]) * f;
+            de[a] = (g[p][1] * s[q] - g[q][1] * s[p]) * f;
+        }
+        Some((y, dr, de))
     }
 
     /// The output `(X, Y)` of eq 63 in counts, unclipped. `None` when a pair has no signal.
@@ -343,6 +448,59 @@ mod tests {
         let a = near.output(&r).unwrap();
         let b = far.output(&r).unwrap();
         assert!(a[0] > b[0] && a[1] > b[1]);
+    }
+
+    #[test]
+    fn output_gradient_matches_finite_differences() {
+        let head = Head::<f64>::northstar();
+        let pose = Pose::table3();
+        let mut fx = Effects::default();
+        fx.gain[0] = 1.03;
+        fx.bias[2] = 1e-4;
+        fx.crosstalk = 0.02;
+        for pattern in [
+            Pattern::vsml3710(),
+            Pattern::lambertian_half_angle(40.0),
+            Pattern::Quartic,
+            Pattern::Uniform,
+        ] {
+            fx.pattern = pattern;
+            let e0 = Vector3::new(0.1, -0.05, -1.0).normalize();
+            let em = Emulator::new(head, pose, fx).with_boresight(&e0);
+            let r = Vector3::new(1.3, -0.7, 4.0);
+            let (y, dr, de) = em.output_gradient(&r).unwrap();
+            assert_eq!(y, em.output(&r).unwrap());
+            let h = 1e-6;
+            for k in 0..3 {
+                let mut rp = r;
+                rp[k] += h;
+                let mut rm = r;
+                rm[k] -= h;
+                let (yp, ym) = (em.output(&rp).unwrap(), em.output(&rm).unwrap());
+                let mut ep = e0;
+                ep[k] += h;
+                let mut emm = e0;
+                emm[k] -= h;
+                let (zp, zm) = (
+                    em.with_boresight(&ep).output(&r).unwrap(),
+                    em.with_boresight(&emm).output(&r).unwrap(),
+                );
+                for a in 0..2 {
+                    let fd = (yp[a] - ym[a]) / (2.0 * h);
+                    assert!(
+                        (fd - dr[a][k]).abs() < 1e-4 * (1.0 + fd.abs()),
+                        "{pattern:?} dy{a}/dr{k}: {fd} vs {}",
+                        dr[a][k]
+                    );
+                    let fe = (zp[a] - zm[a]) / (2.0 * h);
+                    assert!(
+                        (fe - de[a][k]).abs() < 1e-3 * (1.0 + fe.abs()),
+                        "{pattern:?} dy{a}/de{k}: {fe} vs {}",
+                        de[a][k]
+                    );
+                }
+            }
+        }
     }
 
     #[test]

@@ -643,7 +643,7 @@ impl<T: Real> PoseSolver<T> {
         let rn = t + ct * r_t;
         match &self.emulator {
             None => self.lin.eval(&rn).map(|(y, _)| y),
-            Some(em) => with_boresight(em, &(ct * self.boresight)).output(&rn),
+            Some(em) => em.with_boresight(&(ct * self.boresight)).output(&rn),
         }
     }
 }
@@ -684,19 +684,6 @@ fn failed<T: Real>(
     }
 }
 
-/// The emulator with the LEDs' boresight set to the unit vector `b` (in N).
-fn with_boresight<T: Real>(em: &Emulator<T>, b: &Vector3<T>) -> Emulator<T> {
-    let mut e = *em;
-    // Effects::boresight() = (sin t cos az, sin t sin az, -cos t).
-    e.effects.tilt = (-b.z).max(-T::one()).min(T::one()).acos();
-    e.effects.tilt_az = if b.x == T::zero() && b.y == T::zero() {
-        T::zero()
-    } else {
-        b.y.atan2(b.x)
-    };
-    e
-}
-
 /// The pose as a GLSDC problem over `x = [t, q]`.
 struct PoseProblem<'a, T: Real> {
     solver: &'a PoseSolver<T>,
@@ -731,7 +718,7 @@ impl<T: Real> Problem<T> for PoseProblem<'_, T> {
                 };
                 for o in self.obs {
                     let rn = t + ct * o.r;
-                    let (y, j) = s.lin.eval(&rn).ok_or(ModelError::NonFinite)?;
+                    let (y, g) = s.lin.eval_dr(&rn).ok_or(ModelError::NonFinite)?;
                     if !jac {
                         sink(o.y[0] - y[0], w, &[]);
                         sink(o.y[1] - y[1], w, &[]);
@@ -740,22 +727,21 @@ impl<T: Real> Problem<T> for PoseProblem<'_, T> {
                     // dr_N/dq_i = (dC/dq_i)^T r_T.
                     let drdq = [dc[0].tr_mul(&o.r), dc[1].tr_mul(&o.r), dc[2].tr_mul(&o.r)];
                     for a in 0..2 {
-                        // Columns 0..3 of eq 66 are dy/dd = -dy/dr.
-                        let dydr = Vector3::new(-j[a][0], -j[a][1], -j[a][2]);
                         let row = [
-                            dydr.x,
-                            dydr.y,
-                            dydr.z,
-                            dydr.dot(&drdq[0]),
-                            dydr.dot(&drdq[1]),
-                            dydr.dot(&drdq[2]),
+                            g[a].x,
+                            g[a].y,
+                            g[a].z,
+                            g[a].dot(&drdq[0]),
+                            g[a].dot(&drdq[1]),
+                            g[a].dot(&drdq[2]),
                         ];
                         sink(o.y[a] - y[a], w, &row);
                     }
                 }
             }
             Some(em) => {
-                let em0 = with_boresight(em, &(ct * s.boresight));
+                // The LEDs rotate with the target: boresight e_N = C^T(q) e_T.
+                let em0 = em.with_boresight(&(ct * s.boresight));
                 if !jac {
                     for o in self.obs {
                         let y = em0.output(&(t + ct * o.r)).ok_or(ModelError::NoData)?;
@@ -764,34 +750,21 @@ impl<T: Real> Problem<T> for PoseProblem<'_, T> {
                     }
                     return Ok(());
                 }
-                // Forward differences: steps scaled to the range (inches) and to the MRP.
-                let ht = T::lit(1e-3) * (T::one() + t.norm());
-                let hq = T::lit(2e-4);
-                let mut cq = [Matrix3::zeros(); 3];
-                let mut emq = [em0; 3];
-                for i in 0..3 {
-                    let mut xq = *x;
-                    xq[3 + i] += hq;
-                    let (_, c) = split(&xq);
-                    cq[i] = c;
-                    emq[i] = with_boresight(em, &(c * s.boresight));
-                }
+                // Analytic chain rule through the emulator's gradients:
+                // dy/dt = dy/dr, dy/dq_i = dy/dr . (dC/dq_i)^T r_T + dy/de . (dC/dq_i)^T e_T.
+                let dc = mrp::dcm_partials(&Vector3::new(x[3], x[4], x[5]));
+                let dedq = [
+                    dc[0].tr_mul(&s.boresight),
+                    dc[1].tr_mul(&s.boresight),
+                    dc[2].tr_mul(&s.boresight),
+                ];
                 for o in self.obs {
                     let rn = t + ct * o.r;
-                    let y = em0.output(&rn).ok_or(ModelError::NoData)?;
-                    let mut cols = [[T::zero(); 2]; 6];
-                    for k in 0..3 {
-                        let mut rp = rn;
-                        rp[k] += ht;
-                        let yp = em0.output(&rp).ok_or(ModelError::NoData)?;
-                        cols[k] = [(yp[0] - y[0]) / ht, (yp[1] - y[1]) / ht];
-                        let yq = emq[k]
-                            .output(&(t + cq[k] * o.r))
-                            .ok_or(ModelError::NoData)?;
-                        cols[3 + k] = [(yq[0] - y[0]) / hq, (yq[1] - y[1]) / hq];
-                    }
+                    let (y, dr, de) = em0.output_gradient(&rn).ok_or(ModelError::NoData)?;
+                    let drdq = [dc[0].tr_mul(&o.r), dc[1].tr_mul(&o.r), dc[2].tr_mul(&o.r)];
                     for a in 0..2 {
-                        let row: [T; 6] = core::array::from_fn(|k| cols[k][a]);
+                        let dq = |i: usize| dr[a].dot(&drdq[i]) + de[a].dot(&dedq[i]);
+                        let row = [dr[a].x, dr[a].y, dr[a].z, dq(0), dq(1), dq(2)];
                         sink(o.y[a] - y[a], w, &row);
                     }
                 }
@@ -818,7 +791,7 @@ pub fn simulate_spots<T: Real>(
     mut noise: impl FnMut(usize) -> T,
 ) -> Vec<Spot, MAX_BEACONS> {
     let ct = mrp::dcm(q).transpose();
-    let em = with_boresight(em, &(ct * v3::<T>(&con.boresight).normalize()));
+    let em = em.with_boresight(&(ct * v3::<T>(&con.boresight).normalize()));
     let mut out = Vec::new();
     for b in &con.beacons {
         let rn = t + ct * v3::<T>(&b.r);
