@@ -74,6 +74,14 @@ pub struct Settings<T> {
     pub rank_tol: T,
     /// How many times the damping may grow within one iteration before giving up.
     pub max_damping: usize,
+    /// Stop, without taking it, when the Gauss-Newton step would lower `sum w r^2` by less
+    /// than this (absolute; with absolute weights it is chi-square, and 0.01 is far below
+    /// the noise). The relative `cost_tol` applies to the predicted decrease too.
+    pub cost_abs_tol: T,
+    /// Compute the condition number by eigen iteration (`true`), or report the cheap upper
+    /// bound `sqrt(n trace(N^-1))` of the column-scaled normal matrix `N` (within a factor
+    /// `sqrt(n)`; for the chip's instruction budget).
+    pub exact_condition: bool,
 }
 
 impl<T: Real> Default for Settings<T> {
@@ -86,6 +94,8 @@ impl<T: Real> Default for Settings<T> {
             weights_absolute: false,
             rank_tol: eps * T::lit(1e4),
             max_damping: 30,
+            cost_abs_tol: T::zero(),
+            exact_condition: true,
         }
     }
 }
@@ -101,6 +111,9 @@ pub enum Stop {
     ZeroCost,
     /// No damped step lowers the cost any more: a minimum to working precision.
     NoFurtherDecrease,
+    /// The Gauss-Newton step would lower the cost by less than the tolerances: the current
+    /// estimate is kept (and its covariance is exact there).
+    SmallPredictedDecrease,
 }
 
 /// A converged GLSDC solution.
@@ -354,7 +367,21 @@ where
                 a[(i, i)] += lambda;
             }
             let step = match a.cholesky() {
-                Some(ch) => ch.solve(&gs).component_mul(&scale),
+                Some(ch) => {
+                    let ds = ch.solve(&gs);
+                    if lambda == T::zero() {
+                        // Gauss-Newton predicts sum w r^2 to fall by g^T dx.
+                        let predicted = gs.dot(&ds);
+                        if predicted <= settings.cost_abs_tol
+                            || predicted <= settings.cost_tol * wss
+                        {
+                            stop = Some(Stop::SmallPredictedDecrease);
+                            accepted = true;
+                            break;
+                        }
+                    }
+                    ds.component_mul(&scale)
+                }
                 None => {
                     lambda = if lambda == T::zero() {
                         T::lit(1e-6)
@@ -535,11 +562,17 @@ where
             });
         }
     };
-    let (lmax, lmin, _) = extreme_eigen(&ns, T::zero());
-    let condition = if lmin > T::zero() {
-        (lmax / lmin).sqrt()
+    let condition = if settings.exact_condition {
+        let (lmax, lmin, _) = extreme_eigen(&ns, T::zero());
+        if lmin > T::zero() {
+            (lmax / lmin).sqrt()
+        } else {
+            T::max_value().unwrap_or(T::lit(1e300))
+        }
     } else {
-        T::max_value().unwrap_or(T::lit(1e300))
+        // lambda_max <= trace(N) = n (unit diagonal), 1/lambda_min <= trace(N^-1).
+        let tr = (0..n).fold(T::zero(), |a, i| a + inv[(i, i)]);
+        (T::lit(n as f64) * tr).sqrt()
     };
     let dof = if m > n { m - n } else { 1 };
     let variance_factor = wss / T::lit(dof as f64);

@@ -565,6 +565,12 @@ impl<T: Real> PoseSolver<T> {
             weights_absolute: false,
             rank_tol: T::lit(1.0 / (self.settings.max_condition * self.settings.max_condition)),
             max_damping: 12,
+            // The weights are 1/noise^2, so sum w r^2 is chi-square: a step worth less than
+            // 0.01 of it is far below the noise and not worth another pass.
+            cost_abs_tol: T::lit(0.01),
+            // The condition is compared with max_condition: its cheap upper bound is enough
+            // (conservative by at most sqrt(6)) and saves eigen iterations on the chip.
+            exact_condition: false,
         };
         let problem = PoseProblem { solver: self, obs };
         let result = glsdc::solve(&problem, x0, &settings);
