@@ -571,6 +571,8 @@ impl<T: Real> PoseSolver<T> {
             // The condition is compared with max_condition: its cheap upper bound is enough
             // (conservative by at most sqrt(6)) and saves eigen iterations on the chip.
             exact_condition: false,
+            // Analytic Jacobians and a warm start: trial steps are almost always accepted.
+            jacobian_in_trial: true,
         };
         let problem = PoseProblem { solver: self, obs };
         let result = glsdc::solve(&problem, x0, &settings);
