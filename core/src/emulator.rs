@@ -235,7 +235,8 @@ impl<T: Real> Emulator<T> {
     /// Cell signals and, when `grad`, their gradients (see [`CellGrads`]). With
     /// `b = r - o_k`, `bh = b/|b|`, `w = -bh . e` (cosine of the angle off the LED boresight):
     /// `dV/dr = (n - V bh)/|b|`, `dI/dr = -2 I bh/|b|`, `dw/dr = -(e + w bh)/|b|`,
-    /// `dw/de = -bh`, and `S = c I V` differentiates by the product rule.
+    /// `dw/de = -bh`, and `S = c I V` differentiates by the product rule (collected below
+    /// into three scalar multiples of `n`, `e` and `bh`).
     fn cells(&self, r: &Vector3<T>, grad: bool) -> CellGrads<T> {
         let e = &self.effects;
         let bore = self.bore;
@@ -289,16 +290,14 @@ impl<T: Real> Emulator<T> {
             };
             raw[k] = c * i * v;
             if grad {
-                let dv = (self.n_n[k] - bh * v) * inv_len;
-                let di = if e.intensity {
-                    bh * (T::lit(-2.0) * i * inv_len)
-                } else {
-                    z
-                };
-                let dw_dr = -(bore + bh * w) * inv_len;
-                let dw_de = -bh;
-                g[k][0] = dw_dr * (dcdw * i * v) + di * (c * v) + dv * (c * i);
-                g[k][1] = dw_de * (dcdw * i * v);
+                // grad_r S = (I/|b|) [c n - k2 e - k3 bh] with k2 = dc/dw V and
+                // k3 = c V (1 + 2 [intensity]) + k2 w; grad_e S = -k2 I bh.
+                let k2 = dcdw * v;
+                let cv = c * v;
+                let k3 = if e.intensity { cv * T::lit(3.0) } else { cv } + k2 * w;
+                let il = i * inv_len;
+                g[k][0] = (self.n_n[k] * c - bore * k2 - bh * k3) * il;
+                g[k][1] = bh * (-(k2 * i));
             }
         }
         let x = e.crosstalk;
