@@ -29,7 +29,8 @@ pub struct DemoArgs {
 const DEMO_PLAN: &str = include_str!("../plans/demo.toml");
 
 fn path_str(p: &std::path::Path) -> Result<&str> {
-    p.to_str().ok_or_else(|| anyhow::anyhow!("{}: not a UTF-8 path", p.display()))
+    p.to_str()
+        .ok_or_else(|| anyhow::anyhow!("{}: not a UTF-8 path", p.display()))
 }
 
 /// Build a subcommand's arguments exactly as its command line would.
@@ -65,7 +66,12 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         json: false,
     })?;
     println!("\n== 2. Ch IV: CTA uncertainty");
-    commands::uncertainty_cmd(&UncertaintyArgs { budget: None, diameter_in: 0.35, plot: Some(p("uncertainty.svg")), json: false })?;
+    commands::uncertainty_cmd(&UncertaintyArgs {
+        budget: None,
+        diameter_in: 0.35,
+        plot: Some(p("uncertainty.svg")),
+        json: false,
+    })?;
     let run_dir = p("run");
     let plan = p("plan.toml");
     std::fs::write(&plan, DEMO_PLAN).with_context(|| format!("{}", plan.display()))?;
@@ -110,7 +116,11 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     })?;
     println!("\n== 6. What the simulation gets wrong, why, and the gain of the extended model");
     let report = p("report");
-    let analyze = parse_args::<crate::analyze::AnalyzeArgs>(&[path_str(&data)?, "--report", path_str(&report)?])?;
+    let analyze = parse_args::<crate::analyze::AnalyzeArgs>(&[
+        path_str(&data)?,
+        "--report",
+        path_str(&report)?,
+    ])?;
     crate::analyze::run(&analyze)?;
     println!(
         "\nDemo output in {}: nearfield.svg, uncertainty.svg, run/ (sweep data, manifest, truth), fit.json, \

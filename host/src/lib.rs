@@ -22,9 +22,9 @@ pub mod simulate;
 
 /// `cta analyze`: from measured data to a named cause, an extended model and a measured gain.
 pub mod analyze;
-/// `cta noise`: the noise of repeated samples and the weighting it implies.
-pub mod noise;
 /// `cta demo`: the main job on the simulated CTA.
 pub mod demo;
+/// `cta noise`: the noise of repeated samples and the weighting it implies.
+pub mod noise;
 /// `cta sweep`: autonomous, resumable CTA data collection over serial (and the simulated CTA).
 pub mod sweep;

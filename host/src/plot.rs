@@ -154,13 +154,22 @@ where
     match (p.log_x, p.log_y) {
         (false, false) => body!(b.build_cartesian_2d(x0..x1, y0..y1).map_err(e)?),
         (true, false) => body!(b
-            .build_cartesian_2d((x0..x1).log_scale().with_key_points(log_keys(x0, x1)), y0..y1)
+            .build_cartesian_2d(
+                (x0..x1).log_scale().with_key_points(log_keys(x0, x1)),
+                y0..y1
+            )
             .map_err(e)?),
         (false, true) => body!(b
-            .build_cartesian_2d(x0..x1, (y0..y1).log_scale().with_key_points(log_keys(y0, y1)))
+            .build_cartesian_2d(
+                x0..x1,
+                (y0..y1).log_scale().with_key_points(log_keys(y0, y1))
+            )
             .map_err(e)?),
         (true, true) => body!(b
-            .build_cartesian_2d((x0..x1).log_scale().with_key_points(log_keys(x0, x1)), (y0..y1).log_scale().with_key_points(log_keys(y0, y1)))
+            .build_cartesian_2d(
+                (x0..x1).log_scale().with_key_points(log_keys(x0, x1)),
+                (y0..y1).log_scale().with_key_points(log_keys(y0, y1))
+            )
             .map_err(e)?),
     }
     Ok(())

@@ -5,7 +5,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn cta(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cta")).args(args).output().expect("run cta")
+    Command::new(env!("CARGO_BIN_EXE_cta"))
+        .args(args)
+        .output()
+        .expect("run cta")
 }
 
 fn tmpdir(name: &str) -> PathBuf {
@@ -20,7 +23,11 @@ fn s(p: &Path) -> &str {
 }
 
 fn json(o: &Output) -> serde_json::Value {
-    assert!(o.status.success(), "stderr: {}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     serde_json::from_slice(&o.stdout).expect("JSON output")
 }
 
@@ -40,7 +47,15 @@ fn simulate_fit_evaluate_round_trip() {
     let o = cta(&["simulate", "--out", s(&csv), "--separations", "20,25,30"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(d.join("sim.truth.json").exists());
-    let f = json(&cta(&["fit", s(&csv), "--separations", "25,30", "--save", s(&fit), "--json"]));
+    let f = json(&cta(&[
+        "fit",
+        s(&csv),
+        "--separations",
+        "25,30",
+        "--save",
+        s(&fit),
+        "--json",
+    ]));
     // Table 3, (25, 30): d3 = +1.1378, H = 19016, rms 1.6.
     assert!((f["params"]["d3"].as_f64().unwrap() - 1.1378).abs() < 0.03);
     assert!((f["params"]["H"].as_f64().unwrap() - 19016.0).abs() < 0.003 * 19016.0);
@@ -58,7 +73,14 @@ fn simulate_fit_evaluate_round_trip() {
 
 #[test]
 fn nearfield_and_uncertainty_json() {
-    let n = json(&cta(&["nearfield", "--profile", "quartic", "--theta", "6", "--json"]));
+    let n = json(&cta(&[
+        "nearfield",
+        "--profile",
+        "quartic",
+        "--theta",
+        "6",
+        "--json",
+    ]));
     let p = n["crossing_D"]["proximity"][0].as_f64().unwrap();
     assert!((p - 68.5).abs() < 0.02 * 68.5);
     assert!(n["coeff_deg_D"]["intensity"][0].as_f64().unwrap() > 10.0);
@@ -69,14 +91,21 @@ fn nearfield_and_uncertainty_json() {
     // A user budget.
     let d = tmpdir("budget");
     let b = d.join("b.toml");
-    std::fs::write(&b, "[[item]]\nname = \"a\"\nx = 3\n[[item]]\nname = \"b\"\nx = 4\nz_plus = 1\n").unwrap();
+    std::fs::write(
+        &b,
+        "[[item]]\nname = \"a\"\nx = 3\n[[item]]\nname = \"b\"\nx = 4\nz_plus = 1\n",
+    )
+    .unwrap();
     let u = json(&cta(&["uncertainty", "--budget", s(&b), "--json"]));
     assert!((u["rss_mils"]["x"].as_f64().unwrap() - 5.0).abs() < 1e-12);
     std::fs::write(&b, "[[item]]\nname = \"a\"\nxx = 3\n").unwrap();
     // TOML errors quote the offending line under the one-line summary.
     let o = cta(&["uncertainty", "--budget", s(&b)]);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && err.contains("line 3") && err.contains("unknown field `xx`"), "{err}");
+    assert!(
+        !o.status.success() && err.contains("line 3") && err.contains("unknown field `xx`"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -86,24 +115,58 @@ fn bad_measurement_files() {
     std::fs::write(&f, "").unwrap();
     fails_with(&cta(&["fit", s(&f)]), "no measurements");
     std::fs::write(&f, "x,y,separation_in,beacon_x_in,beacon_y_in\n1,2,3,4,5\n").unwrap();
-    fails_with(&cta(&["fit", s(&f)]), "missing required column `beacon_z_in`");
-    std::fs::write(&f, "x,y,separation_in,beacon_x_in,beacon_y_in,beacon_z_in\n1,2,20,0,0,20\n1,inf,20,1,0,20\n").unwrap();
-    fails_with(&cta(&["fit", s(&f)]), "m.csv:3: column `y`: `inf` is not a finite number");
+    fails_with(
+        &cta(&["fit", s(&f)]),
+        "missing required column `beacon_z_in`",
+    );
+    std::fs::write(
+        &f,
+        "x,y,separation_in,beacon_x_in,beacon_y_in,beacon_z_in\n1,2,20,0,0,20\n1,inf,20,1,0,20\n",
+    )
+    .unwrap();
+    fails_with(
+        &cta(&["fit", s(&f)]),
+        "m.csv:3: column `y`: `inf` is not a finite number",
+    );
     std::fs::write(&f, "x,y,separation_in,beacon_x_in,beacon_y_in,beacon_z_in\n1,2,20,0,0,20\n3,4,20,1,0,20\n5,6,20,0,1,20\n").unwrap();
     fails_with(&cta(&["fit", s(&f)]), "fewer than the 7 parameters");
     let sim = d.join("sim.csv");
-    assert!(cta(&["simulate", "--out", s(&sim), "--separations", "20,25"]).status.success());
-    fails_with(&cta(&["fit", s(&sim), "--separations", "30"]), "separation(s) 30 not in the file (it has 20, 25)");
-    fails_with(&cta(&["fit", s(&sim), "--weights", "repeat"]), "needs repeated samples");
+    assert!(
+        cta(&["simulate", "--out", s(&sim), "--separations", "20,25"])
+            .status
+            .success()
+    );
+    fails_with(
+        &cta(&["fit", s(&sim), "--separations", "30"]),
+        "separation(s) 30 not in the file (it has 20, 25)",
+    );
+    fails_with(
+        &cta(&["fit", s(&sim), "--weights", "repeat"]),
+        "needs repeated samples",
+    );
     fails_with(&cta(&["fit", s(&d.join("absent.csv"))]), "absent.csv");
-    fails_with(&cta(&["simulate", "--out", s(&sim), "--effect", "glare=1"]), "unknown effect `glare`");
+    fails_with(
+        &cta(&["simulate", "--out", s(&sim), "--effect", "glare=1"]),
+        "unknown effect `glare`",
+    );
 }
 
 #[test]
 fn one_separation_names_the_parallel_pair() {
     let d = tmpdir("one");
     let sim = d.join("one.csv");
-    assert!(cta(&["simulate", "--out", s(&sim), "--separations", "20", "--far-field", "--p", "0,0,0"]).status.success());
+    assert!(cta(&[
+        "simulate",
+        "--out",
+        s(&sim),
+        "--separations",
+        "20",
+        "--far-field",
+        "--p",
+        "0,0,0"
+    ])
+    .status
+    .success());
     fails_with(&cta(&["fit", s(&sim)]), "d3");
 }
 
@@ -115,9 +178,21 @@ fn demo_runs_end_to_end() {
     let out = d.join("demo");
     let o = cta(&["demo", "--out", s(&out)]);
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{}\n{}", stdout, String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "{}\n{}",
+        stdout,
+        String::from_utf8_lossy(&o.stderr)
+    );
     assert!(stdout.contains("named: cell_gain"), "{stdout}");
-    for f in ["nearfield.svg", "uncertainty.svg", "fit.json", "figure57.svg", "run/data.csv", "report/index.html"] {
+    for f in [
+        "nearfield.svg",
+        "uncertainty.svg",
+        "fit.json",
+        "figure57.svg",
+        "run/data.csv",
+        "report/index.html",
+    ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
     // Never overwritten without --force.
