@@ -257,20 +257,22 @@ where
         let rr = r * r;
         wss += w * rr;
         ss += rr;
-        for a in 0..nn {
-            let wja = w * j[a];
-            if wja == T::zero() {
+        // Upper triangle, column by column (contiguous in nalgebra's column-major storage).
+        let ns = n.as_mut_slice();
+        for (b, &jb) in j.iter().enumerate() {
+            let wjb = w * jb;
+            if wjb == T::zero() {
                 continue;
             }
-            g[a] += wja * r;
-            for b in a..nn {
-                n[(a, b)] += wja * j[b];
+            g[b] += wjb * r;
+            for (nab, &ja) in ns[b * nn..b * nn + b + 1].iter_mut().zip(&j[..=b]) {
+                *nab += wjb * ja;
             }
         }
     })?;
-    for a in 0..nn {
-        for b in 0..a {
-            n[(a, b)] = n[(b, a)];
+    for b in 0..nn {
+        for a in 0..b {
+            n[(b, a)] = n[(a, b)];
         }
     }
     if !(wss.is_finite() && g.iter().all(|v| v.is_finite()) && n.iter().all(|v| v.is_finite())) {
