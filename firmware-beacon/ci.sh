@@ -40,7 +40,10 @@ fi
 
 echo "== firmware-beacon: tick cost under QEMU (all 100 LEDs modulated)"
 tick_hz=$(sed -n 's/^pub const TICK_HZ: u32 = \([0-9_]*\);.*/\1/p' core/src/schedule.rs | tr -d _)
-line=$(CARGO_TARGET_DIR="$target_dir/qemu" bash tests/qemu/run.sh beacon_tick | tee /dev/stderr | grep '^beacon_tick: segments=')
+# (Not `tee /dev/stderr`: when stderr is a log file, tee would truncate it.)
+out=$(CARGO_TARGET_DIR="$target_dir/qemu" bash tests/qemu/run.sh beacon_tick)
+echo "$out"
+line=$(echo "$out" | grep '^beacon_tick: segments=')
 mean=$(echo "$line" | sed 's/.*mean=\([0-9.]*\).*/\1/')
 max=$(echo "$line" | sed 's/.*max=\([0-9]*\).*/\1/')
 echo "$mean $max $tick_hz" | awk '{
