@@ -96,32 +96,7 @@ impl SimNorthStar {
 
     /// Handle command bytes from the board; returns the acknowledgement frames.
     pub fn on_command_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
-        let mut out = Vec::new();
-        for cmd in bytes.chunks(7) {
-            let Some(c) = northstar::decode_command(cmd) else {
-                continue;
-            };
-            let (kind, ok) = match c {
-                NsCommand::SetSensitivity(s) => {
-                    let ok = (1..=4).contains(&s);
-                    if ok {
-                        self.sensitivity = s;
-                    }
-                    (0x10, ok)
-                }
-                NsCommand::SetRate(r) => {
-                    let ok = (1..=50).contains(&r);
-                    if ok {
-                        self.rate_hz = r;
-                    }
-                    (0x11, ok)
-                }
-            };
-            let mut a = [0u8; 8];
-            let n = northstar::encode_ack(kind, if ok { 0 } else { 1 }, &mut a);
-            out.extend_from_slice(&a[..n]);
-        }
-        out
+        answer_commands(&mut self.sensitivity, &mut self.rate_hz, bytes)
     }
 }
 
@@ -289,4 +264,36 @@ fn run(
             board.on_ns_bytes(&bytes, &mut io);
         }
     }
+}
+
+/// A simulated detector's answer to the board's NorthStar command bytes: applies valid
+/// sensitivity (1-4) and rate (1-50 Hz) settings and returns one acknowledgement frame per
+/// command (status 1 for an out-of-range value). Shared by every simulated NorthStar.
+pub fn answer_commands(sensitivity: &mut u8, rate_hz: &mut u8, bytes: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for cmd in bytes.chunks(7) {
+        let Some(c) = northstar::decode_command(cmd) else {
+            continue;
+        };
+        let (kind, ok) = match c {
+            NsCommand::SetSensitivity(s) => {
+                let ok = (1..=4).contains(&s);
+                if ok {
+                    *sensitivity = s;
+                }
+                (0x10, ok)
+            }
+            NsCommand::SetRate(r) => {
+                let ok = (1..=50).contains(&r);
+                if ok {
+                    *rate_hz = r;
+                }
+                (0x11, ok)
+            }
+        };
+        let mut a = [0u8; 8];
+        let n = northstar::encode_ack(kind, u8::from(!ok), &mut a);
+        out.extend_from_slice(&a[..n]);
+    }
+    out
 }

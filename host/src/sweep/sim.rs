@@ -42,7 +42,7 @@ use cta_core::wire::beacon::{LedMode, LED_COUNT};
 use cta_core::wire::sensor::Mode;
 use cta_firmware_beacon::board::{Board as BeaconBoard, Outputs};
 use cta_firmware_sensor::board::{Board as SensorBoard, Io};
-use cta_firmware_sensor::northstar::{self, NsCommand, SpotFrame};
+use cta_firmware_sensor::northstar::{self, SpotFrame};
 use cta_firmware_sensor::storage::RamFlash;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -506,32 +506,7 @@ struct Detector {
 impl Detector {
     /// Handle command bytes from the board; returns the acknowledgements.
     fn commands(&mut self, bytes: &[u8]) -> Vec<u8> {
-        let mut out = Vec::new();
-        for cmd in bytes.chunks(7) {
-            let Some(c) = northstar::decode_command(cmd) else {
-                continue;
-            };
-            let (kind, ok) = match c {
-                NsCommand::SetSensitivity(s) => {
-                    let ok = (1..=4).contains(&s);
-                    if ok {
-                        self.sensitivity = s;
-                    }
-                    (0x10, ok)
-                }
-                NsCommand::SetRate(r) => {
-                    let ok = (1..=50).contains(&r);
-                    if ok {
-                        self.rate_hz = r;
-                    }
-                    (0x11, ok)
-                }
-            };
-            let mut a = [0u8; 8];
-            let n = northstar::encode_ack(kind, u8::from(!ok), &mut a);
-            out.extend_from_slice(&a[..n]);
-        }
-        out
+        cta_firmware_sensor::sim::answer_commands(&mut self.sensitivity, &mut self.rate_hz, bytes)
     }
 }
 
