@@ -187,9 +187,17 @@ pub struct Emulator<T: Real> {
     bore: Vector3<T>,
 }
 
-/// Cell signals with their gradients with respect to the beacon position `r` and to the
-/// LED boresight unit vector `e` (both in N).
-type CellGrads<T> = ([T; 4], [[Vector3<T>; 2]; 4]);
+/// One cell's signal before gain, bias, cross-talk and saturation, and its gradient in
+/// coefficient form (see [`Emulator::cell`]): with `ray = r - o_k` (not normalised),
+/// `dS/dr = a n_k + b e + c ray` and `dS/de = b ray`. All zero in shadow.
+#[derive(Debug, Clone, Copy)]
+struct Cell<T: Real> {
+    s: T,
+    a: T,
+    b: T,
+    c: T,
+    ray: Vector3<T>,
+}
 
 impl<T: Real> Emulator<T> {
     /// Build an emulator (caches the cell geometry in N).
@@ -229,127 +237,158 @@ impl<T: Real> Emulator<T> {
     /// The cell signals `S_k` (after gain, bias, cross-talk and saturation) for a beacon at
     /// `r` (N, inches). Cells in shadow give 0 before bias.
     pub fn signals(&self, r: &Vector3<T>) -> [T; 4] {
-        self.cells(r, false).0
+        self.mixed(core::array::from_fn(|k| self.cell(k, r, false).s))
+            .0
     }
 
-    /// Cell signals and, when `grad`, their gradients (see [`CellGrads`]). With
-    /// `b = r - o_k`, `bh = b/|b|`, `w = -bh . e` (cosine of the angle off the LED boresight):
-    /// `dV/dr = (n - V bh)/|b|`, `dI/dr = -2 I bh/|b|`, `dw/dr = -(e + w bh)/|b|`,
-    /// `dw/de = -bh`, and `S = c I V` differentiates by the product rule (collected below
-    /// into three scalar multiples of `n`, `e` and `bh`).
-    fn cells(&self, r: &Vector3<T>, grad: bool) -> CellGrads<T> {
+    /// Cell `k`'s raw signal `S = c I V` (pattern, intensity, cosine response) and, when
+    /// `grad`, its gradient. With `ray = r - o_k`, `l = 1/|ray|`, `V = (n . ray) l`,
+    /// `w = -(e . ray) l` (cosine of the angle off the LED boresight `e`), `I = l^2`:
+    /// `dV/dr = l n - V l^2 ray`, `dI/dr = -2 I l^2 ray`, `dw/dr = -l e - w l^2 ray`,
+    /// `dw/de = -l ray`; by the product rule `dS/dr = a n + b e + c ray` and
+    /// `dS/de = b ray` with `a = c I l`, `b = -k2 I l`, `c = -k3 I l^2`, `k2 = V dc/dw`,
+    /// `k3 = c V (1 + 2 [intensity]) + k2 w` (scalars only: the vectors are combined once
+    /// per output in [`Self::output_gradient`]).
+    fn cell(&self, k: usize, r: &Vector3<T>, grad: bool) -> Cell<T> {
         let e = &self.effects;
-        let bore = self.bore;
-        let z = Vector3::zeros();
-        let mut raw = [T::zero(); 4];
-        let mut g = [[z; 2]; 4];
-        for k in 0..4 {
-            let b = r - self.o_n[k];
-            let len2 = b.norm_squared();
-            let len = len2.sqrt();
-            let inv_len = T::one() / len;
-            let bh = b * inv_len;
-            let v = self.n_n[k].dot(&bh);
-            if v <= T::zero() {
-                continue; // in shadow: no signal, no gradient
-            }
-            let i = if e.intensity {
-                T::one() / len2
-            } else {
-                T::one()
-            };
-            // Cosine of the angle between the LED boresight and the ray beacon -> cell (-b).
-            let w = (-bh.dot(&bore)).max(-T::one()).min(T::one());
-            // c and dc/dw.
-            let (c, dcdw) = match e.pattern {
-                Pattern::Uniform => (T::one(), T::zero()),
-                Pattern::Lambertian { m } => {
-                    if w <= T::zero() {
-                        (T::zero(), T::zero())
-                    } else if m == T::one() {
-                        (w, T::one())
-                    } else {
-                        let c = w.powf(m);
-                        (c, m * c / w)
-                    }
-                }
-                p => {
-                    let gam = w.acos();
-                    let c = p.eval(gam);
-                    let dcdw = if grad {
-                        // d/dgamma by a central difference of the (polynomial) pattern,
-                        // dgamma/dw = -1/sqrt(1 - w^2).
-                        let h = T::lit(1e-4);
-                        let dcdg = (p.eval(gam + h) - p.eval(gam - h)) / (h + h);
-                        -dcdg / (T::one() - w * w).max(T::lit(1e-12)).sqrt()
-                    } else {
-                        T::zero()
-                    };
-                    (c, dcdw)
-                }
-            };
-            raw[k] = c * i * v;
-            if grad {
-                // grad_r S = (I/|b|) [c n - k2 e - k3 bh] with k2 = dc/dw V and
-                // k3 = c V (1 + 2 [intensity]) + k2 w; grad_e S = -k2 I bh.
-                let k2 = dcdw * v;
-                let cv = c * v;
-                let k3 = if e.intensity { cv * T::lit(3.0) } else { cv } + k2 * w;
-                let il = i * inv_len;
-                g[k][0] = (self.n_n[k] * c - bore * k2 - bh * k3) * il;
-                g[k][1] = bh * (-(k2 * i));
-            }
-        }
-        let x = e.crosstalk;
-        let (mixed, mg) = if x == T::zero() {
-            (raw, g)
-        } else {
-            let mix = |a: usize, b: usize| raw[a] + x * raw[b];
-            let mixg = |a: usize, b: usize| [g[a][0] + g[b][0] * x, g[a][1] + g[b][1] * x];
-            (
-                [mix(0, 2), mix(1, 3), mix(2, 0), mix(3, 1)],
-                [mixg(0, 2), mixg(1, 3), mixg(2, 0), mixg(3, 1)],
-            )
+        let z = T::zero();
+        let ray = r - self.o_n[k];
+        let mut out = Cell {
+            s: z,
+            a: z,
+            b: z,
+            c: z,
+            ray,
         };
-        let mut out = [T::zero(); 4];
-        let mut og = [[z; 2]; 4];
+        let nr = self.n_n[k].dot(&ray);
+        if nr <= z {
+            return out; // in shadow: no signal, no gradient
+        }
+        let len2 = ray.norm_squared();
+        let l = T::one() / len2.sqrt();
+        let v = nr * l;
+        let i = if e.intensity { l * l } else { T::one() };
+        let w = (-(ray.dot(&self.bore) * l)).max(-T::one()).min(T::one());
+        // c and dc/dw.
+        let (c, dcdw) = match e.pattern {
+            Pattern::Uniform => (T::one(), z),
+            Pattern::Lambertian { m } => {
+                if w <= z {
+                    (z, z)
+                } else if m == T::one() {
+                    (w, T::one())
+                } else {
+                    let c = w.powf(m);
+                    (c, m * c / w)
+                }
+            }
+            p => {
+                let gam = w.acos();
+                let c = p.eval(gam);
+                let dcdw = if grad {
+                    // d/dgamma by a central difference of the (polynomial) pattern,
+                    // dgamma/dw = -1/sqrt(1 - w^2).
+                    let h = T::lit(1e-4);
+                    let dcdg = (p.eval(gam + h) - p.eval(gam - h)) / (h + h);
+                    -dcdg / (T::one() - w * w).max(T::lit(1e-12)).sqrt()
+                } else {
+                    z
+                };
+                (c, dcdw)
+            }
+        };
+        let cv = c * v;
+        out.s = cv * i;
+        if grad {
+            let k2 = dcdw * v;
+            let k3 = if e.intensity { cv * T::lit(3.0) } else { cv } + k2 * w;
+            let il = i * l;
+            out.a = c * il;
+            out.b = -(k2 * il);
+            out.c = -(k3 * il * l);
+        }
+        out
+    }
+
+    /// Cross-talk, gain, bias and saturation on the raw cell signals: the signals `S_k` and
+    /// `dS_k/draw_k` (the gain, or 0 when clipped; cross-talk adds `x` times that to
+    /// `dS_k/draw_{k^2}`).
+    fn mixed(&self, raw: [T; 4]) -> ([T; 4], [T; 4]) {
+        let e = &self.effects;
+        let x = e.crosstalk;
+        let mut s = [T::zero(); 4];
+        let mut ds = [T::zero(); 4];
         for k in 0..4 {
-            let s = mixed[k] * e.gain[k] + e.bias[k];
+            let m = if x == T::zero() {
+                raw[k]
+            } else {
+                raw[k] + x * raw[k ^ 2]
+            };
+            let v = m * e.gain[k] + e.bias[k];
             match e.saturation {
-                Some(sat) if s >= sat => out[k] = sat, // clipped: flat
+                Some(sat) if v >= sat => s[k] = sat, // clipped: flat
                 _ => {
-                    out[k] = s;
-                    og[k] = [mg[k][0] * e.gain[k], mg[k][1] * e.gain[k]];
+                    s[k] = v;
+                    ds[k] = e.gain[k];
                 }
             }
         }
-        (out, og)
+        (s, ds)
     }
 
     /// The output of eq 63 with its gradients: `(y, dy/dr, dy/de)` for a beacon at `r` (N)
     /// and the LED boresight `e`: `dX/dr = 2 beta (S2 dS1 - S1 dS2)/(S1 + S2)^2`, likewise
     /// for Y and for `e`. `None` when a pair has no signal. Costs about three outputs, where
     /// a finite-difference Jacobian over `r` and the attitude costs seven.
+    ///
+    /// The chain rule runs on scalars first: `alpha_k = dX/draw_k` (through saturation, gain
+    /// and cross-talk), then `dX/dr = sum_k alpha_k (a_k n_k + c_k ray_k) + (sum_k alpha_k
+    /// b_k) e` and `dX/de = sum_k alpha_k b_k ray_k` with each cell's coefficients (see
+    /// [`Self::cell`]): a handful of vector products per output on the chip.
     #[allow(clippy::type_complexity)]
     pub fn output_gradient(
         &self,
         r: &Vector3<T>,
     ) -> Option<([T; 2], [Vector3<T>; 2], [Vector3<T>; 2])> {
-        let (s, g) = self.cells(r, true);
-        let b = self.head.beta;
-        let two_b = b + b;
+        let cells: [Cell<T>; 4] = core::array::from_fn(|k| self.cell(k, r, true));
+        let (s, ds) = self.mixed(core::array::from_fn(|k| cells[k].s));
+        let x = self.effects.crosstalk;
+        let beta = self.head.beta;
         let mut y = [T::zero(); 2];
         let mut dr = [Vector3::zeros(); 2];
         let mut de = [Vector3::zeros(); 2];
-        for (a, (p, q)) in [(0usize, 1usize), (2, 3)].into_iter().enumerate() {
+        // alpha_k times cell k's gradient: (the r part without e, the e coefficient, the e part).
+        let term = |k: usize, alpha: T| {
+            let c = &cells[k];
+            let ab = alpha * c.b;
+            (
+                self.n_n[k] * (alpha * c.a) + c.ray * (alpha * c.c),
+                ab,
+                c.ray * ab,
+            )
+        };
+        for (a, p) in [0usize, 2].into_iter().enumerate() {
+            let q = p + 1;
             let sum = s[p] + s[q];
             if !(sum > T::zero()) {
                 return None;
             }
-            y[a] = b * (s[p] - s[q]) / sum;
-            let f = two_b / (sum * sum);
-            dr[a] = (g[p][0] * s[q] - g[q][0] * s[p]) * f;
-            de[a] = (g[p][1] * s[q] - g[q][1] * s[p]) * f;
+            let inv = T::one() / sum;
+            y[a] = beta * (s[p] - s[q]) * inv;
+            let f = (beta + beta) * inv * inv;
+            let (ap, aq) = (f * s[q] * ds[p], -(f * s[p] * ds[q]));
+            let (tp, tq) = (term(p, ap), term(q, aq));
+            let (mut g, mut eb, mut h) = (tp.0 + tq.0, tp.1 + tq.1, tp.2 + tq.2);
+            if x != T::zero() {
+                // Cross-talk: S_p and S_q also carry x times cells p^2 and q^2.
+                for t in [term(p ^ 2, ap * x), term(q ^ 2, aq * x)] {
+                    g += t.0;
+                    eb += t.1;
+                    h += t.2;
+                }
+            }
+            dr[a] = g + self.bore * eb;
+            de[a] = h;
         }
         Some((y, dr, de))
     }
@@ -363,7 +402,11 @@ impl<T: Real> Emulator<T> {
         if !(dx > T::zero() && dy > T::zero()) {
             return None;
         }
-        Some([b * (s[0] - s[1]) / dx, b * (s[2] - s[3]) / dy])
+        // As in `output_gradient` (the same rounding).
+        Some([
+            b * (s[0] - s[1]) * (T::one() / dx),
+            b * (s[2] - s[3]) * (T::one() / dy),
+        ])
     }
 
     /// The output as the NorthStar reports it: saturated to signed 16 bits
