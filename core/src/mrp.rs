@@ -51,6 +51,23 @@ pub fn dcm_partials<T: Real>(p: &Vector3<T>) -> [Matrix3<T>; 3] {
     out
 }
 
+/// The attitude gradient of a rotated vector in a few products: for `p` with DCM
+/// `c = C(p)`, returns `K` such that for any fixed `v` and `u`
+/// `d/dp (u . C(p)^T v) = K ((C(p)^T v) x u)`.
+///
+/// A change `dp` turns the frame by `dtheta = 4 B^T dp / (1 + p^T p)^2` (the MRP kinematics
+/// `dp = B dtheta / 4`, `B = (1 - p^T p) I + 2 [p x] + 2 p p^T`, `B^T B = (1 + p^T p)^2 I`),
+/// so `d(C^T v) = (C^T dtheta) x (C^T v)` and `K = 4 B C / (1 + p^T p)^2`. The pose
+/// solver's Jacobian rows use it in place of the three [`dcm_partials`] products per beacon.
+pub fn gradient_map<T: Real>(p: &Vector3<T>, c: &Matrix3<T>) -> Matrix3<T> {
+    let sig = p.norm_squared();
+    let one = T::one();
+    let two = T::lit(2.0);
+    let a = one + sig;
+    let b = Matrix3::from_diagonal_element(one - sig) + skew(p) * two + p * p.transpose() * two;
+    b * c * (T::lit(4.0) / (a * a))
+}
+
 /// MRP from a proper orthogonal DCM (Shepperd-style via the quaternion, robust for every
 /// attitude). Returns the set with `|p| <= 1`.
 pub fn from_dcm<T: Real>(c: &Matrix3<T>) -> Vector3<T> {
@@ -240,6 +257,22 @@ mod tests {
             pm[i] -= h;
             let fd = (dcm(&pp) - dcm(&pm)) / (2.0 * h);
             assert_relative_eq!(d[i], fd, epsilon = 1e-8);
+        }
+    }
+
+    #[test]
+    fn gradient_map_matches_partials() {
+        for p in [
+            Vector3::new(0.3f64, -0.2, 0.1),
+            Vector3::new(-0.7, 0.1, 0.6),
+        ] {
+            let (c, d) = (dcm(&p), dcm_partials(&p));
+            let k = gradient_map(&p, &c);
+            let (v, u) = (Vector3::new(1.5, -0.5, 0.2), Vector3::new(-0.3, 2.0, 0.7));
+            let g = k * (c.transpose() * v).cross(&u);
+            for i in 0..3 {
+                assert_relative_eq!(g[i], u.dot(&(d[i].transpose() * v)), epsilon = 1e-12);
+            }
         }
     }
 

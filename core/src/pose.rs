@@ -22,9 +22,11 @@
 //!
 //! - [`ModelKind::Pinhole`]: eq 65 through [`collinearity::Linearisation`] with the
 //!   calibration's `d, p, H` (analytic Jacobian: `dy/dt = -dy/dd`, and
-//!   `dy/dq_i = dy/dr . (dC/dq_i)^T r_T` with [`mrp::dcm_partials`]).
+//!   `dy/dq_i = dy/dr . (dC/dq_i)^T r_T`, evaluated as `dy/dq = K ((C^T r_T) x dy/dr)`
+//!   with [`mrp::gradient_map`]).
 //! - [`ModelKind::NearField`]: the eq 60-63 emulator ([`Emulator`]) with the calibration's
-//!   near-field parameters; Jacobian by forward differences.
+//!   near-field parameters; analytic Jacobian by the chain rule through
+//!   [`Emulator::output_gradient`] (beacon position and LED boresight) and the same `K`.
 //!
 //! # Solve
 //!
@@ -716,40 +718,38 @@ impl<T: Real> Problem<T> for PoseProblem<'_, T> {
     ) -> Result<(), ModelError> {
         let s = self.solver;
         let w = s.weight;
-        let (t, ct) = split(x);
+        let q = Vector3::new(x[3], x[4], x[5]);
+        let c = mrp::dcm(&q);
+        let ct = c.transpose();
+        let t = Vector3::new(x[0], x[1], x[2]);
+        // Attitude columns by the chain rule through C(q): for r_N = t + C^T r_T,
+        // dy/dq = K ((C^T r_T) x dy/dr) (mrp::gradient_map), and likewise for the boresight.
+        let k = if jac {
+            mrp::gradient_map(&q, &c)
+        } else {
+            Matrix3::zeros()
+        };
         match &s.emulator {
             None => {
-                let dc = if jac {
-                    mrp::dcm_partials(&Vector3::new(x[3], x[4], x[5]))
-                } else {
-                    [Matrix3::zeros(); 3]
-                };
                 for o in self.obs {
-                    let rn = t + ct * o.r;
-                    let (y, g) = s.lin.eval_dr(&rn).ok_or(ModelError::NonFinite)?;
+                    let rho = ct * o.r;
+                    let (y, g) = s.lin.eval_dr(&(t + rho)).ok_or(ModelError::NonFinite)?;
                     if !jac {
                         sink(o.y[0] - y[0], w, &[]);
                         sink(o.y[1] - y[1], w, &[]);
                         continue;
                     }
-                    // dr_N/dq_i = (dC/dq_i)^T r_T.
-                    let drdq = [dc[0].tr_mul(&o.r), dc[1].tr_mul(&o.r), dc[2].tr_mul(&o.r)];
                     for a in 0..2 {
-                        let row = [
-                            g[a].x,
-                            g[a].y,
-                            g[a].z,
-                            g[a].dot(&drdq[0]),
-                            g[a].dot(&drdq[1]),
-                            g[a].dot(&drdq[2]),
-                        ];
+                        let dq = k * rho.cross(&g[a]);
+                        let row = [g[a].x, g[a].y, g[a].z, dq.x, dq.y, dq.z];
                         sink(o.y[a] - y[a], w, &row);
                     }
                 }
             }
             Some(em) => {
                 // The LEDs rotate with the target: boresight e_N = C^T(q) e_T.
-                let em0 = em.with_boresight(&(ct * s.boresight));
+                let e = ct * s.boresight;
+                let em0 = em.with_boresight(&e);
                 if !jac {
                     for o in self.obs {
                         let y = em0.output(&(t + ct * o.r)).ok_or(ModelError::NoData)?;
@@ -759,20 +759,13 @@ impl<T: Real> Problem<T> for PoseProblem<'_, T> {
                     return Ok(());
                 }
                 // Analytic chain rule through the emulator's gradients:
-                // dy/dt = dy/dr, dy/dq_i = dy/dr . (dC/dq_i)^T r_T + dy/de . (dC/dq_i)^T e_T.
-                let dc = mrp::dcm_partials(&Vector3::new(x[3], x[4], x[5]));
-                let dedq = [
-                    dc[0].tr_mul(&s.boresight),
-                    dc[1].tr_mul(&s.boresight),
-                    dc[2].tr_mul(&s.boresight),
-                ];
+                // dy/dt = dy/dr, dy/dq = K (rho x dy/dr + e_N x dy/de), rho = C^T r_T.
                 for o in self.obs {
-                    let rn = t + ct * o.r;
-                    let (y, dr, de) = em0.output_gradient(&rn).ok_or(ModelError::NoData)?;
-                    let drdq = [dc[0].tr_mul(&o.r), dc[1].tr_mul(&o.r), dc[2].tr_mul(&o.r)];
+                    let rho = ct * o.r;
+                    let (y, dr, de) = em0.output_gradient(&(t + rho)).ok_or(ModelError::NoData)?;
                     for a in 0..2 {
-                        let dq = |i: usize| dr[a].dot(&drdq[i]) + de[a].dot(&dedq[i]);
-                        let row = [dr[a].x, dr[a].y, dr[a].z, dq(0), dq(1), dq(2)];
+                        let dq = k * (rho.cross(&dr[a]) + e.cross(&de[a]));
+                        let row = [dr[a].x, dr[a].y, dr[a].z, dq.x, dq.y, dq.z];
                         sink(o.y[a] - y[a], w, &row);
                     }
                 }
@@ -939,11 +932,19 @@ mod tests {
     }
 
     #[test]
-    fn pinhole_jacobian_matches_finite_differences() {
+    fn jacobians_match_finite_differences() {
+        for model in [ModelKind::Pinhole, ModelKind::NearField] {
+            jacobian_matches_finite_differences(model);
+        }
+    }
+
+    fn jacobian_matches_finite_differences(model: ModelKind) {
         let cal = Calibration::table3();
-        let con = cta_constellation();
+        let mut con = cta_constellation();
+        // A boresight off the plate normal, so its rotation with the target is exercised.
+        con.boresight = [0.1, -0.2, -1.0];
         let settings = SolverSettings {
-            model: ModelKind::Pinhole,
+            model,
             ..Default::default()
         };
         let s = PoseSolver::<f64>::new(&cal, &con, settings).unwrap();
@@ -979,7 +980,10 @@ mod tests {
                 // residual = y - f, so df/dx = -(r+ - r-)/2h.
                 let fd = -(rp[i] - rm[i]) / (2.0 * h);
                 let an = rows[i].1[k];
-                assert!((fd - an).abs() < 1e-4 * (1.0 + an.abs()), "{k} {fd} {an}");
+                assert!(
+                    (fd - an).abs() < 1e-4 * (1.0 + an.abs()),
+                    "{model:?} {k} {fd} {an}"
+                );
             }
         }
     }
