@@ -223,6 +223,124 @@ where
     }
 }
 
+/// Cholesky factor `A = L L^T` of a symmetric positive definite matrix, with the
+/// reciprocals of its diagonal: one division per column and none in the solves (each
+/// soft-float division costs several multiplications on the chip). One factorisation per
+/// iteration serves the rank test, the Gauss-Newton step and the covariance.
+struct Chol<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    /// `L` in the lower triangle (the strict upper triangle is unused).
+    l: OMatrix<T, D, D>,
+    inv_diag: OVector<T, D>,
+}
+
+impl<T: Real, D: Dim> Chol<T, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    /// Factor `a` (only its lower triangle is read); `None` unless every pivot is positive.
+    fn new(a: &OMatrix<T, D, D>) -> Option<Self> {
+        let (dim, _) = a.shape_generic();
+        let n = dim.value();
+        let mut l = a.clone();
+        let mut inv_diag = OVector::<T, D>::zeros_generic(dim, U1);
+        for j in 0..n {
+            let mut d = l[(j, j)];
+            for k in 0..j {
+                d -= l[(j, k)] * l[(j, k)];
+            }
+            if !(d > T::zero()) {
+                return None;
+            }
+            let dj = d.sqrt();
+            let inv = T::one() / dj;
+            l[(j, j)] = dj;
+            inv_diag[j] = inv;
+            for i in j + 1..n {
+                let mut v = l[(i, j)];
+                for k in 0..j {
+                    v -= l[(i, k)] * l[(j, k)];
+                }
+                l[(i, j)] = v * inv;
+            }
+        }
+        Some(Chol { l, inv_diag })
+    }
+
+    /// `A^-1 b` by forward and back substitution.
+    fn solve(&self, b: &OVector<T, D>) -> OVector<T, D> {
+        let n = b.len();
+        let mut x = b.clone();
+        for i in 0..n {
+            let mut v = x[i];
+            for k in 0..i {
+                v -= self.l[(i, k)] * x[k];
+            }
+            x[i] = v * self.inv_diag[i];
+        }
+        for i in (0..n).rev() {
+            let mut v = x[i];
+            for k in i + 1..n {
+                v -= self.l[(k, i)] * x[k];
+            }
+            x[i] = v * self.inv_diag[i];
+        }
+        x
+    }
+
+    /// `M = L^-1` (lower triangular; the strict upper triangle is zero): then
+    /// `A^-1 = M^T M` and `trace(A^-1)` is the sum of the squares of `M`.
+    fn inverse_factor(&self) -> OMatrix<T, D, D> {
+        let (dim, _) = self.l.shape_generic();
+        let n = dim.value();
+        let mut m = OMatrix::<T, D, D>::zeros_generic(dim, dim);
+        for j in 0..n {
+            m[(j, j)] = self.inv_diag[j];
+            for i in j + 1..n {
+                let mut v = T::zero();
+                for k in j..i {
+                    v -= self.l[(i, k)] * m[(k, j)];
+                }
+                m[(i, j)] = v * self.inv_diag[i];
+            }
+        }
+        m
+    }
+
+    /// `trace(A^-1)`.
+    fn inverse_trace(&self) -> T {
+        let m = self.inverse_factor();
+        let n = self.inv_diag.len();
+        let mut tr = T::zero();
+        for j in 0..n {
+            for i in j..n {
+                tr += m[(i, j)] * m[(i, j)];
+            }
+        }
+        tr
+    }
+
+    /// `A^-1 = M^T M`, symmetric.
+    fn inverse(&self) -> OMatrix<T, D, D> {
+        let m = self.inverse_factor();
+        let n = self.inv_diag.len();
+        let mut inv = m.clone();
+        for a in 0..n {
+            for b in a..n {
+                let mut v = T::zero();
+                for k in b..n {
+                    v += m[(k, a)] * m[(k, b)];
+                }
+                inv[(a, b)] = v;
+                inv[(b, a)] = v;
+            }
+        }
+        inv
+    }
+}
+
 fn cost_at<T: Real, P: Problem<T>>(prob: &P, x: &OVector<T, P::D>) -> Result<(T, T), ModelError>
 where
     DefaultAllocator: Allocator<P::D>,
@@ -320,7 +438,7 @@ where
         OVector::<T, D>::from_fn_generic(dim, U1, |i, _| T::one() + T::lit(0.1) * T::lit(i as f64));
     u /= u.norm();
     let mut lmin = lmax;
-    if let Some(ch) = shifted.cholesky() {
+    if let Some(ch) = Chol::new(&shifted) {
         let mut mu = T::zero();
         for _ in 0..60 {
             let w = ch.solve(&u);
@@ -381,19 +499,27 @@ where
         };
         let (ns, scale) = ne.scaled();
         let gs = ne.g.component_mul(&scale);
-        // Rank check on the scaled normal matrix.
-        if let Some(err) = rank_check(&ns, &scale, &x, settings) {
+        // One factorisation of the scaled normal matrix: rank check, the undamped step and,
+        // if this is the last linearisation, the covariance.
+        let ch = Chol::new(&ns);
+        if let Some(err) = rank_check(&ns, ch.as_ref(), &scale, &x, settings) {
             return Err(err);
         }
-        last = Some((ns.clone(), scale.clone()));
         // Gauss-Newton first, Levenberg damping when the cost rises.
         let mut accepted = false;
         for _ in 0..settings.max_damping {
-            let mut a = ns.clone();
-            for i in 0..n {
-                a[(i, i)] += lambda;
-            }
-            let step = match a.cholesky() {
+            let damped;
+            let factor = if lambda == T::zero() {
+                ch.as_ref()
+            } else {
+                let mut a = ns.clone();
+                for i in 0..n {
+                    a[(i, i)] += lambda;
+                }
+                damped = Chol::new(&a);
+                damped.as_ref()
+            };
+            let step = match factor {
                 Some(ch) => {
                     let ds = ch.solve(&gs);
                     if lambda == T::zero() {
@@ -466,6 +592,7 @@ where
         if !accepted {
             stop = Some(Stop::NoFurtherDecrease);
         }
+        last = Some((ns, scale, ch));
         if stop.is_some() {
             break;
         }
@@ -478,14 +605,19 @@ where
         });
     };
     // Prefer the normal equations at the final point when a trial computed them.
-    let (ns, scale) = match next {
-        Some(ne) => ne.scaled(),
+    let (ns, scale, ch) = match next {
+        Some(ne) => {
+            let (ns, scale) = ne.scaled();
+            let ch = Chol::new(&ns);
+            (ns, scale, ch)
+        }
         None => last.expect("at least one iteration ran"),
     };
     finish(
         Final {
             x,
             ns,
+            ch,
             scale,
             wss,
             ss,
@@ -499,6 +631,7 @@ where
 
 fn rank_check<T: Real, D: Dim>(
     ns: &OMatrix<T, D, D>,
+    ch: Option<&Chol<T, D>>,
     scale: &OVector<T, D>,
     x: &OVector<T, D>,
     settings: &Settings<T>,
@@ -529,9 +662,8 @@ where
     // lambda_max <= trace = n and lambda_min >= 1 / trace(N^-1); when that lower bound on
     // lambda_min / lambda_max clears the tolerance, no eigen iteration is needed (the usual
     // case, and the one that matters on the chip).
-    if let Some(ch) = ns.clone().cholesky() {
-        let inv = ch.inverse();
-        let tr = (0..n).fold(T::zero(), |a, i| a + inv[(i, i)]);
+    if let Some(ch) = ch {
+        let tr = ch.inverse_trace();
         if tr.is_finite()
             && tr > T::zero()
             && T::one() / (T::lit(n as f64) * tr) >= settings.rank_tol
@@ -564,6 +696,8 @@ where
 {
     x: OVector<T, D>,
     ns: OMatrix<T, D, D>,
+    /// Its Cholesky factor (`None`: not positive definite).
+    ch: Option<Chol<T, D>>,
     scale: OVector<T, D>,
     wss: T,
     ss: T,
@@ -582,6 +716,7 @@ where
     let Final {
         x,
         ns,
+        ch,
         scale,
         wss,
         ss,
@@ -591,7 +726,7 @@ where
     } = f;
     let (dim, _) = ns.shape_generic();
     let n = dim.value();
-    let inv = match ns.clone().cholesky() {
+    let inv = match ch {
         Some(ch) => ch.inverse(),
         None => {
             let (_, _, v) = extreme_eigen(&ns, settings.rank_tol);
@@ -868,6 +1003,24 @@ mod tests {
             }
             other => panic!("expected NotConverged, got {other:?}"),
         }
+    }
+
+    #[test]
+    fn cholesky_helper_matches_nalgebra() {
+        use nalgebra::{Matrix5, Vector5};
+        let g = Matrix5::from_fn(|i, j| {
+            ((i * 7 + j * 3) % 5) as f64 - 1.7 + 0.3 * (i == j) as u8 as f64
+        });
+        let a = g.transpose() * g + Matrix5::identity() * 0.1;
+        let ch = Chol::new(&a).unwrap();
+        let inv = a.cholesky().unwrap().inverse();
+        assert!((ch.inverse() - inv).norm() < 1e-9 * inv.norm());
+        assert!((ch.inverse_trace() - inv.trace()).abs() < 1e-9 * inv.trace());
+        let b = Vector5::new(1.0, -2.0, 0.5, 3.0, -1.0);
+        assert!((a * ch.solve(&b) - b).norm() < 1e-9);
+        let mut bad = a;
+        bad[(3, 3)] = -1.0;
+        assert!(Chol::new(&bad).is_none());
     }
 
     #[test]
