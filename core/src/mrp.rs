@@ -16,15 +16,33 @@ pub fn skew<T: Real>(p: &Vector3<T>) -> Matrix3<T> {
     Matrix3::new(z, -p.z, p.y, p.z, z, -p.x, -p.y, p.x, z)
 }
 
-/// DCM from MRP, eq 54: `C = I + (8 [p x]^2 - 4 (1 - p^T p) [p x]) / (1 + p^T p)^2`.
-/// Element by element this is eq 55.
+/// DCM from MRP, eq 54: `C = I + (8 [p x]^2 - 4 (1 - p^T p) [p x]) / (1 + p^T p)^2`,
+/// computed element by element as eq 55.
 #[inline]
 pub fn dcm<T: Real>(p: &Vector3<T>) -> Matrix3<T> {
-    let s = skew(p);
-    let sig = p.norm_squared();
+    // Eq 55: C = [4 (p p^T - ...) + (1 - s)^2 I + 8 p_i p_j - 4 (1 - s) [p x]] / (1 + s)^2,
+    // element by element (a third of the soft-float work of the matrix products of eq 54).
+    let (p1, p2, p3) = (p.x, p.y, p.z);
+    let (q1, q2, q3) = (p1 * p1, p2 * p2, p3 * p3);
+    let s = q1 + q2 + q3;
     let one = T::one();
-    let a = one + sig;
-    Matrix3::identity() + (s * s * T::lit(8.0) - s * (T::lit(4.0) * (one - sig))) / (a * a)
+    let (four, eight) = (T::lit(4.0), T::lit(8.0));
+    let m = one - s;
+    let k = one / ((one + s) * (one + s));
+    let m2 = m * m;
+    let (a1, a2, a3) = (four * m * p1, four * m * p2, four * m * p3);
+    let (b12, b13, b23) = (eight * p1 * p2, eight * p1 * p3, eight * p2 * p3);
+    Matrix3::new(
+        four * (q1 - q2 - q3) + m2,
+        b12 + a3,
+        b13 - a2,
+        b12 - a3,
+        four * (q2 - q1 - q3) + m2,
+        b23 + a1,
+        b13 + a2,
+        b23 - a1,
+        four * (q3 - q1 - q2) + m2,
+    ) * k
 }
 
 /// Partial derivatives `dC/dp_i` (i = 1, 2, 3) of eq 54, for analytic Jacobians (eq 66).
@@ -60,12 +78,26 @@ pub fn dcm_partials<T: Real>(p: &Vector3<T>) -> [Matrix3<T>; 3] {
 /// so `d(C^T v) = (C^T dtheta) x (C^T v)` and `K = 4 B C / (1 + p^T p)^2`. The pose
 /// solver's Jacobian rows use it in place of the three [`dcm_partials`] products per beacon.
 pub fn gradient_map<T: Real>(p: &Vector3<T>, c: &Matrix3<T>) -> Matrix3<T> {
+    let (p1, p2, p3) = (p.x, p.y, p.z);
     let sig = p.norm_squared();
     let one = T::one();
-    let two = T::lit(2.0);
     let a = one + sig;
-    let b = Matrix3::from_diagonal_element(one - sig) + skew(p) * two + p * p.transpose() * two;
-    b * c * (T::lit(4.0) / (a * a))
+    // f B with f = 4 / (1 + p^T p)^2, element by element.
+    let f = T::lit(4.0) / (a * a);
+    let (d, t) = (f * (one - sig), f + f);
+    let (q1, q2, q3) = (t * p1, t * p2, t * p3);
+    let b = Matrix3::new(
+        d + q1 * p1,
+        q1 * p2 - q3,
+        q1 * p3 + q2,
+        q1 * p2 + q3,
+        d + q2 * p2,
+        q2 * p3 - q1,
+        q1 * p3 - q2,
+        q2 * p3 + q1,
+        d + q3 * p3,
+    );
+    b * c
 }
 
 /// MRP from a proper orthogonal DCM (Shepperd-style via the quaternion, robust for every
@@ -220,6 +252,11 @@ mod tests {
             4.0 * (-p1 * p1 - p2 * p2 + p3 * p3) + (1.0 - s).powi(2),
         ) * k;
         assert_relative_eq!(dcm(&p), m, epsilon = 1e-14);
+        // Eq 54 as printed (matrix form).
+        let sk = skew(&p);
+        let eq54 =
+            Matrix3::identity() + (sk * sk * 8.0 - sk * (4.0 * (1.0 - s))) / (1.0 + s).powi(2);
+        assert_relative_eq!(dcm(&p), eq54, epsilon = 1e-14);
     }
 
     #[test]

@@ -405,6 +405,8 @@ pub struct PoseSolver<T: Real> {
     emulator: Option<Emulator<T>>,
     beacons: Vec<(u8, Vector3<T>), MAX_BEACONS>,
     boresight: Vector3<T>,
+    /// The head's boresight (the O frame's z axis) in N.
+    head_axis: Vector3<T>,
     weight: T,
     warm: Option<SVector<T, 6>>,
 }
@@ -465,6 +467,7 @@ impl<T: Real> PoseSolver<T> {
             emulator,
             beacons,
             boresight: v3::<T>(&con.boresight).normalize(),
+            head_axis: mrp::dcm(&head_pose.p).row(2).transpose(),
             weight: T::one() / (noise * noise),
             warm: None,
         })
@@ -639,12 +642,15 @@ impl<T: Real> PoseSolver<T> {
         failed(status, x, n, iterations, cold)
     }
 
-    /// Every beacon in front of the head (positive depth along the head's boresight).
+    /// Every beacon in front of the head (positive depth along the head's boresight): with
+    /// `a` the head's boresight in N (third row of `C(p)`), `a . (t + C(q)^T r_T - d) > 0`,
+    /// evaluated as `(C(q) a) . r_T + a . (t - d)`.
     fn in_front(&self, x: &SVector<T, 6>, obs: &[Obs<T>]) -> bool {
-        let (t, ct) = split(x);
-        let c = mrp::dcm(&Vector3::new(self.cal[3], self.cal[4], self.cal[5]));
+        let a = self.head_axis;
+        let u = mrp::dcm(&Vector3::new(x[3], x[4], x[5])) * a;
         let d = Vector3::new(self.cal[0], self.cal[1], self.cal[2]);
-        obs.iter().all(|o| (c * (t + ct * o.r - d)).z > T::zero())
+        let k = a.dot(&(Vector3::new(x[0], x[1], x[2]) - d));
+        obs.iter().all(|o| u.dot(&o.r) + k > T::zero())
     }
 
     /// Predicted `(X, Y)` for a beacon at `r_T` with the target at `x = [t, q]`.
