@@ -11,7 +11,13 @@
 //! requests are idempotent (they set state), so a resend after a lost reply is harmless.
 //! Refusals come back as typed errors: [`LinkError::Refused`] with the board's own error
 //! type, [`LinkError::BadFrame`] when the board could not decode the request.
+//!
+//! Nothing read is lost: bytes that arrive after a reply in the same read stay for the next
+//! call, and the board's unsolicited reports ([`SEQ_NONE`], e.g. the sensor board's stream)
+//! that arrive while a reply is awaited are queued (up to [`UNSOLICITED_QUEUE`]) for
+//! [`Link::next_unsolicited`].
 
+use std::collections::VecDeque;
 use std::fmt;
 use std::io::{self, Read, Write};
 use std::marker::PhantomData;
@@ -22,6 +28,10 @@ use cta_core::wire::{
     Protocol, Reply, Request, Response, MAX_FRAME, PROTOCOL_VERSION, SEQ_NONE,
 };
 use serde::{Deserialize, Serialize};
+
+/// Unsolicited reports kept while a reply is awaited; older ones are dropped (and counted in
+/// [`LinkStats::dropped_reports`]) beyond this.
+pub const UNSOLICITED_QUEUE: usize = 1024;
 
 /// Baud rate of both boards' host links (115200 8N1).
 pub const BAUD: u32 = 115_200;
@@ -59,6 +69,8 @@ pub struct LinkStats {
     pub corrupted: u64,
     /// Board answers to frames it could not read (line garbage, or a corrupted request).
     pub garbage_answers: u64,
+    /// Unsolicited reports dropped because [`UNSOLICITED_QUEUE`] was full.
+    pub dropped_reports: u64,
 }
 
 /// What went wrong with a request.
@@ -119,6 +131,10 @@ pub struct Link<P: Protocol, S> {
     seq: u16,
     decoder: FrameDecoder<MAX_FRAME>,
     stats: LinkStats,
+    /// Bytes read but not decoded yet (they followed a reply in the same read).
+    pending: VecDeque<u8>,
+    /// Unsolicited reports received while a reply was awaited.
+    unsolicited: VecDeque<Response<P::Response>>,
     _protocol: PhantomData<P>,
 }
 
@@ -135,6 +151,8 @@ impl<P: Protocol, S: Read + Write> Link<P, S> {
             seq: 0,
             decoder: FrameDecoder::new(),
             stats: LinkStats::default(),
+            pending: VecDeque::new(),
+            unsolicited: VecDeque::new(),
             _protocol: PhantomData,
         }
     }
@@ -191,8 +209,54 @@ impl<P: Protocol, S: Read + Write> Link<P, S> {
     /// Read until the reply numbered `seq` arrives or the attempt times out.
     fn wait(&mut self, seq: u16) -> io::Result<Option<Reply<P::Response, P::Error>>> {
         let deadline = Instant::now() + self.config.timeout;
+        self.next_frame(deadline, |h, _| h.seq == seq)
+    }
+
+    /// The next unsolicited report of the board (frames numbered [`SEQ_NONE`], e.g. the
+    /// sensor board's spot and pose stream), waiting up to `timeout`; queued reports first.
+    pub fn next_unsolicited(
+        &mut self,
+        timeout: Duration,
+    ) -> io::Result<Option<Response<P::Response>>> {
+        if let Some(r) = self.unsolicited.pop_front() {
+            return Ok(Some(r));
+        }
+        let deadline = Instant::now() + timeout;
+        let got = self.next_frame(deadline, |h, r| h.seq == SEQ_NONE && r.is_ok())?;
+        Ok(got
+            .and_then(|r| r.ok())
+            .or_else(|| self.unsolicited.pop_front()))
+    }
+
+    /// Decode (pending bytes first, then reads) until a frame satisfies `want` or the
+    /// deadline passes; bytes after that frame stay pending. Other frames: unsolicited
+    /// reports are queued, the rest counted.
+    fn next_frame(
+        &mut self,
+        deadline: Instant,
+        want: impl Fn(&Header, &Reply<P::Response, P::Error>) -> bool,
+    ) -> io::Result<Option<Reply<P::Response, P::Error>>> {
         let mut buf = [0u8; 256];
-        while Instant::now() < deadline {
+        loop {
+            while let Some(b) = self.pending.pop_front() {
+                match self.decoder.push::<Reply<P::Response, P::Error>>(b) {
+                    None => {}
+                    Some(Ok((h, reply))) if want(&h, &reply) => return Ok(Some(reply)),
+                    Some(Ok((h, Ok(r)))) if h.seq == SEQ_NONE => {
+                        if self.unsolicited.len() >= UNSOLICITED_QUEUE {
+                            self.unsolicited.pop_front();
+                            self.stats.dropped_reports += 1;
+                        }
+                        self.unsolicited.push_back(r);
+                    }
+                    Some(Ok((h, Err(_)))) if h.seq == SEQ_NONE => self.stats.garbage_answers += 1,
+                    Some(Ok(_)) => self.stats.stale += 1,
+                    Some(Err(_)) => self.stats.corrupted += 1,
+                }
+            }
+            if Instant::now() >= deadline {
+                return Ok(None);
+            }
             let n = match self.port.read(&mut buf) {
                 Ok(n) => n,
                 Err(e)
@@ -210,20 +274,8 @@ impl<P: Protocol, S: Read + Write> Link<P, S> {
             if n == 0 {
                 std::thread::sleep(Duration::from_millis(1));
             }
-            for &b in &buf[..n] {
-                match self.decoder.push::<Reply<P::Response, P::Error>>(b) {
-                    None => {}
-                    Some(Ok((h, reply))) if h.seq == seq => {
-                        self.decoder.reset();
-                        return Ok(Some(reply));
-                    }
-                    Some(Ok((h, _))) if h.seq == SEQ_NONE => self.stats.garbage_answers += 1,
-                    Some(Ok(_)) => self.stats.stale += 1,
-                    Some(Err(_)) => self.stats.corrupted += 1,
-                }
-            }
+            self.pending.extend(&buf[..n]);
         }
-        Ok(None)
     }
 
     /// Send a board-specific request; `None` for a plain acknowledgement.
@@ -308,7 +360,6 @@ pub fn open_serial(path: &str) -> io::Result<Box<dyn serialport::SerialPort>> {
 mod tests {
     use super::*;
     use cta_core::wire::beacon::{Beacon, BeaconError, BeaconRequest, BeaconResponse};
-    use std::collections::VecDeque;
 
     /// A scripted board: answers each request frame with the reply produced by `answer`.
     struct Scripted<F> {
@@ -386,6 +437,37 @@ mod tests {
             (s.sent, s.stale, s.corrupted, s.garbage_answers),
             (1, 1, 1, 1)
         );
+    }
+
+    #[test]
+    fn unsolicited_reports_around_a_reply_are_kept_in_order() {
+        let mut l = link(|_, h| {
+            // One report before the reply and two after it, all in one read.
+            let mut v = frame(SEQ_NONE, &Ok(Response::Ack));
+            v.extend(frame(h.seq, &Ok(Response::Ack)));
+            v.extend(frame(
+                SEQ_NONE,
+                &Ok(Response::Board(BeaconResponse::Table(Default::default()))),
+            ));
+            v.extend(frame(SEQ_NONE, &Ok(Response::Ack)));
+            Some(v)
+        });
+        l.heartbeat().unwrap();
+        let t = Duration::from_millis(20);
+        assert!(matches!(
+            l.next_unsolicited(t).unwrap(),
+            Some(Response::Ack)
+        ));
+        assert!(matches!(
+            l.next_unsolicited(t).unwrap(),
+            Some(Response::Board(BeaconResponse::Table(_)))
+        ));
+        assert!(matches!(
+            l.next_unsolicited(t).unwrap(),
+            Some(Response::Ack)
+        ));
+        assert!(l.next_unsolicited(t).unwrap().is_none());
+        assert_eq!(l.stats().garbage_answers + l.stats().dropped_reports, 0);
     }
 
     #[test]

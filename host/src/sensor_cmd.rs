@@ -32,7 +32,7 @@ use cta_core::real::rad;
 use cta_core::wire::sensor::{
     Mode, SensorProtocol, SensorRequest, SensorResponse, SensorStatus, SpotReport,
 };
-use cta_core::wire::{FrameDecoder, Reply, Response, MAX_FRAME, SEQ_NONE};
+use cta_core::wire::Response;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
@@ -468,40 +468,22 @@ pub fn read_reports<S: std::io::Read + std::io::Write>(
     count: u64,
     mut on_report: impl FnMut(SensorResponse),
 ) -> Result<()> {
-    let mut decoder = FrameDecoder::<MAX_FRAME>::new();
-    let mut buf = [0u8; 256];
     let mut seen = 0u64;
     let mut last = Instant::now();
     while count == 0 || seen < count {
-        let n = match link.port_mut().read(&mut buf) {
-            Ok(n) => n,
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
-                ) =>
-            {
-                0
+        match link.next_unsolicited(Duration::from_millis(100))? {
+            Some(Response::Board(r @ (SensorResponse::Spots(_) | SensorResponse::Pose(_)))) => {
+                seen += 1;
+                last = Instant::now();
+                on_report(r);
+                std::io::stdout().flush()?;
             }
-            Err(e) => return Err(e.into()),
-        };
-        if n == 0 && last.elapsed() > Duration::from_secs(5) {
-            bail!("no report from the board for 5 s (is the NorthStar connected?)");
-        }
-        for &b in &buf[..n] {
-            if let Some(Ok((h, Ok(Response::Board(r))))) =
-                decoder.push::<Reply<SensorResponse, cta_core::wire::sensor::SensorError>>(b)
-            {
-                if h.seq == SEQ_NONE
-                    && matches!(r, SensorResponse::Spots(_) | SensorResponse::Pose(_))
-                {
-                    seen += 1;
-                    last = Instant::now();
-                    on_report(r);
-                }
+            Some(_) => {}
+            None if last.elapsed() > Duration::from_secs(5) => {
+                bail!("no report from the board for 5 s (is the NorthStar connected?)")
             }
+            None => {}
         }
-        std::io::stdout().flush()?;
     }
     Ok(())
 }
