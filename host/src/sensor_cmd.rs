@@ -246,6 +246,10 @@ pub struct AccuracyArgs {
     /// model-error-free ideal).
     #[arg(long)]
     pub true_calibration: bool,
+    /// Draw the errors against range (near-field, pinhole, noise floor, systematic) to this
+    /// SVG file.
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<std::path::PathBuf>,
     /// Print JSON instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -267,6 +271,7 @@ impl Default for AccuracyArgs {
             constellation: None,
             cal_samples: 100,
             true_calibration: false,
+            plot: None,
             json: false,
             check: false,
         }
@@ -283,6 +288,12 @@ pub fn run(args: &SensorArgs) -> Result<()> {
                 println!("{}", serde_json::to_string_pretty(&table)?);
             } else {
                 print!("{}", table.render());
+            }
+            if let Some(p) = &a.plot {
+                table.plot(p)?;
+                if !a.json {
+                    println!("\nplot: {}", p.display());
+                }
             }
             if a.check {
                 table.check()?;
@@ -801,6 +812,53 @@ impl AccuracyTable {
             });
         }
         out
+    }
+
+    /// Draw position and attitude error against range: both models per frame and
+    /// systematic, and the noise floor.
+    pub fn plot(&self, path: &std::path::Path) -> Result<()> {
+        use crate::plot::{write_svg, Panel, Series};
+        let pts = |f: &dyn Fn(&AccuracyRow) -> f64| -> Vec<(f64, f64)> {
+            self.rows.iter().map(|r| (r.range, f(r))).collect()
+        };
+        let panel = |title: &str, unit: &str, att: bool| Panel {
+            title: title.into(),
+            x_desc: "range (in)".into(),
+            y_desc: format!("RMS error ({unit})"),
+            log_x: true,
+            log_y: true,
+            series: vec![
+                Series::new(
+                    "near-field, one frame",
+                    pts(&|r| if att { r.nf_att } else { r.nf_pos }),
+                ),
+                Series::new(
+                    "pinhole, one frame",
+                    pts(&|r| if att { r.ph_att } else { r.ph_pos }),
+                ),
+                Series::dashed(
+                    "noise floor",
+                    pts(&|r| if att { r.floor_att } else { r.floor_pos }),
+                ),
+                Series::dashed(
+                    "near-field, systematic",
+                    pts(&|r| if att { r.nf_att_sys } else { r.nf_pos_sys }),
+                ),
+                Series::dashed(
+                    "pinhole, systematic",
+                    pts(&|r| if att { r.ph_att_sys } else { r.ph_pos_sys }),
+                ),
+            ],
+        };
+        write_svg(
+            path,
+            &format!(
+                "Pose accuracy, near-field vs pinhole ({}, noise {:.1} counts, {} trials per range)",
+                self.constellation, self.noise_counts, self.trials
+            ),
+            &[panel("position", "in", false), panel("attitude", "deg", true)],
+            2,
+        )
     }
 
     /// `Ok` when every claim of [`Self::claims`] holds; the failures otherwise.
