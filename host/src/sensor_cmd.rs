@@ -146,6 +146,12 @@ pub enum SensorCommand {
     /// Run a simulated sensor board on a pseudo-terminal and print its path.
     Sim(SimArgs),
     /// Print the accuracy table: near-field-aware vs pinhole pose on simulated data.
+    ///
+    /// Simulates frames of the constellation through the eq 63 physics at each range, solves
+    /// each with both models (f32, as on the chip) and prints the RMS error of one frame, the
+    /// noise floor (the near-field solver's predicted 1-sigma), the systematic error (the same
+    /// poses without noise) and the claims with a verdict each. The near-field
+    /// calibration is fitted to a simulated CTA sweep first, as the lab would do.
     Accuracy(AccuracyArgs),
 }
 
@@ -229,9 +235,9 @@ pub struct AccuracyArgs {
     /// Solve in f64 (default: f32, as on the chip).
     #[arg(long)]
     pub f64: bool,
-    /// Raise the five outer beacons of the constellation this far toward the sensor, in
-    /// (beacons on posts: a 3-D target decorrelates tilt from lateral offset). 0: the flat
-    /// CTA plate.
+    /// Raise every beacon after the first five (the built-in layout's outer five) this far
+    /// toward the sensor, in (beacons on posts: a 3-D target decorrelates tilt from lateral
+    /// offset). 0: as given (the flat CTA plate).
     #[arg(long, default_value_t = 0.0)]
     pub depth: f64,
     /// Constellation JSON (the shape of `cta sensor template constellation`) instead of the
