@@ -545,6 +545,54 @@ mod tests {
         }
     }
 
+    /// The saturation branch: with the brightest cell clipped (and the others not), the
+    /// gradient treats the clipped signal as flat, exactly as finite differences see it.
+    #[test]
+    fn output_gradient_with_a_clipped_cell_matches_finite_differences() {
+        let head = Head::<f64>::northstar();
+        let pose = Pose::table3();
+        let r = Vector3::new(1.1, 0.6, 3.0);
+        let free = Emulator::new(head, pose, Effects::default());
+        let mut sig = free.signals(&r);
+        sig.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        let fx = Effects {
+            saturation: Some(0.5 * (sig[2] + sig[3])),
+            ..Effects::default()
+        };
+        let em = Emulator::new(head, pose, fx);
+        let clipped = em.signals(&r);
+        assert_eq!(
+            clipped
+                .iter()
+                .filter(|&&v| v == fx.saturation.unwrap())
+                .count(),
+            1
+        );
+        let (y, dr, _) = em.output_gradient(&r).unwrap();
+        assert_eq!(y, em.output(&r).unwrap());
+        assert_ne!(
+            y,
+            free.output(&r).unwrap(),
+            "the clip must change the output"
+        );
+        let h = 1e-6;
+        for k in 0..3 {
+            let mut rp = r;
+            rp[k] += h;
+            let mut rm = r;
+            rm[k] -= h;
+            let (yp, ym) = (em.output(&rp).unwrap(), em.output(&rm).unwrap());
+            for a in 0..2 {
+                let fd = (yp[a] - ym[a]) / (2.0 * h);
+                assert!(
+                    (fd - dr[a][k]).abs() < 1e-4 * (1.0 + fd.abs()),
+                    "dy{a}/dr{k}: {fd} vs {}",
+                    dr[a][k]
+                );
+            }
+        }
+    }
+
     #[test]
     fn saturates_to_i16() {
         assert_eq!(saturate_i16(40000.0f64), i16::MAX);
