@@ -965,17 +965,24 @@ pub fn nearfield_calibration(
         nominal.alpha_deg as f64,
         nominal.s as f64,
     ]);
+    let base = cta_firmware_sensor::sim::physics(start);
     let problem = NearFieldFit {
         obs: &obs,
         model: &|x: &[f64]| {
-            // f64 physics at exactly these parameters (not through the f32 calibration).
-            let mut e = cta_firmware_sensor::sim::physics(&cal_of(x));
-            e.pose.d = Vector3::new(x[0], x[1], x[2]);
-            e.pose.p = Vector3::new(x[3], x[4], x[5]);
-            e.head.alpha_x = x[6].to_radians();
-            e.head.alpha_y = x[6].to_radians();
-            e.head.s = x[7];
-            Emulator::new(e.head, e.pose, e.effects)
+            // The physics of `start` (beta, beacon pattern) with these parameters, in f64.
+            Emulator::new(
+                Head {
+                    alpha_x: x[6].to_radians(),
+                    alpha_y: x[6].to_radians(),
+                    s: x[7],
+                    ..base.head
+                },
+                HeadPose {
+                    d: Vector3::new(x[0], x[1], x[2]),
+                    p: Vector3::new(x[3], x[4], x[5]),
+                },
+                base.effects,
+            )
         },
         w: 1.0 / (sigma * sigma),
     };
