@@ -228,6 +228,15 @@ impl<P: Protocol, S: Read + Write> Link<P, S> {
             .or_else(|| self.unsolicited.pop_front()))
     }
 
+    /// Drop the queued unsolicited reports (those that arrived before the last reply, e.g.
+    /// a stream that the request just changed). Bytes after the reply are kept. Returns how
+    /// many were dropped.
+    pub fn discard_unsolicited(&mut self) -> usize {
+        let n = self.unsolicited.len();
+        self.unsolicited.clear();
+        n
+    }
+
     /// Decode (pending bytes first, then reads) until a frame satisfies `want` or the
     /// deadline passes; bytes after that frame stay pending. Other frames: unsolicited
     /// reports are queued, the rest counted.

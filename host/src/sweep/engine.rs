@@ -15,17 +15,14 @@
 //! is journalled. A refusal by a board (a plan the board cannot do) stops the run with the
 //! board's message.
 
-use std::io::{BufRead, Read, Write};
+use std::io::{BufRead, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
 use cta_core::wire::beacon::{Beacon, BeaconRequest, FreqSet, LedMode, LedSetting};
 use cta_core::wire::sensor::{Mode, SensorProtocol, SensorRequest, SensorResponse, SpotReport};
-use cta_core::wire::{
-    encode_frame, ErrorReply, FrameDecoder, Header, Identity, Protocol, Reply, Request, Response,
-    MAX_FRAME, SEQ_NONE,
-};
+use cta_core::wire::{Identity, Protocol, Response};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serialport::SerialPort;
 
@@ -294,9 +291,6 @@ pub struct Engine<'a> {
     plan: &'a Plan,
     beacon: Conn<Beacon>,
     sensor: Conn<SensorProtocol>,
-    stream_seq: u16,
-    decoder: FrameDecoder<MAX_FRAME>,
-    early: Vec<SpotReport>,
     sensitivity: Option<u8>,
     last_heartbeat: Instant,
     /// Skip settle waits (the unthrottled simulated CTA has nothing to settle).
@@ -326,9 +320,6 @@ impl<'a> Engine<'a> {
                 config,
                 link: None,
             },
-            stream_seq: 40_000,
-            decoder: FrameDecoder::new(),
-            early: Vec::new(),
             sensitivity: None,
             last_heartbeat: Instant::now(),
             skip_settle: false,
@@ -658,88 +649,15 @@ impl<'a> Engine<'a> {
         Ok(m)
     }
 
-    /// Send `SetMode(mode)` on the sensor port and wait for its acknowledgement. Spot reports
-    /// read before the acknowledgement are stale (discarded); those read after it, in the same
-    /// chunk, are the new stream's first and are kept in `self.early` for [`Self::collect`].
+    /// Send `SetMode(mode)` to the sensor board and wait for its acknowledgement (the link
+    /// retries). Spot reports that arrived before the acknowledgement are stale (the previous
+    /// LED or mode) and are discarded; those after it are the new stream's first and stay
+    /// in the link for [`Self::collect`].
     fn sensor_mode(&mut self, mode: Mode) -> Result<(), Fault> {
-        self.early.clear();
-        let attempts = self.plan.retries + 1;
-        let timeout = Duration::from_millis(self.plan.request_timeout_ms);
-        for _ in 0..attempts {
-            self.stream_seq = if self.stream_seq >= 65_000 {
-                40_000
-            } else {
-                self.stream_seq + 1
-            };
-            let seq = self.stream_seq;
-            let mut buf = [0u8; 64];
-            let frame = encode_frame(
-                Header::new(seq),
-                &Request::Board(SensorRequest::SetMode(mode)),
-                &mut buf,
-            )
-            .map_err(|e| Fault::Fatal(anyhow!("cannot frame a request: {e}")))?;
-            let port = self.sensor.link()?.port_mut();
-            port.write_all(frame)
-                .and_then(|_| port.flush())
-                .map_err(|e| Fault::Lost("sensor", format!("serial port error: {e}")))?;
-            let deadline = Instant::now() + timeout;
-            while Instant::now() < deadline {
-                let mut acked = false;
-                let mut refused = None;
-                let mut early = Vec::new();
-                self.read_sensor(&mut |h, reply| match reply {
-                    Ok(Response::Board(SensorResponse::Spots(r))) if h.seq == SEQ_NONE => {
-                        if acked && mode == Mode::Stream {
-                            early.push(r)
-                        }
-                    }
-                    Ok(Response::Ack) if h.seq == seq => acked = true,
-                    Err(ErrorReply::Board(e)) if h.seq == seq => refused = Some(e.to_string()),
-                    _ => {}
-                })?;
-                if let Some(e) = refused {
-                    return Err(Fault::Fatal(anyhow!("sensor board refused SetMode: {e}")));
-                }
-                if acked {
-                    self.early = early;
-                    return Ok(());
-                }
-            }
-        }
-        Err(Fault::Lost(
-            "sensor",
-            format!("no reply to SetMode({mode:?}) after {attempts} attempt(s)"),
-        ))
-    }
-
-    /// One read of the sensor port (up to the port's 10 ms timeout); every decoded frame to
-    /// `f`.
-    fn read_sensor(
-        &mut self,
-        f: &mut dyn FnMut(Header, Reply<SensorResponse, cta_core::wire::sensor::SensorError>),
-    ) -> Result<(), Fault> {
-        let mut buf = [0u8; 4096];
-        let port = self.sensor.link()?.port_mut();
-        let n = match port.read(&mut buf) {
-            Ok(n) => n,
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::TimedOut
-                        | std::io::ErrorKind::WouldBlock
-                        | std::io::ErrorKind::Interrupted
-                ) =>
-            {
-                0
-            }
-            Err(e) => return Err(Fault::Lost("sensor", format!("serial port error: {e}"))),
-        };
-        for &b in &buf[..n] {
-            if let Some(Ok((h, reply))) = self.decoder.push(b) {
-                f(h, reply);
-            }
-        }
+        let link = self.sensor.link()?;
+        link.call(SensorRequest::SetMode(mode))
+            .map_err(|e| link_fault("sensor", e))?;
+        link.discard_unsolicited();
         Ok(())
     }
 
@@ -766,18 +684,14 @@ impl<'a> Engine<'a> {
                 m.samples.push((s.x, s.y, s.magnitude));
             }
         };
-        for r in std::mem::take(&mut self.early) {
-            absorb(r, m);
-        }
         while !done(m) {
-            let mut got = 0;
-            self.read_sensor(&mut |h, reply| {
-                if let (SEQ_NONE, Ok(Response::Board(SensorResponse::Spots(r)))) = (h.seq, reply) {
-                    got += 1;
-                    absorb(r, m);
-                }
-            })?;
-            if got > 0 {
+            let next = self
+                .sensor
+                .link()?
+                .next_unsolicited(Duration::from_millis(10))
+                .map_err(|e| Fault::Lost("sensor", format!("serial port error: {e}")))?;
+            if let Some(Response::Board(SensorResponse::Spots(r))) = next {
+                absorb(r, m);
                 last_report = Instant::now();
             } else if last_report.elapsed() > timeout {
                 return Err(Fault::Stalled(format!(
