@@ -480,6 +480,28 @@ mod tests {
     }
 
     #[test]
+    fn discarding_drops_only_the_reports_before_the_reply() {
+        let mut l = link(|_, h| {
+            let mut v = frame(SEQ_NONE, &Ok(Response::Ack));
+            v.extend(frame(SEQ_NONE, &Ok(Response::Ack)));
+            v.extend(frame(h.seq, &Ok(Response::Ack)));
+            v.extend(frame(
+                SEQ_NONE,
+                &Ok(Response::Board(BeaconResponse::Table(Default::default()))),
+            ));
+            Some(v)
+        });
+        l.heartbeat().unwrap();
+        assert_eq!(l.discard_unsolicited(), 2);
+        let t = Duration::from_millis(20);
+        assert!(matches!(
+            l.next_unsolicited(t).unwrap(),
+            Some(Response::Board(BeaconResponse::Table(_)))
+        ));
+        assert!(l.next_unsolicited(t).unwrap().is_none());
+    }
+
+    #[test]
     fn lost_replies_are_retried_then_time_out() {
         let mut l = link(|n, h| (n == 3).then(|| frame(h.seq, &Ok(Response::Ack))));
         l.heartbeat().unwrap();
