@@ -176,6 +176,23 @@ impl<T: Real> Problem<T> for Fit<'_, T> {
     }
 }
 
+/// The direction to a beacon estimated from a measurement, eq 67:
+/// `b_est = C^T [X, Y, H]^T` (N components, not unit length).
+pub fn estimated_direction<T: Real>(x: &Params<T>, y: [T; 2]) -> Vector3<T> {
+    let c = mrp::dcm(&Vector3::new(x[3], x[4], x[5]));
+    c.transpose() * Vector3::new(y[0], y[1], x[6])
+}
+
+/// Error in angle (radians) between the direction estimated from `y` through the fitted
+/// model `x` (eq 67) and the true direction `r - d_true` from the head to the beacon (the
+/// quantity whose spread is Figure 57).
+pub fn angle_error<T: Real>(x: &Params<T>, y: [T; 2], r: &Vector3<T>, d_true: &Vector3<T>) -> T {
+    let est = estimated_direction(x, y);
+    let truth = r - d_true;
+    // atan2(|a x b|, a . b): accurate for small angles.
+    est.cross(&truth).norm().atan2(est.dot(&truth))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -287,21 +304,4 @@ mod tests {
             other => panic!("expected rank deficiency, got {other:?}"),
         }
     }
-}
-
-/// The direction to a beacon estimated from a measurement, eq 67:
-/// `b_est = C^T [X, Y, H]^T` (N components, not unit length).
-pub fn estimated_direction<T: Real>(x: &Params<T>, y: [T; 2]) -> Vector3<T> {
-    let c = mrp::dcm(&Vector3::new(x[3], x[4], x[5]));
-    c.transpose() * Vector3::new(y[0], y[1], x[6])
-}
-
-/// Error in angle (radians) between the direction estimated from `y` through the fitted
-/// model `x` (eq 67) and the true direction `r - d_true` from the head to the beacon (the
-/// quantity whose spread is Figure 57).
-pub fn angle_error<T: Real>(x: &Params<T>, y: [T; 2], r: &Vector3<T>, d_true: &Vector3<T>) -> T {
-    let est = estimated_direction(x, y);
-    let truth = r - d_true;
-    // atan2(|a x b|, a . b): accurate for small angles.
-    est.cross(&truth).norm().atan2(est.dot(&truth))
 }

@@ -598,12 +598,18 @@ mod tests {
         let base = Emulator::new(head, pose, Effects::default());
         let r = Vector3::new(2.0, -1.0, 6.0);
         let o0 = base.output(&r).unwrap();
-        let mut e = Effects::default();
-        e.gain[0] = 1.05;
+        let mut gain = Effects::default().gain;
+        gain[0] = 1.05;
+        let e = Effects {
+            gain,
+            ..Effects::default()
+        };
         let g = Emulator::new(head, pose, e).output(&r).unwrap();
         assert!(g[0] > o0[0] && (g[1] - o0[1]).abs() < 1e-9);
-        let mut e = Effects::default();
-        e.tilt = rad(5.0);
+        let e = Effects {
+            tilt: rad(5.0),
+            ..Effects::default()
+        };
         let t = Emulator::new(head, pose, e).output(&r).unwrap();
         assert!((t[0] - o0[0]).abs() > 1.0);
     }

@@ -12,6 +12,8 @@
 //! interface (radians inside), N = sensor-board frame, O = sensor-head frame,
 //! `C = C(p)` maps N components to O components.
 #![cfg_attr(not(feature = "std"), no_std)]
+// Checks are written `!(x > 0.0)` on purpose: a NaN fails them.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 #[cfg(feature = "alloc")]
 extern crate alloc;

@@ -172,7 +172,7 @@ impl<T: Real> Model2d<T> {
         let mut lo = hi / step;
         while f(lo) <= T::zero() {
             hi = lo;
-            lo = lo / step;
+            lo /= step;
             if lo < r_min {
                 return None;
             }

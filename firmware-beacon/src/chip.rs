@@ -242,7 +242,8 @@ fn main() -> ! {
     let mut timer = dp.TIM2.counter_hz(&mut rcc);
     unwrap_or_halt(timer.start(TICK_HZ.Hz()).is_ok());
     timer.listen(Event::Update);
-    core::mem::forget(timer);
+    // Kept running: this function never returns, so `_tick` is never dropped.
+    let _tick = timer;
 
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();

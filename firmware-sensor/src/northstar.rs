@@ -194,7 +194,7 @@ enum Scan {
 /// Whether a header (kind, body length) can start a frame.
 fn plausible(kind: u8, n: usize) -> bool {
     match kind {
-        KIND_REPORT => n >= 3 && n <= MAX_BODY && (n - 3) % SPOT_BYTES == 0,
+        KIND_REPORT => (3..=MAX_BODY).contains(&n) && (n - 3).is_multiple_of(SPOT_BYTES),
         KIND_ACK => n == 2,
         _ => false,
     }

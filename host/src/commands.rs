@@ -14,7 +14,7 @@ use cta_core::uncertainty::{self, Item};
 use serde::Deserialize;
 use serde_json::json;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Beacon radiation profile choices.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -561,7 +561,7 @@ pub struct FitArgs {
 }
 
 /// Load and restrict a dataset.
-pub fn load(file: &PathBuf, separations: Option<&str>) -> Result<Dataset> {
+pub fn load(file: &Path, separations: Option<&str>) -> Result<Dataset> {
     let ds = Dataset::read(file).map_err(|e| anyhow!("{e}"))?;
     match separations {
         None => Ok(ds),

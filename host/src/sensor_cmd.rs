@@ -1075,6 +1075,16 @@ fn angle_between_deg(q_est: &Vector3<f64>, q_true: &Vector3<f64>) -> f64 {
     mrp::angle(&mrp::from_dcm(&err)).to_degrees()
 }
 
+/// One solve of the accuracy table: status, position, MRP, 1-sigma position, 1-sigma
+/// attitude (deg).
+type Solved = (
+    PoseStatus,
+    Vector3<f64>,
+    Vector3<f64>,
+    Vector3<f64>,
+    Vector3<f64>,
+);
+
 /// Compute the accuracy table.
 pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
     let mut truth = Calibration::table3();
@@ -1128,41 +1138,33 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
             let q = mrp::from_axis_angle(&axis, rad(rng.random_range(0.0..3.0)));
             let spots = simulate_spots(&em, &con, &t, &q, |_| normal.sample(&mut rng));
             seen += spots.len() as f64;
-            let solve = |cal: &Calibration,
-                         set: SolverSettings,
-                         spots: &[Spot]|
-             -> Result<(
-                PoseStatus,
-                Vector3<f64>,
-                Vector3<f64>,
-                Vector3<f64>,
-                Vector3<f64>,
-            )> {
-                if args.f64 {
-                    let mut s = PoseSolver::<f64>::new(cal, &con, set)
-                        .map_err(|e| anyhow::anyhow!("{e}"))?;
-                    let r = s.solve(spots);
-                    Ok((
-                        r.status,
-                        r.position,
-                        r.mrp,
-                        r.sigma_position,
-                        r.sigma_attitude_deg,
-                    ))
-                } else {
-                    let mut s = PoseSolver::<f32>::new(cal, &con, set)
-                        .map_err(|e| anyhow::anyhow!("{e}"))?;
-                    let r = s.solve(spots);
-                    let c = |v: Vector3<f32>| v.map(|x| x as f64);
-                    Ok((
-                        r.status,
-                        c(r.position),
-                        c(r.mrp),
-                        c(r.sigma_position),
-                        c(r.sigma_attitude_deg),
-                    ))
-                }
-            };
+            let solve =
+                |cal: &Calibration, set: SolverSettings, spots: &[Spot]| -> Result<Solved> {
+                    if args.f64 {
+                        let mut s = PoseSolver::<f64>::new(cal, &con, set)
+                            .map_err(|e| anyhow::anyhow!("{e}"))?;
+                        let r = s.solve(spots);
+                        Ok((
+                            r.status,
+                            r.position,
+                            r.mrp,
+                            r.sigma_position,
+                            r.sigma_attitude_deg,
+                        ))
+                    } else {
+                        let mut s = PoseSolver::<f32>::new(cal, &con, set)
+                            .map_err(|e| anyhow::anyhow!("{e}"))?;
+                        let r = s.solve(spots);
+                        let c = |v: Vector3<f32>| v.map(|x| x as f64);
+                        Ok((
+                            r.status,
+                            c(r.position),
+                            c(r.mrp),
+                            c(r.sigma_position),
+                            c(r.sigma_attitude_deg),
+                        ))
+                    }
+                };
             let nf = solve(&nf_cal, nf_set, &spots)?;
             let ph = solve(&ph_cal, ph_set, &spots)?;
             // The systematic part: the same pose seen without noise (rounded to counts).

@@ -94,6 +94,8 @@ impl Default for Limits {
 }
 
 /// Beacon-board requests (wrapped in [`super::Request::Board`]).
+// Messages live on the stack once per exchange (no heap on the chip): size over boxing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub enum BeaconRequest {
     /// Report [`BeaconStatus`].
@@ -143,6 +145,8 @@ pub struct BeaconStatus {
 }
 
 /// Beacon-board responses (wrapped in [`super::Response::Board`]).
+// Messages live on the stack once per exchange (no heap on the chip): size over boxing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub enum BeaconResponse {
     /// Answer to [`BeaconRequest::Status`].

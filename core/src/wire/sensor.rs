@@ -38,6 +38,8 @@ pub enum Mode {
 }
 
 /// Sensor-board requests (wrapped in [`super::Request::Board`]).
+// Messages live on the stack once per exchange (no heap on the chip): size over boxing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum SensorRequest {
     /// Report the board status ([`SensorResponse::Status`]).
@@ -163,6 +165,8 @@ pub struct SensorConfig {
 }
 
 /// Sensor-board responses (wrapped in [`super::Response::Board`]).
+// Messages live on the stack once per exchange (no heap on the chip): size over boxing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum SensorResponse {
     /// Answer to [`SensorRequest::Status`].

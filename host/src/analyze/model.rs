@@ -317,9 +317,9 @@ impl Model {
             }
         }
         for &e in &self.effects {
-            for k in 0..self.nsep {
+            for sep in &seps[..self.nsep] {
                 for n in e.local_names() {
-                    v.push(format!("{}.{n}@{}in", e.name(), seps[k]));
+                    v.push(format!("{}.{n}@{}in", e.name(), sep));
                 }
             }
         }
@@ -736,6 +736,7 @@ pub fn fit(
     let (mut chi2, mut ss) = (0.0, 0.0);
     for (j, &i) in subset.iter().enumerate() {
         let p: &PointMean = &data.points[i];
+        #[allow(clippy::needless_range_loop)] // the two axes of three arrays
         for a in 0..2 {
             let r = p.y[a] - y[j][a];
             chi2 += p.w[a] * r * r;

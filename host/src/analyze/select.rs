@@ -163,7 +163,9 @@ pub fn cross_validate(
     x: &[f64],
     fold_seps: &[Vec<usize>],
 ) -> Result<Cv, FitFailure> {
-    let parts: Vec<Result<(Vec<usize>, Vec<[f64; 2]>, usize), FitFailure>> = fold_seps
+    // Per fold: the held-out points, their predictions, the training fit's evaluations.
+    type Fold = Result<(Vec<usize>, Vec<[f64; 2]>, usize), FitFailure>;
+    let parts: Vec<Fold> = fold_seps
         .par_iter()
         .map(|held| {
             let train: Vec<usize> = (0..data.points.len())
@@ -223,6 +225,7 @@ pub fn cross_validate(
         nloc_all += nloc;
         for (j, &i) in test.iter().enumerate() {
             let pt = &data.points[i];
+            #[allow(clippy::needless_range_loop)] // the two axes of three arrays
             for a in 0..2 {
                 let r = pt.y[a] - y[j][a];
                 ss += r * r;

@@ -53,7 +53,10 @@ impl Layout {
             Layout::Single => [0.0, 0.0],
             Layout::Quad { spacing } => {
                 let h = spacing / 2.0;
-                [if q % 2 == 0 { -h } else { h }, if q < 2 { -h } else { h }]
+                [
+                    if q.is_multiple_of(2) { -h } else { h },
+                    if q < 2 { -h } else { h },
+                ]
             }
         }
     }

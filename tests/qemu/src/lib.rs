@@ -52,14 +52,18 @@ pub fn done(msg: &str) -> ! {
     qemu_done();
     hprintln!("{}", msg);
     debug::exit(debug::EXIT_SUCCESS);
-    loop {}
+    loop {
+        core::hint::spin_loop();
+    }
 }
 
 /// Exit QEMU with failure (e.g. from a panic handler).
 pub fn fail(msg: &str) -> ! {
     hprintln!("FAILED: {}", msg);
     debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    loop {
+        core::hint::spin_loop();
+    }
 }
 
 #[panic_handler]
