@@ -153,6 +153,17 @@ pub enum SensorCommand {
     /// poses without noise) and the claims with a verdict each. The near-field
     /// calibration is fitted to a simulated CTA sweep first, as the lab would do.
     Accuracy(AccuracyArgs),
+    /// Print the noise floor of one frame's pose: from the spots alone, and with the spot
+    /// magnitudes as well (an assumed magnitude model, as a what-if).
+    ///
+    /// The floor is the Cramer-Rao bound of the pose through the eq 60-63 physics: no
+    /// unbiased pose from the same measurements does better. Next to it: the pinhole pose's
+    /// systematic attitude error and the floor a pose must reach for the pinhole to be 5x
+    /// worse per frame. The magnitude rows assume magnitude = k x (sum of the cell signals),
+    /// k common to all beacons and unknown, noise a fixed percentage: the NorthStar's real
+    /// magnitude output has not been measured. `--monte-carlo N` solves noisy frames with the
+    /// magnitudes to show the bound is reached.
+    Floor(crate::pose_floor::FloorArgs),
 }
 
 /// The simulated board's scene.
@@ -288,6 +299,15 @@ impl Default for AccuracyArgs {
 pub fn run(args: &SensorArgs) -> Result<()> {
     match &args.command {
         SensorCommand::Sim(s) => return run_sim(s),
+        SensorCommand::Floor(a) => {
+            let table = crate::pose_floor::floor_table(a)?;
+            if a.json {
+                println!("{}", serde_json::to_string_pretty(&table)?);
+            } else {
+                print!("{}", table.render());
+            }
+            return Ok(());
+        }
         SensorCommand::Accuracy(a) => {
             let table = accuracy_table(a)?;
             if a.json {
@@ -451,7 +471,10 @@ pub fn run(args: &SensorArgs) -> Result<()> {
             })?;
             link.call(SensorRequest::SetMode(Mode::Idle))?;
         }
-        SensorCommand::Sim(_) | SensorCommand::Accuracy(_) | SensorCommand::Template { .. } => {
+        SensorCommand::Sim(_)
+        | SensorCommand::Accuracy(_)
+        | SensorCommand::Floor(_)
+        | SensorCommand::Template { .. } => {
             unreachable!("handled above")
         }
     }
