@@ -829,13 +829,14 @@ impl AccuracyTable {
             let bound = (1.0 + (r.ph_att_sys / r.floor_att).powi(2)).sqrt();
             out.push(Claim {
                 name: format!(
-                    "{} in attitude: 5x per frame is out of reach for any model (near-field within 1.5x of the floor)",
+                    "{} in attitude: 5x per frame is out of reach for any model of the spots (near-field within 1.5x of the floor)",
                     r.range
                 ),
                 holds: r.nf_att <= 1.5 * r.floor_att && bound < 5.0,
                 detail: format!(
                     "near-field {:.3} deg, floor {:.3} deg; pinhole systematic {:.3} deg, so even a pose on the \
-                     floor can be at best sqrt(1 + ({:.3}/{:.3})^2) = {:.1}x better",
+                     floor can be at best sqrt(1 + ({:.3}/{:.3})^2) = {:.1}x better from the spots alone \
+                     (`cta sensor floor`: what the spot magnitudes would add)",
                     r.nf_att, r.floor_att, r.ph_att_sys, r.ph_att_sys, r.floor_att, bound
                 ),
             });
