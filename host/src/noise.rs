@@ -11,6 +11,11 @@
 //! per separation when they differ by separation (the `analyze --weights separation`
 //! default), per point when they differ within a separation.
 //!
+//! It also gives the repeatability of the spot magnitude (the one-sample standard deviation
+//! of each point's magnitude relative to its mean, pooled overall and per separation): the
+//! figure `cta sensor floor --magnitude-noise` needs to tell what the magnitudes would add to
+//! the pose. It covers noise only; brightness differences between LEDs are a calibration.
+//!
 //! The off-boresight angle here is geometric (no model): the angle of the beacon from the
 //! board normal seen from the N origin, `atan(hypot(x, y) / z)`.
 
@@ -27,7 +32,9 @@ use std::path::PathBuf;
 Needs repeated samples (several rows per beacon, separation and setting). For each factor the
 file records (separation, off-boresight angle, signal magnitude, modulation frequency, power
 level, sensitivity setting) the table gives the pooled one-sample standard deviation of X and
-Y in counts, and the verdict says which weighting to use in `cta analyze --weights`.
+Y in counts, and the verdict says which weighting to use in `cta analyze --weights`. Last, the
+repeatability of the spot magnitude (one-sample std over mean, in %): what
+`cta sensor floor --magnitude-noise` takes to tell what the magnitudes would add to the pose.
 
 EXAMPLE:
   cta simulate --out sim.csv --separations 2..30 --noise 32.8 --samples 20
@@ -95,6 +102,21 @@ pub struct NoiseReport {
     pub within_separation_dispersion: f64,
     /// The weighting it implies.
     pub weighting: String,
+    /// Spot magnitude repeatability (`None` when the file records no magnitudes).
+    pub magnitude: Option<MagnitudeNoise>,
+}
+
+/// Repeatability of the spot magnitude: one-sample standard deviation relative to the
+/// point's mean magnitude, pooled (root of the summed relative squared deviations over the
+/// summed degrees of freedom).
+#[derive(Debug, Clone, Serialize)]
+pub struct MagnitudeNoise {
+    /// Points pooled (repeated samples, every sample with a positive magnitude).
+    pub points: usize,
+    /// Over the file, percent.
+    pub percent: f64,
+    /// By separation: (separation in, percent, points).
+    pub by_separation: Vec<(f64, f64, usize)>,
 }
 
 struct Pt {
@@ -102,6 +124,9 @@ struct Pt {
     n: usize,
     ss: [f64; 2],
     sxy: f64,
+    /// Sum of squared relative deviations of the magnitude (`None` unless every sample has a
+    /// positive magnitude).
+    ss_mag_rel: Option<f64>,
 }
 
 fn pool(label: String, key: f64, pts: &[&Pt]) -> Group {
@@ -209,6 +234,34 @@ fn by_bins(
     factor(name, groups)
 }
 
+fn magnitude_noise(rep: &[&Pt]) -> Option<MagnitudeNoise> {
+    let with: Vec<&&Pt> = rep.iter().filter(|p| p.ss_mag_rel.is_some()).collect();
+    if with.is_empty() {
+        return None;
+    }
+    let pooled = |pts: &[&&Pt]| {
+        let ss: f64 = pts.iter().filter_map(|p| p.ss_mag_rel).sum();
+        let dof: usize = pts.iter().map(|p| p.n - 1).sum();
+        100.0 * (ss / dof.max(1) as f64).sqrt()
+    };
+    let mut seps: BTreeMap<u64, Vec<&&Pt>> = BTreeMap::new();
+    for p in &with {
+        seps.entry(p.first.separation_in.to_bits())
+            .or_default()
+            .push(p);
+    }
+    let mut by_separation: Vec<(f64, f64, usize)> = seps
+        .into_iter()
+        .map(|(k, v)| (f64::from_bits(k), pooled(&v), v.len()))
+        .collect();
+    by_separation.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Some(MagnitudeNoise {
+        points: with.len(),
+        percent: pooled(&with),
+        by_separation,
+    })
+}
+
 /// Analyze the noise of a dataset.
 pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
     let groups = ds.points();
@@ -229,11 +282,21 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
             ss[1] += dy * dy;
             sxy += dx * dy;
         }
+        let mags: Option<Vec<f64>> = g
+            .rows
+            .iter()
+            .map(|&i| ds.samples[i].magnitude.filter(|m| *m > 0.0))
+            .collect();
+        let ss_mag_rel = mags.map(|m| {
+            let mean = m.iter().sum::<f64>() / n as f64;
+            m.iter().map(|v| ((v - mean) / mean).powi(2)).sum::<f64>()
+        });
         pts.push(Pt {
             first: g.first,
             n,
             ss,
             sxy,
+            ss_mag_rel,
         });
     }
     let rep: Vec<&Pt> = pts.iter().filter(|p| p.n > 1).collect();
@@ -335,7 +398,9 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
             all.std_x, all.std_y
         )
     };
+    let magnitude = magnitude_noise(&rep);
     Ok(NoiseReport {
+        magnitude,
         file: ds.path.display().to_string(),
         samples: ds.samples.len(),
         points_repeated: rep.len(),
@@ -398,6 +463,41 @@ pub fn render_text(r: &NoiseReport) -> String {
         r.within_separation_dispersion
     );
     let _ = writeln!(s, "weighting: {}", r.weighting);
+    match &r.magnitude {
+        None => {
+            let _ = writeln!(s, "\nspot magnitude: not recorded in the file");
+        }
+        Some(m) => {
+            let _ = writeln!(
+                s,
+                "\nspot magnitude repeatability (one-sample std / mean, {} points): {:.3} % over the file",
+                m.points, m.percent
+            );
+            let by: Vec<String> = m
+                .by_separation
+                .iter()
+                .map(|(sep, pc, _)| format!("{sep} in {pc:.3} %"))
+                .collect();
+            for (k, chunk) in by.chunks(6).enumerate() {
+                let head = if k == 0 { "by separation:" } else { "" };
+                let _ = writeln!(s, "  {head:<14} {}", chunk.join(", "));
+            }
+            if m.percent < 1e-9 {
+                let _ = writeln!(
+                    s,
+                    "  no spread at all: simulated magnitudes carry no noise (no model of it exists)"
+                );
+            } else {
+                let _ = writeln!(
+                    s,
+                    "  what the magnitudes would add to the pose at this noise: \
+                     `cta sensor floor --magnitude-noise {:.2}` (brightness differences between LEDs\n  \
+                     are not in this figure: they need their own calibration)",
+                    m.percent
+                );
+            }
+        }
+    }
     s
 }
 
@@ -494,5 +594,36 @@ mod tests {
         assert!(analyze_noise(&single)
             .unwrap_err()
             .contains("single sample"));
+    }
+
+    #[test]
+    fn magnitude_repeatability_is_measured() {
+        let cfg = SimConfig {
+            separations: vec![5.0, 20.0],
+            noise: 30.0,
+            samples: 10,
+            ..Default::default()
+        };
+        let (mut ds, _) = cfg.run();
+        // Simulated magnitudes carry no noise.
+        let r = analyze_noise(&ds).unwrap();
+        assert!(r.magnitude.as_ref().unwrap().percent < 1e-9);
+        assert!(render_text(&r).contains("no spread"));
+        // Give them +/-1 % (alternating, so the one-sample std is 1 % x sqrt(n/(n-1))), and
+        // 2 % at 20 in.
+        for s in ds.samples.iter_mut() {
+            let k = s.sample.unwrap_or(0);
+            let a = if s.separation_in == 20.0 { 0.02 } else { 0.01 };
+            if let Some(m) = s.magnitude.as_mut() {
+                *m *= if k % 2 == 0 { 1.0 + a } else { 1.0 - a };
+            }
+        }
+        let r = analyze_noise(&ds).unwrap();
+        let m = r.magnitude.unwrap();
+        let f = (10.0f64 / 9.0).sqrt();
+        assert!((m.by_separation[0].1 - 1.0 * f).abs() < 0.01, "{m:?}");
+        assert!((m.by_separation[1].1 - 2.0 * f).abs() < 0.02, "{m:?}");
+        ds.samples.iter_mut().for_each(|s| s.magnitude = None);
+        assert!(analyze_noise(&ds).unwrap().magnitude.is_none());
     }
 }
