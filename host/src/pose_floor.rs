@@ -126,8 +126,11 @@ pub struct WithMagnitude {
 pub struct FloorRow {
     /// Range, in.
     pub range: f64,
-    /// Mean beacons seen.
+    /// Mean beacons used (seen, and off the 16-bit rails).
     pub beacons: f64,
+    /// Mean beacons seen but left out because a coordinate sits on the 16-bit rail (a cell
+    /// in the dark: `|X|` or `|Y|` = beta).
+    pub railed: f64,
     /// Spots only (what the chip's solver uses).
     pub spots: Floor,
     /// The near-field solver's own 1-sigma on the noise-free frames, before its scaling by
@@ -322,6 +325,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
     let mut rows = Vec::new();
     for &range in &args.ranges {
         let mut seen = 0.0;
+        let mut railed = 0.0;
         let mut spots = [0.0f64; 2];
         let mut predicted = [0.0f64; 2];
         let mut ph_sys = 0.0;
@@ -352,6 +356,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
                 let c = cta_core::emulator::saturate_i16(v);
                 c == i16::MAX || c == i16::MIN
             };
+            let all = clean.len();
             let clean: Vec<(usize, [f64; 3])> = clean
                 .into_iter()
                 .filter(|(_, v)| !rail(v[0]) && !rail(v[1]))
@@ -362,6 +367,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
                 continue;
             }
             seen += visible.len() as f64;
+            railed += (all - visible.len()) as f64;
             let spots_fit = PoseFit {
                 scene: &scene,
                 visible: &visible,
@@ -453,6 +459,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
         rows.push(FloorRow {
             range,
             beacons: seen / n,
+            railed: railed / n,
             spots: fl(spots, n),
             solver_predicted: fl(predicted, n_solved.max(1) as f64),
             solver_not_ok: n_ok - n_solved,
@@ -493,7 +500,7 @@ impl FloorTable {
             self.noise_counts, self.constellation, self.poses
         );
         s += "Spots alone (what the chip solves with) against the attitude floor the pinhole comparison needs:\n";
-        s += "range  seen |  floor, spots only       | solver's own | pinhole     | floor needed\n";
+        s += "range  used |  floor, spots only       | solver's own | pinhole     | floor needed\n";
         s += " (in)       |  pos (in)   att (deg)    | att (deg)    | syst. (deg) | for 5x (deg)\n";
         for r in &self.rows {
             s += &format!(
@@ -510,6 +517,20 @@ impl FloorTable {
                 } else {
                     "  (spots alone: out of reach)"
                 }
+            );
+        }
+        let railed: Vec<String> = self
+            .rows
+            .iter()
+            .filter(|r| r.railed > 0.05)
+            .map(|r| format!("{} in: {:.1}", r.range, r.railed))
+            .collect();
+        if !railed.is_empty() {
+            s += &format!(
+                "Beacons per frame left out because a coordinate sits on the 16-bit rail (a cell in the dark), as the\n\
+                 solver does: {}. With noise, a railed coordinate falls back below the rail about half the time\n\
+                 and the solver then uses that spot, so `cta sensor accuracy` can show errors below this floor there.\n",
+                railed.join(", ")
             );
         }
         s += "\nWith the spot magnitudes as well (ASSUMED model: magnitude = k x sum of the cell signals, k common\n\
