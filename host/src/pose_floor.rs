@@ -126,6 +126,9 @@ pub struct WithMagnitude {
 pub struct FloorRow {
     /// Range, in.
     pub range: f64,
+    /// Poses with a bound (at least 4 beacons off the rails and a full-rank information
+    /// matrix); the rest are left out of every figure of the row.
+    pub poses_used: usize,
     /// Mean beacons used (seen, and off the 16-bit rails).
     pub beacons: f64,
     /// Mean beacons seen but left out because a coordinate sits on the 16-bit rail (a cell
@@ -366,8 +369,6 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
             if visible.len() < 4 {
                 continue;
             }
-            seen += visible.len() as f64;
-            railed += (all - visible.len()) as f64;
             let spots_fit = PoseFit {
                 scene: &scene,
                 visible: &visible,
@@ -379,6 +380,8 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
                 continue;
             };
             n_ok += 1;
+            seen += visible.len() as f64;
+            railed += (all - visible.len()) as f64;
             let (fp, fa) = floor_of(&p);
             spots[0] += fp * fp;
             spots[1] += fa * fa;
@@ -460,6 +463,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
             range,
             beacons: seen / n,
             railed: railed / n,
+            poses_used: n_ok,
             spots: fl(spots, n),
             solver_predicted: fl(predicted, n_solved.max(1) as f64),
             solver_not_ok: n_ok - n_solved,
@@ -503,6 +507,10 @@ impl FloorTable {
         s += "range  used |  floor, spots only       | solver's own | pinhole     | floor needed\n";
         s += " (in)       |  pos (in)   att (deg)    | att (deg)    | syst. (deg) | for 5x (deg)\n";
         for r in &self.rows {
+            if r.poses_used == 0 {
+                s += &format!("{:5.1}       |  no pose with 4 usable beacons\n", r.range);
+                continue;
+            }
             s += &format!(
                 "{:5.1} {:5.1} |  {:8.5}  {:9.4}     | {:9.4}    | {:9.4}   | {:9.4}{}\n",
                 r.range,
@@ -517,6 +525,18 @@ impl FloorTable {
                 } else {
                     "  (spots alone: out of reach)"
                 }
+            );
+        }
+        let short: Vec<String> = self
+            .rows
+            .iter()
+            .filter(|r| r.poses_used < self.poses)
+            .map(|r| format!("{} in: {} of {}", r.range, r.poses_used, self.poses))
+            .collect();
+        if !short.is_empty() {
+            s += &format!(
+                "Poses with fewer than 4 usable beacons (no bound), left out: {}.\n",
+                short.join(", ")
             );
         }
         let railed: Vec<String> = self
@@ -561,6 +581,10 @@ impl FloorTable {
         }
         s += "\n";
         for r in &self.rows {
+            if r.poses_used == 0 {
+                s += &format!("{:5.1} |  no pose with 4 usable beacons\n", r.range);
+                continue;
+            }
             s += &format!("{:5.1} |", r.range);
             for m in &r.with_magnitude {
                 let mut c = format!(
