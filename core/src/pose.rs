@@ -30,9 +30,12 @@
 //!
 //! # Solve
 //!
-//! Spots are matched to beacons by ID; spots at the 16-bit rails (saturated) are not used.
-//! With fewer than [`MIN_BEACONS`] matched beacons the status is
-//! [`PoseStatus::TooFewBeacons`]. Otherwise GLSDC starts from the previous good solution
+//! Spots are matched to beacons by ID. A coordinate at the 16-bit rails (a cell in the dark:
+//! the eq 63 ratio at +/-beta, or saturated) carries no position information and is not
+//! used; the spot's other coordinate still is (near the edge of the field of view, at 2 in,
+//! that keeps about four of the CTA constellation's ten beacons). With fewer than
+//! [`MIN_BEACONS`] matched beacons, or fewer usable coordinates than [`MIN_BEACONS`] whole
+//! spots give, the status is [`PoseStatus::TooFewBeacons`]. Otherwise GLSDC starts from the previous good solution
 //! (warm start) or, without one, from the *cold start*: assume the target faces the sensor
 //! (`q = 0`), turn each spot into a pinhole line of sight `u_N = C^T (x/H, y/H, 1)` from
 //! the head at `d`, and solve the linear least-squares problem `(t + r_T - d) x u_N = 0`
@@ -394,6 +397,24 @@ pub struct Obs<T: Real> {
     pub r: Vector3<T>,
     /// Measured `(X, Y)`, counts.
     pub y: [T; 2],
+    /// Which of `X`, `Y` are used (`false`: at the 16-bit rail).
+    pub used: [bool; 2],
+}
+
+impl<T: Real> Obs<T> {
+    /// Both coordinates used.
+    pub fn new(r: Vector3<T>, y: [T; 2]) -> Self {
+        Obs {
+            r,
+            y,
+            used: [true; 2],
+        }
+    }
+
+    /// Usable coordinates (0-2).
+    pub fn rows(&self) -> usize {
+        usize::from(self.used[0]) + usize::from(self.used[1])
+    }
 }
 
 /// The pose solver: calibration and constellation converted to `T`, and the warm start.
@@ -500,19 +521,22 @@ impl<T: Real> PoseSolver<T> {
         })
     }
 
-    /// Match spots to beacons by ID (first spot of each ID; saturated spots skipped).
+    /// Match spots to beacons by ID (first spot of each ID). Coordinates at the 16-bit rails
+    /// are marked unused; a spot with both there is skipped.
     pub fn match_spots(&self, spots: &[Spot]) -> Vec<Obs<T>, MAX_BEACONS> {
         let mut obs = Vec::new();
         for (id, r) in &self.beacons {
             let spot = spots.iter().find(|s| s.id == *id);
             if let Some(s) = spot {
                 let rail = |v: i16| v == i16::MAX || v == i16::MIN;
-                if rail(s.x) || rail(s.y) {
+                let used = [!rail(s.x), !rail(s.y)];
+                if !(used[0] || used[1]) {
                     continue;
                 }
                 let _ = obs.push(Obs {
                     r: *r,
                     y: [T::lit(s.x as f64), T::lit(s.y as f64)],
+                    used,
                 });
             }
         }
@@ -526,7 +550,8 @@ impl<T: Real> PoseSolver<T> {
         let h = self.cal.h();
         let mut a = Matrix3::<T>::zeros();
         let mut b = Vector3::<T>::zeros();
-        for o in obs {
+        // Whole spots only: a railed coordinate gives no line of sight.
+        for o in obs.iter().filter(|o| o.rows() == 2) {
             let u = (ct * Vector3::new(o.y[0] / h, o.y[1] / h, T::one())).normalize();
             // (t + r - d) x u = 0  <=>  [u x] t = (r - d) x u.
             let s = mrp::skew(&u);
@@ -552,7 +577,8 @@ impl<T: Real> PoseSolver<T> {
     pub fn solve_obs(&mut self, obs: &[Obs<T>]) -> PoseSolution<T> {
         let fallback = self.warm.unwrap_or_else(SVector::zeros);
         let n = obs.len() as u8;
-        if obs.len() < MIN_BEACONS {
+        let rows: usize = obs.iter().map(|o| o.rows()).sum();
+        if obs.len() < MIN_BEACONS || rows < 2 * MIN_BEACONS {
             return failed(PoseStatus::TooFewBeacons, fallback, n, 0, false);
         }
         let (x0, cold) = match self.warm {
@@ -714,7 +740,7 @@ impl<T: Real> Problem<T> for PoseProblem<'_, T> {
         U6
     }
     fn n_rows(&self) -> usize {
-        2 * self.obs.len()
+        self.obs.iter().map(|o| o.rows()).sum()
     }
     fn rows(
         &self,
@@ -741,11 +767,12 @@ impl<T: Real> Problem<T> for PoseProblem<'_, T> {
                     let rho = ct * o.r;
                     let (y, g) = s.lin.eval_dr(&(t + rho)).ok_or(ModelError::NonFinite)?;
                     if !jac {
-                        sink(o.y[0] - y[0], w, &[]);
-                        sink(o.y[1] - y[1], w, &[]);
+                        for a in (0..2).filter(|&a| o.used[a]) {
+                            sink(o.y[a] - y[a], w, &[]);
+                        }
                         continue;
                     }
-                    for a in 0..2 {
+                    for a in (0..2).filter(|&a| o.used[a]) {
                         let dq = k * rho.cross(&g[a]);
                         let row = [g[a].x, g[a].y, g[a].z, dq.x, dq.y, dq.z];
                         sink(o.y[a] - y[a], w, &row);
@@ -759,8 +786,9 @@ impl<T: Real> Problem<T> for PoseProblem<'_, T> {
                 if !jac {
                     for o in self.obs {
                         let y = em0.output(&(t + ct * o.r)).ok_or(ModelError::NoData)?;
-                        sink(o.y[0] - y[0], w, &[]);
-                        sink(o.y[1] - y[1], w, &[]);
+                        for a in (0..2).filter(|&a| o.used[a]) {
+                            sink(o.y[a] - y[a], w, &[]);
+                        }
                     }
                     return Ok(());
                 }
@@ -769,7 +797,7 @@ impl<T: Real> Problem<T> for PoseProblem<'_, T> {
                 for o in self.obs {
                     let rho = ct * o.r;
                     let (y, dr, de) = em0.output_gradient(&(t + rho)).ok_or(ModelError::NoData)?;
-                    for a in 0..2 {
+                    for a in (0..2).filter(|&a| o.used[a]) {
                         let dq = k * (rho.cross(&dr[a]) + e.cross(&de[a]));
                         let row = [dr[a].x, dr[a].y, dr[a].z, dq.x, dq.y, dq.z];
                         sink(o.y[a] - y[a], w, &row);
@@ -955,14 +983,8 @@ mod tests {
         };
         let s = PoseSolver::<f64>::new(&cal, &con, settings).unwrap();
         let obs: [Obs<f64>; 2] = [
-            Obs {
-                r: Vector3::new(1.0, 2.0, 0.0),
-                y: [0.0; 2],
-            },
-            Obs {
-                r: Vector3::new(-2.0, 0.5, 0.3),
-                y: [0.0; 2],
-            },
+            Obs::new(Vector3::new(1.0, 2.0, 0.0), [0.0; 2]),
+            Obs::new(Vector3::new(-2.0, 0.5, 0.3), [0.0; 2]),
         ];
         let p = PoseProblem {
             solver: &s,
@@ -1059,6 +1081,64 @@ mod tests {
         let second = s.solve(&spots);
         assert!(!second.cold_start && second.status == PoseStatus::Ok);
         assert!(second.iterations <= first.iterations);
+    }
+
+    /// At 2 in the outer beacons put a cell in the dark: that coordinate sits on the rail
+    /// (+/-beta) and is dropped, the other one is used. The pose from the remaining rows is
+    /// exact on a noise-free frame, and five spots that give fewer than 8 usable coordinates
+    /// are too few.
+    #[test]
+    fn railed_coordinates_are_dropped_and_the_rest_used() {
+        let em = truth_emulator();
+        let con = cta_constellation();
+        let t = Vector3::new(0.2, -0.1, 2.0);
+        let q = mrp::from_axis_angle(&Vector3::new(0.3, -0.5, 1.0), rad(2.0));
+        let spots = simulate_spots(&em, &con, &t, &q, |_| 0.0);
+        let rail = |v: i16| v == i16::MAX || v == i16::MIN;
+        let half = spots.iter().filter(|s| rail(s.x) != rail(s.y)).count();
+        assert!(half >= 2, "the test needs half-railed spots: {spots:?}");
+        let mut s = PoseSolver::<f64>::new(&Calibration::table3(), &con, SolverSettings::default())
+            .unwrap();
+        let obs = s.match_spots(&spots);
+        assert_eq!(
+            obs.iter().filter(|o| o.rows() == 1).count(),
+            half,
+            "{obs:?}"
+        );
+        let sol = s.solve_obs(&obs);
+        assert_eq!(sol.status, PoseStatus::Ok, "{sol:?}");
+        assert_eq!(sol.beacons as usize, obs.len());
+        assert!((sol.position - t).norm() < 1e-4, "{sol:?}");
+        assert!((sol.mrp - q).norm() < 1e-5, "{sol:?}");
+        // A railed coordinate that was used would pull the pose: move it far off and the
+        // answer must not change.
+        let mut moved = obs.clone();
+        for o in moved.iter_mut().filter(|o| o.rows() == 1) {
+            for a in 0..2 {
+                if !o.used[a] {
+                    o.y[a] = -o.y[a];
+                }
+            }
+        }
+        let mut s2 =
+            PoseSolver::<f64>::new(&Calibration::table3(), &con, SolverSettings::default())
+                .unwrap();
+        let sol2 = s2.solve_obs(&moved);
+        assert!((sol2.position - sol.position).norm() < 1e-9, "{sol2:?}");
+        // Eight usable coordinates are needed (four whole spots' worth): three whole spots
+        // and one half are too few, three whole and two halves are enough.
+        let whole: std::vec::Vec<Obs<f64>> =
+            obs.iter().filter(|o| o.rows() == 2).copied().collect();
+        let halves: std::vec::Vec<Obs<f64>> =
+            obs.iter().filter(|o| o.rows() == 1).copied().collect();
+        let mut few: std::vec::Vec<Obs<f64>> = whole[..3].to_vec();
+        few.push(halves[0]);
+        assert_eq!(s2.solve_obs(&few).status, PoseStatus::TooFewBeacons);
+        few.push(halves[1]);
+        let mut s3 =
+            PoseSolver::<f64>::new(&Calibration::table3(), &con, SolverSettings::default())
+                .unwrap();
+        assert_eq!(s3.solve_obs(&few).status, PoseStatus::Ok);
     }
 
     #[test]

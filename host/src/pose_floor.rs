@@ -131,8 +131,8 @@ pub struct FloorRow {
     pub poses_used: usize,
     /// Mean beacons used (seen, and off the 16-bit rails).
     pub beacons: f64,
-    /// Mean beacons seen but left out because a coordinate sits on the 16-bit rail (a cell
-    /// in the dark: `|X|` or `|Y|` = beta).
+    /// Mean coordinates left out because they sit on the 16-bit rail (a cell in the dark:
+    /// `|X|` or `|Y|` = beta).
     pub railed: f64,
     /// Spots only (what the chip's solver uses).
     pub spots: Floor,
@@ -213,6 +213,9 @@ const STEP: [f64; 7] = [1e-6, 1e-6, 1e-6, 1e-7, 1e-7, 1e-7, 1e-7];
 struct PoseFit<'a> {
     scene: &'a Scene<'a>,
     visible: &'a [usize],
+    /// Which of `X, Y` are used per visible beacon (`false`: on the 16-bit rail, as the
+    /// solver's `match_spots` decides).
+    used: &'a [[bool; 2]],
     /// Measured `[X, Y, magnitude]` per visible beacon.
     y: &'a [[f64; 3]],
     /// Spot noise, counts.
@@ -227,7 +230,17 @@ impl glsdc::Problem<f64> for PoseFit<'_> {
         nalgebra::Dyn(if self.mag_sigma.is_some() { 7 } else { 6 })
     }
     fn n_rows(&self) -> usize {
-        self.y.len() * if self.mag_sigma.is_some() { 3 } else { 2 }
+        let spots: usize = self
+            .used
+            .iter()
+            .map(|u| usize::from(u[0]) + usize::from(u[1]))
+            .sum();
+        spots
+            + if self.mag_sigma.is_some() {
+                self.y.len()
+            } else {
+                0
+            }
     }
     fn rows(
         &self,
@@ -256,6 +269,9 @@ impl glsdc::Problem<f64> for PoseFit<'_> {
         for (j, (_, p)) in base.iter().enumerate() {
             #[allow(clippy::needless_range_loop)] // the axis of three arrays
             for axis in 0..axes {
+                if axis < 2 && !self.used[j][axis] {
+                    continue;
+                }
                 for (k, (a, b)) in cols.iter().enumerate() {
                     row[k] = (a[j].1[axis] - b[j].1[axis]) / (2.0 * STEP[k]);
                 }
@@ -354,24 +370,36 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
             let Some(clean) = scene.frame(x7.as_slice(), None) else {
                 continue;
             };
-            // Spots at the 16-bit rails carry no information (the solver skips them).
+            // Coordinates at the 16-bit rails carry no information: the solver drops them,
+            // and a spot with both there.
             let rail = |v: f64| {
                 let c = cta_core::emulator::saturate_i16(v);
                 c == i16::MAX || c == i16::MIN
             };
-            let all = clean.len();
-            let clean: Vec<(usize, [f64; 3])> = clean
-                .into_iter()
-                .filter(|(_, v)| !rail(v[0]) && !rail(v[1]))
-                .collect();
-            let visible: Vec<usize> = clean.iter().map(|(i, _)| *i).collect();
-            let y: Vec<[f64; 3]> = clean.iter().map(|(_, v)| *v).collect();
-            if visible.len() < 4 {
+            let mut n_railed = 0;
+            let mut visible = Vec::new();
+            let mut used = Vec::new();
+            let mut y = Vec::new();
+            for (i, v) in clean {
+                let u = [!rail(v[0]), !rail(v[1])];
+                n_railed += usize::from(!u[0]) + usize::from(!u[1]);
+                if u[0] || u[1] {
+                    visible.push(i);
+                    used.push(u);
+                    y.push(v);
+                }
+            }
+            let rows: usize = used
+                .iter()
+                .map(|u| usize::from(u[0]) + usize::from(u[1]))
+                .sum();
+            if visible.len() < 4 || rows < 8 {
                 continue;
             }
             let spots_fit = PoseFit {
                 scene: &scene,
                 visible: &visible,
+                used: &used,
                 y: &y,
                 sigma: noise,
                 mag_sigma: None,
@@ -381,7 +409,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
             };
             n_ok += 1;
             seen += visible.len() as f64;
-            railed += (all - visible.len()) as f64;
+            railed += n_railed as f64;
             let (fp, fa) = floor_of(&p);
             spots[0] += fp * fp;
             spots[1] += fa * fa;
@@ -547,9 +575,9 @@ impl FloorTable {
             .collect();
         if !railed.is_empty() {
             s += &format!(
-                "Beacons per frame left out because a coordinate sits on the 16-bit rail (a cell in the dark), as the\n\
-                 solver does: {}. With noise, a railed coordinate falls back below the rail about half the time\n\
-                 and the solver then uses that spot, so `cta sensor accuracy` can show errors below this floor there.\n",
+                "Coordinates per frame on the 16-bit rail (a cell in the dark), left out as the solver does: {}.\n\
+                 (With noise such a coordinate can fall just below the rail and be used; the model has no slope\n\
+                 there, so it adds nothing.)\n",
                 railed.join(", ")
             );
         }
