@@ -332,7 +332,8 @@ pub enum ModelKind {
 pub enum PoseStatus {
     /// Converged; pose and 1-sigma valid.
     Ok,
-    /// Fewer than [`MIN_BEACONS`] beacons of the constellation were seen.
+    /// Fewer than [`MIN_BEACONS`] beacons of the constellation were seen, or fewer usable
+    /// coordinates (off the 16-bit rails) than that many whole spots give.
     TooFewBeacons,
     /// No convergence, left the model's domain, or a false minimum (residual too large).
     Diverged,
@@ -1085,7 +1086,7 @@ mod tests {
 
     /// At 2 in the outer beacons put a cell in the dark: that coordinate sits on the rail
     /// (+/-beta) and is dropped, the other one is used. The pose from the remaining rows is
-    /// exact on a noise-free frame, and five spots that give fewer than 8 usable coordinates
+    /// exact on a noise-free frame, and four spots that give fewer than 8 usable coordinates
     /// are too few.
     #[test]
     fn railed_coordinates_are_dropped_and_the_rest_used() {
