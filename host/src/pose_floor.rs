@@ -340,6 +340,8 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
     let scene = Scene { em: &em, con: &con };
     let ph_cal = pinhole_calibration(&truth)?;
     let mut rng = StdRng::seed_from_u64(args.seed);
+    // The Monte Carlo noise has its own stream, so the poses are the same with or without it.
+    let mut mc_rng = StdRng::seed_from_u64(args.seed ^ 0x5EED_0F_4D_C0);
     let unit = Normal::new(0.0, 1.0).context("noise")?;
     let mut rows = Vec::new();
     for &range in &args.ranges {
@@ -460,9 +462,9 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
                         .zip(&msig)
                         .map(|(v, ms)| {
                             [
-                                v[0] + noise * unit.sample(&mut rng),
-                                v[1] + noise * unit.sample(&mut rng),
-                                v[2] + ms * unit.sample(&mut rng),
+                                v[0] + noise * unit.sample(&mut mc_rng),
+                                v[1] + noise * unit.sample(&mut mc_rng),
+                                v[2] + ms * unit.sample(&mut mc_rng),
                             ]
                         })
                         .collect();
