@@ -341,7 +341,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
     let ph_cal = pinhole_calibration(&truth)?;
     let mut rng = StdRng::seed_from_u64(args.seed);
     // The Monte Carlo noise has its own stream, so the poses are the same with or without it.
-    let mut mc_rng = StdRng::seed_from_u64(args.seed ^ 0x5EED_0F_4D_C0);
+    let mut mc_rng = StdRng::seed_from_u64(args.seed ^ 0x5EED_0F4D);
     let unit = Normal::new(0.0, 1.0).context("noise")?;
     let mut rows = Vec::new();
     for &range in &args.ranges {
