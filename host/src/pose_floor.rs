@@ -431,7 +431,8 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
             let s = nf.solve(&frame);
             if s.status == PoseStatus::Ok && s.rms > 0.0 {
                 n_solved += 1;
-                let m = 2.0 * s.beacons as f64;
+                // Rows the solver used: its usable coordinates (the same rail rule).
+                let m = rows as f64;
                 let variance_factor = s.rms * s.rms * m / ((m - 6.0) * noise * noise);
                 predicted[0] += s.sigma_position.norm_squared() / variance_factor;
                 predicted[1] += s.sigma_attitude_deg.norm_squared() / variance_factor;
@@ -658,7 +659,8 @@ mod tests {
     #[test]
     fn spots_bound_matches_the_solver_and_magnitudes_only_help() {
         let args = FloorArgs {
-            ranges: vec![3.0, 10.0],
+            // 2 in: coordinates on the rail; 3 and 10 in: none.
+            ranges: vec![2.0, 3.0, 10.0],
             magnitude_noise: vec![1.0, 1e6],
             poses: 4,
             ..FloorArgs::default()
