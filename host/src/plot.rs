@@ -52,6 +52,67 @@ pub struct Panel {
     pub series: Vec<Series>,
 }
 
+/// The corner for the legend: the one whose quarter-ish box holds the fewest data points
+/// (sampled along the lines), upper right first on a tie.
+fn legend_corner(p: &Panel, (x0, x1): (f64, f64), (y0, y1): (f64, f64)) -> SeriesLabelPosition {
+    let norm = |v: f64, lo: f64, hi: f64, log: bool| {
+        let (v, lo, hi) = if log {
+            (v.ln(), lo.ln(), hi.ln())
+        } else {
+            (v, lo, hi)
+        };
+        if hi > lo {
+            (v - lo) / (hi - lo)
+        } else {
+            0.5
+        }
+    };
+    let mut pts = Vec::new();
+    for s in &p.series {
+        let q: Vec<(f64, f64)> = s
+            .points
+            .iter()
+            .filter(|q| q.0.is_finite() && q.1.is_finite())
+            .filter(|q| (!p.log_x || q.0 > 0.0) && (!p.log_y || q.1 > 0.0))
+            .map(|q| (norm(q.0, x0, x1, p.log_x), norm(q.1, y0, y1, p.log_y)))
+            .collect();
+        for w in q.windows(2) {
+            for k in 0..8 {
+                let f = k as f64 / 8.0;
+                pts.push((
+                    w[0].0 + f * (w[1].0 - w[0].0),
+                    w[0].1 + f * (w[1].1 - w[0].1),
+                ));
+            }
+        }
+        pts.extend(q.last().copied());
+    }
+    let (bw, bh) = (0.45, 0.45);
+    let corners = [
+        (
+            SeriesLabelPosition::UpperRight,
+            1.0 - bw,
+            1.0,
+            1.0 - bh,
+            1.0,
+        ),
+        (SeriesLabelPosition::UpperLeft, 0.0, bw, 1.0 - bh, 1.0),
+        (SeriesLabelPosition::LowerRight, 1.0 - bw, 1.0, 0.0, bh),
+        (SeriesLabelPosition::LowerLeft, 0.0, bw, 0.0, bh),
+    ];
+    let mut best = (usize::MAX, SeriesLabelPosition::UpperRight);
+    for (pos, xa, xb, ya, yb) in corners {
+        let n = pts
+            .iter()
+            .filter(|(x, y)| *x >= xa && *x <= xb && *y >= ya && *y <= yb)
+            .count();
+        if n < best.0 {
+            best = (n, pos);
+        }
+    }
+    best.1
+}
+
 const COLORS: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
@@ -105,6 +166,7 @@ where
         .flat_map(|s| s.points.iter().filter(|q| keep(q.0, q.1)).map(|q| q.1));
     let (x0, x1) = range(xs, p.log_x);
     let (y0, y1) = range(ys, p.log_y);
+    let legend_at = legend_corner(p, (x0, x1), (y0, y1));
     let mut b = ChartBuilder::on(area);
     b.caption(&p.title, ("sans-serif", 16))
         .margin(12)
@@ -116,6 +178,8 @@ where
             c.configure_mesh()
                 .x_desc(p.x_desc.as_str())
                 .y_desc(p.y_desc.as_str())
+                .x_label_formatter(&|v: &f64| tick(*v))
+                .y_label_formatter(&|v: &f64| tick(*v))
                 .draw()
                 .map_err(e)?;
             for (k, s) in p.series.iter().enumerate() {
@@ -146,7 +210,7 @@ where
             c.configure_series_labels()
                 .background_style(WHITE.mix(0.8))
                 .border_style(BLACK)
-                .position(SeriesLabelPosition::UpperRight)
+                .position(legend_at)
                 .draw()
                 .map_err(e)?;
         }};

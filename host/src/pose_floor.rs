@@ -80,6 +80,10 @@ pub struct FloorArgs {
     /// Constellation JSON instead of the built-in 10-beacon CTA layout.
     #[arg(long, value_name = "FILE")]
     pub constellation: Option<String>,
+    /// Draw the attitude and position floors against range (spots only, each magnitude
+    /// noise, and the attitude floor needed for 5x) to this SVG file.
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<std::path::PathBuf>,
     /// Print JSON instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -96,6 +100,7 @@ impl Default for FloorArgs {
             seed: 2010,
             depth: 0.0,
             constellation: None,
+            plot: None,
             json: false,
         }
     }
@@ -525,6 +530,61 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
 }
 
 impl FloorTable {
+    /// Draw the floors against range: attitude (with the floor needed for 5x at 2-10 in) and
+    /// position.
+    pub fn plot(&self, path: &std::path::Path) -> Result<()> {
+        use crate::plot::{write_svg, Panel, Series};
+        let rows: Vec<&FloorRow> = self.rows.iter().filter(|r| r.poses_used > 0).collect();
+        let panel = |att: bool| {
+            let get = |f: &Floor| if att { f.attitude_deg } else { f.position };
+            let mut series = vec![Series::new(
+                "spots only",
+                rows.iter().map(|r| (r.range, get(&r.spots))).collect(),
+            )];
+            if let Some(first) = rows.first() {
+                for (l, m) in first.with_magnitude.iter().enumerate() {
+                    series.push(Series::new(
+                        format!("with magnitudes, {} % noise", m.noise_percent),
+                        rows.iter()
+                            .map(|r| (r.range, get(&r.with_magnitude[l].floor)))
+                            .collect(),
+                    ));
+                }
+            }
+            if att {
+                series.push(Series::dashed(
+                    "needed for 5x over the pinhole (2-10 in)",
+                    rows.iter()
+                        .filter(|r| r.range <= CLAIM_RANGE)
+                        .map(|r| (r.range, r.needed_for_5x_deg))
+                        .collect(),
+                ));
+            }
+            Panel {
+                title: if att {
+                    "attitude floor"
+                } else {
+                    "position floor"
+                }
+                .into(),
+                x_desc: "range (in)".into(),
+                y_desc: if att { "1-sigma (deg)" } else { "1-sigma (in)" }.into(),
+                log_x: true,
+                log_y: true,
+                series,
+            }
+        };
+        write_svg(
+            path,
+            &format!(
+                "Pose noise floor of one frame ({}, spot noise {:.1} counts; magnitude model assumed)",
+                self.constellation, self.noise_counts
+            ),
+            &[panel(true), panel(false)],
+            2,
+        )
+    }
+
     /// Human-readable table.
     pub fn render(&self) -> String {
         let mut s = String::new();

@@ -306,6 +306,12 @@ pub fn run(args: &SensorArgs) -> Result<()> {
             } else {
                 print!("{}", table.render());
             }
+            if let Some(p) = &a.plot {
+                table.plot(p)?;
+                if !a.json {
+                    println!("\nplot: {}", p.display());
+                }
+            }
             return Ok(());
         }
         SensorCommand::Accuracy(a) => {
