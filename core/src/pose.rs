@@ -35,11 +35,12 @@
 //! used; the spot's other coordinate still is (near the edge of the field of view, at 2 in,
 //! that keeps about four of the CTA constellation's ten beacons). With fewer than
 //! [`MIN_BEACONS`] matched beacons, or fewer usable coordinates than [`MIN_BEACONS`] whole
-//! spots give, the status is [`PoseStatus::TooFewBeacons`]. Otherwise GLSDC starts from the previous good solution
-//! (warm start) or, without one, from the *cold start*: assume the target faces the sensor
-//! (`q = 0`), turn each spot into a pinhole line of sight `u_N = C^T (x/H, y/H, 1)` from
-//! the head at `d`, and solve the linear least-squares problem `(t + r_T - d) x u_N = 0`
-//! (3 unknowns, 2 independent equations per beacon) for `t`. The residual weights are
+//! spots give, the status is [`PoseStatus::TooFewBeacons`]. Otherwise GLSDC starts from the
+//! previous good solution (warm start) or, without one, from the *cold start*: assume the
+//! target faces the sensor (`q = 0`), turn each whole spot into a pinhole line of sight
+//! `u_N = C^T (x/H, y/H, 1)` from the head at `d`, and solve the linear least-squares
+//! problem `(t + r_T - d) x u_N = 0` (3 unknowns, 2 independent equations per beacon) for
+//! `t`. The residual weights are
 //! `1 / noise^2` (noise from the calibration) and the covariance is scaled by the
 //! residual variance, so model misfit shows in the 1-sigma.
 //!
