@@ -344,7 +344,7 @@ impl<T: Real> Emulator<T> {
     /// The chain rule runs on scalars first: `alpha_k = dX/draw_k` (through saturation, gain
     /// and cross-talk), then `dX/dr = sum_k alpha_k (a_k n_k + c_k ray_k) + (sum_k alpha_k
     /// b_k) e` and `dX/de = sum_k alpha_k b_k ray_k` with each cell's coefficients (see
-    /// [`Self::cell`]): a handful of vector products per output on the chip.
+    /// `Self::cell`): a handful of vector products per output on the chip.
     #[allow(clippy::type_complexity)]
     pub fn output_gradient(
         &self,

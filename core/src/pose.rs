@@ -20,7 +20,7 @@
 //!
 //! # Models
 //!
-//! - [`ModelKind::Pinhole`]: eq 65 through [`collinearity::Linearisation`] with the
+//! - [`ModelKind::Pinhole`]: eq 65 through [`crate::collinearity::Linearisation`] with the
 //!   calibration's `d, p, H` (analytic Jacobian: `dy/dt = -dy/dd`, and
 //!   `dy/dq_i = dy/dr . (dC/dq_i)^T r_T`, evaluated as `dy/dq = K ((C^T r_T) x dy/dr)`
 //!   with [`mrp::gradient_map`]).

@@ -430,6 +430,8 @@ pub struct SimulateArgs {
     /// beacon_pattern=H, beacon_tilt=T[,AZ], cell_gain=GX[,GY], cell_bias=BX[,BY],
     /// face_angle=DX[,DY], saturation=S, plate_offset=SIGMA, separation_error=SIGMA,
     /// crosstalk=K (simulation only).
+    // The brackets are --help text (optional parts), not doc links.
+    #[allow(rustdoc::broken_intra_doc_links)]
     #[arg(long = "effect", value_name = "NAME=VALUE")]
     pub effects: Vec<String>,
     /// Gaussian noise, counts (1-sigma); 0 = noise-free as in the thesis. 0.1 % of beta is 32.8.

@@ -3,33 +3,33 @@
 // Checks are written `!(x > 0.0)` on purpose: a NaN fails them.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-/// `cta beacon ...`: talk to the beacon board by hand (firmware-beacon issue).
+// `cta beacon ...`: talk to the beacon board by hand (firmware-beacon issue).
 pub mod beacon_cmd;
-/// Request/response client over a serial link, shared by both boards (firmware-beacon issue).
+// Request/response client over a serial link, shared by both boards (firmware-beacon issue).
 pub mod link;
-/// `cta sensor floor`: the pose noise floor from spots alone and with magnitudes (issue 5).
+// `cta sensor floor`: the pose noise floor from spots alone and with magnitudes (issue 5).
 pub mod pose_floor;
-/// `cta sensor ...` and the pose-accuracy table (firmware-sensor issue).
+// `cta sensor ...` and the pose-accuracy table (firmware-sensor issue).
 pub mod sensor_cmd;
 
-/// The thesis subcommands.
+// The thesis subcommands.
 pub mod commands;
-/// The effect vocabulary shared by `simulate` and `analyze`.
+// The effect vocabulary shared by `simulate` and `analyze`.
 pub mod effects;
-/// The Ch V calibration fit and its evaluation.
+// The Ch V calibration fit and its evaluation.
 pub mod fit;
-/// The measurement file format (`host/MEASUREMENTS.md`).
+// The measurement file format (`host/MEASUREMENTS.md`).
 pub mod measurement;
-/// SVG charts.
+// SVG charts.
 pub mod plot;
-/// Emulated CTA data with injectable effects and a truth sidecar.
+// Emulated CTA data with injectable effects and a truth sidecar.
 pub mod simulate;
 
-/// `cta analyze`: from measured data to a named cause, an extended model and a measured gain.
+// `cta analyze`: from measured data to a named cause, an extended model and a measured gain.
 pub mod analyze;
-/// `cta demo`: the main job on the simulated CTA.
+// `cta demo`: the main job on the simulated CTA.
 pub mod demo;
-/// `cta noise`: the noise of repeated samples and the weighting it implies.
+// `cta noise`: the noise of repeated samples and the weighting it implies.
 pub mod noise;
-/// `cta sweep`: autonomous, resumable CTA data collection over serial (and the simulated CTA).
+// `cta sweep`: autonomous, resumable CTA data collection over serial (and the simulated CTA).
 pub mod sweep;
