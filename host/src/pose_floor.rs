@@ -746,6 +746,32 @@ mod tests {
         }
     }
 
+    /// A range without any usable pose prints no figures and is left out of the plot; the
+    /// plot has every curve and the JSON every row.
+    #[test]
+    fn empty_ranges_render_plot_and_json() {
+        let args = FloorArgs {
+            ranges: vec![0.3, 8.0],
+            magnitude_noise: vec![0.3],
+            poses: 2,
+            ..FloorArgs::default()
+        };
+        let t = floor_table(&args).unwrap();
+        assert_eq!(t.rows[0].poses_used, 0);
+        let text = t.render();
+        assert!(text.contains("no pose with 4 usable beacons"), "{text}");
+        assert!(text.contains("0.3 in: 0 of 2"), "{text}");
+        let path = std::env::temp_dir().join(format!("cta-floor-{}.svg", std::process::id()));
+        t.plot(&path).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        let _ = std::fs::remove_file(&path);
+        for label in ["spots only", "0.3 % noise", "needed for 5x"] {
+            assert!(svg.contains(label), "{label} missing from the plot");
+        }
+        let json = serde_json::to_value(&t).unwrap();
+        assert_eq!(json["rows"].as_array().unwrap().len(), 2);
+    }
+
     /// The bound with magnitudes is reached by an actual fit (so the table's figures are
     /// attainable, not an artefact of the Jacobian).
     #[test]
