@@ -632,6 +632,11 @@ pub struct AccuracyRow {
     pub nf_failures: usize,
     /// Trials where the pinhole solve did not return status Ok.
     pub ph_failures: usize,
+    /// Noise-free frames whose near-field solve did not return Ok (the systematic columns
+    /// include them).
+    pub nf_sys_failures: usize,
+    /// Noise-free frames whose pinhole solve did not return Ok.
+    pub ph_sys_failures: usize,
     /// Systematic error (the noise-free frame of each trial's pose, rounded to counts):
     /// near-field RMS position error, in.
     pub nf_pos_sys: f64,
@@ -735,12 +740,13 @@ impl AccuracyTable {
         s += "\nSystematic error: the same poses seen without noise (rounded to counts). This is the part a\n\
               navigation filter cannot average away; the rows above add the noise of one frame. The near-field\n\
               column is calibration error, f32 rounding and the solver's stop rule (a step worth less than\n\
-              0.01 chi-square is not taken: at most ~0.1 of the floor).\n\n";
-        s += "range |  position error (in)              |  attitude error (deg)\n";
-        s += " (in) |  near-field   pinhole     ratio   |  near-field  pinhole     ratio\n";
+              0.01 chi-square is not taken: at most ~0.1 of the floor). 'not ok' counts noise-free frames whose\n\
+              solve failed (e.g. too few usable coordinates at 1 in); their fallback pose is in the columns.\n\n";
+        s += "range |  position error (in)              |  attitude error (deg)              | not ok\n";
+        s += " (in) |  near-field   pinhole     ratio   |  near-field  pinhole     ratio   | nf  ph\n";
         for r in &self.rows {
             s += &format!(
-                "{:5.1} |  {:10.6} {:9.5} {:9} |  {:10.5} {:8.4} {:9}\n",
+                "{:5.1} |  {:10.6} {:9.5} {:9} |  {:10.5} {:8.4} {:9} | {:2} {:3}\n",
                 r.range,
                 r.nf_pos_sys,
                 r.ph_pos_sys,
@@ -748,6 +754,8 @@ impl AccuracyTable {
                 r.nf_att_sys,
                 r.ph_att_sys,
                 ratio(r.ph_att_sys, r.nf_att_sys),
+                r.nf_sys_failures,
+                r.ph_sys_failures,
             );
         }
         s += "\nClaims (issue 5; `--check` fails unless all hold):\n";
@@ -1153,6 +1161,7 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
         let (mut nf_p, mut ph_p, mut nf_a, mut ph_a, mut fl_p, mut fl_a, mut seen) =
             (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         let (mut nf_failures, mut ph_failures) = (0, 0);
+        let (mut nf_sys_failures, mut ph_sys_failures) = (0, 0);
         let mut sys = [0.0f64; 4];
         for _ in 0..args.trials {
             let t = Vector3::new(
@@ -1205,6 +1214,8 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
             sys[1] += (ph0.1 - t).norm_squared();
             sys[2] += angle_between_deg(&nf0.2, &q).powi(2);
             sys[3] += angle_between_deg(&ph0.2, &q).powi(2);
+            nf_sys_failures += usize::from(nf0.0 != PoseStatus::Ok);
+            ph_sys_failures += usize::from(ph0.0 != PoseStatus::Ok);
             nf_failures += usize::from(nf.0 != PoseStatus::Ok);
             ph_failures += usize::from(ph.0 != PoseStatus::Ok);
             nf_p += (nf.1 - t).norm_squared();
@@ -1229,6 +1240,8 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
             floor_att: (fl_a / ok).sqrt(),
             nf_failures,
             ph_failures,
+            nf_sys_failures,
+            ph_sys_failures,
             nf_pos_sys: (sys[0] / n).sqrt(),
             ph_pos_sys: (sys[1] / n).sqrt(),
             nf_att_sys: (sys[2] / n).sqrt(),
@@ -1293,6 +1306,7 @@ mod tests {
         }
         for r in &t.rows {
             assert_eq!(r.nf_failures, 0, "{r:?}");
+            assert_eq!(r.nf_sys_failures, 0, "{r:?}");
             assert!(
                 r.nf_pos < 1.5 * r.floor_pos && r.nf_att < 1.5 * r.floor_att,
                 "{r:?}"
