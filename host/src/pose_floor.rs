@@ -36,17 +36,15 @@ use cta_core::emulator::Emulator;
 use cta_core::glsdc::{self, Settings};
 use cta_core::mrp;
 use cta_core::pose::{
-    cta_constellation, Calibration, Constellation, ModelKind, PoseSolver, PoseStatus,
-    SolverSettings,
+    Calibration, Constellation, ModelKind, PoseSolver, PoseStatus, SolverSettings,
 };
-use cta_core::real::rad;
 use nalgebra::{DMatrix, DVector, Vector3};
 use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
-use crate::sensor_cmd::pinhole_calibration;
+use crate::sensor_cmd::{angle_between_deg, pinhole_calibration, random_pose, test_constellation};
 
 /// Options of `cta sensor floor`.
 #[derive(Debug, Clone, Args)]
@@ -318,29 +316,12 @@ fn floor_of(p: &DMatrix<f64>) -> (f64, f64) {
     (pos, att.to_degrees())
 }
 
-fn angle_deg(q_est: &Vector3<f64>, q_true: &Vector3<f64>) -> f64 {
-    let err = mrp::dcm(q_est) * mrp::dcm(q_true).transpose();
-    mrp::angle(&mrp::from_dcm(&err)).to_degrees()
-}
-
 /// Compute the floor table.
 pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
     let mut truth = Calibration::table3();
     let noise = args.noise_fraction * cta_core::emulator::BETA;
     truth.noise = noise as f32;
-    let mut con = match &args.constellation {
-        Some(file) => {
-            let text = std::fs::read_to_string(file).with_context(|| format!("reading {file}"))?;
-            let con: Constellation =
-                serde_json::from_str(&text).with_context(|| format!("parsing {file}"))?;
-            con.validate().map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
-            con
-        }
-        None => cta_constellation(),
-    };
-    for b in con.beacons.iter_mut().skip(5) {
-        b.r[2] = -args.depth as f32;
-    }
+    let con = test_constellation(args.constellation.as_deref(), args.depth)?;
     let em: Emulator<f64> = cta_firmware_sensor::sim::physics(&truth);
     let scene = Scene { em: &em, con: &con };
     let ph_cal = pinhole_calibration(&truth)?;
@@ -361,17 +342,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
         // Near-field solves of the noisy frames that returned Ok (the others have no sigma).
         let mut n_solved = 0usize;
         for _ in 0..args.poses {
-            let t = Vector3::new(
-                rng.random_range(-0.5..0.5),
-                rng.random_range(-0.5..0.5),
-                range,
-            );
-            let axis = Vector3::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-            );
-            let q = mrp::from_axis_angle(&axis, rad(rng.random_range(0.0..3.0)));
+            let (t, q) = random_pose(&mut rng, range);
             let x6 = [t[0], t[1], t[2], q[0], q[1], q[2]];
             let x7 = DVector::from_vec(vec![t[0], t[1], t[2], q[0], q[1], q[2], 0.0]);
             let Some(clean) = scene.frame(x7.as_slice(), None) else {
@@ -451,7 +422,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
                 },
             )
             .map_err(|e| anyhow::anyhow!("{e}"))?;
-            ph_sys += angle_deg(&ph.solve(&frame).mrp, &q).powi(2);
+            ph_sys += angle_between_deg(&ph.solve(&frame).mrp, &q).powi(2);
             for (l, &pct) in args.magnitude_noise.iter().enumerate() {
                 let msig: Vec<f64> = y.iter().map(|v| v[2] * pct / 100.0).collect();
                 let fit = PoseFit {
@@ -479,7 +450,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
                     let (ep, ea) = match sol {
                         Ok(s) => (
                             (Vector3::new(s.x[0], s.x[1], s.x[2]) - t).norm(),
-                            angle_deg(&Vector3::new(s.x[3], s.x[4], s.x[5]), &q),
+                            angle_between_deg(&Vector3::new(s.x[3], s.x[4], s.x[5]), &q),
                         ),
                         Err(_) => (f64::NAN, f64::NAN),
                     };

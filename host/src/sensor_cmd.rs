@@ -1108,7 +1108,8 @@ fn ratio(a: f64, b: f64) -> String {
     }
 }
 
-fn angle_between_deg(q_est: &Vector3<f64>, q_true: &Vector3<f64>) -> f64 {
+/// Angle of the rotation between two attitudes (MRPs), degrees.
+pub fn angle_between_deg(q_est: &Vector3<f64>, q_true: &Vector3<f64>) -> f64 {
     let err = mrp::dcm(q_est) * mrp::dcm(q_true).transpose();
     mrp::angle(&mrp::from_dcm(&err)).to_degrees()
 }
@@ -1123,13 +1124,11 @@ type Solved = (
     Vector3<f64>,
 );
 
-/// Compute the accuracy table.
-pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
-    let mut truth = Calibration::table3();
-    let noise = args.noise_fraction * cta_core::emulator::BETA;
-    truth.noise = noise as f32;
-    let ph_cal = pinhole_calibration(&truth)?;
-    let mut con = match &args.constellation {
+/// The constellation of the accuracy table and `cta sensor floor`: the built-in CTA layout
+/// or `file` (JSON, validated), with every beacon after the first five raised `depth` in
+/// toward the sensor.
+pub fn test_constellation(file: Option<&str>, depth: f64) -> Result<Constellation> {
+    let mut con = match file {
         Some(file) => {
             let con: Constellation = read_json(file)?;
             con.validate().map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
@@ -1138,8 +1137,37 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
         None => cta_constellation(),
     };
     for b in con.beacons.iter_mut().skip(5) {
-        b.r[2] = -args.depth as f32;
+        b.r[2] = -depth as f32;
     }
+    Ok(con)
+}
+
+/// A pose of the accuracy table's distribution at `range`: lateral offset uniform in
+/// +/-0.5 in, rotation uniform in 0-3 deg about a random axis. Returns `(t, MRP)`.
+pub fn random_pose(rng: &mut StdRng, range: f64) -> (Vector3<f64>, Vector3<f64>) {
+    let t = Vector3::new(
+        rng.random_range(-0.5..0.5),
+        rng.random_range(-0.5..0.5),
+        range,
+    );
+    let axis = Vector3::new(
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+    );
+    (
+        t,
+        mrp::from_axis_angle(&axis, rad(rng.random_range(0.0..3.0))),
+    )
+}
+
+/// Compute the accuracy table.
+pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
+    let mut truth = Calibration::table3();
+    let noise = args.noise_fraction * cta_core::emulator::BETA;
+    truth.noise = noise as f32;
+    let ph_cal = pinhole_calibration(&truth)?;
+    let con = test_constellation(args.constellation.as_deref(), args.depth)?;
     let em: Emulator<f64> = cta_firmware_sensor::sim::physics(&truth);
     let normal = Normal::new(0.0, noise).context("noise")?;
     let mut rng = StdRng::seed_from_u64(args.seed);
@@ -1164,17 +1192,7 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
         let (mut nf_sys_failures, mut ph_sys_failures) = (0, 0);
         let mut sys = [0.0f64; 4];
         for _ in 0..args.trials {
-            let t = Vector3::new(
-                rng.random_range(-0.5..0.5),
-                rng.random_range(-0.5..0.5),
-                range,
-            );
-            let axis = Vector3::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-            );
-            let q = mrp::from_axis_angle(&axis, rad(rng.random_range(0.0..3.0)));
+            let (t, q) = random_pose(&mut rng, range);
             let spots = simulate_spots(&em, &con, &t, &q, |_| normal.sample(&mut rng));
             seen += spots.len() as f64;
             let solve =
