@@ -325,6 +325,18 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
     let em: Emulator<f64> = cta_firmware_sensor::sim::physics(&truth);
     let scene = Scene { em: &em, con: &con };
     let ph_cal = pinhole_calibration(&truth)?;
+    // A fresh solver per frame: every solve is a cold start, as in the accuracy table.
+    let solver = |cal: &Calibration, model: ModelKind| {
+        PoseSolver::<f64>::new(
+            cal,
+            &con,
+            SolverSettings {
+                model,
+                ..Default::default()
+            },
+        )
+        .map_err(|e| anyhow::anyhow!("{e}"))
+    };
     let mut rng = StdRng::seed_from_u64(args.seed);
     // The Monte Carlo noise has its own stream, so the poses are the same with or without it.
     let mut mc_rng = StdRng::seed_from_u64(args.seed ^ 0x5EED_0F4D);
@@ -395,16 +407,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
             // 1-sigma before the scaling by the residual variance (the solver's own bound at
             // the truth), and the pinhole pose's systematic error.
             let frame = cta_core::pose::simulate_spots(&em, &con, &t, &q, |_| 0.0);
-            let mut nf = PoseSolver::<f64>::new(
-                &truth,
-                &con,
-                SolverSettings {
-                    model: ModelKind::NearField,
-                    ..Default::default()
-                },
-            )
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-            let s = nf.solve(&frame);
+            let s = solver(&truth, ModelKind::NearField)?.solve(&frame);
             if s.status == PoseStatus::Ok && s.rms > 0.0 {
                 n_solved += 1;
                 // Rows the solver used: its usable coordinates (the same rail rule).
@@ -413,16 +416,9 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
                 predicted[0] += s.sigma_position.norm_squared() / variance_factor;
                 predicted[1] += s.sigma_attitude_deg.norm_squared() / variance_factor;
             }
-            let mut ph = PoseSolver::<f64>::new(
-                &ph_cal,
-                &con,
-                SolverSettings {
-                    model: ModelKind::Pinhole,
-                    ..Default::default()
-                },
-            )
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-            ph_sys += angle_between_deg(&ph.solve(&frame).mrp, &q).powi(2);
+            ph_sys +=
+                angle_between_deg(&solver(&ph_cal, ModelKind::Pinhole)?.solve(&frame).mrp, &q)
+                    .powi(2);
             for (l, &pct) in args.magnitude_noise.iter().enumerate() {
                 let msig: Vec<f64> = y.iter().map(|v| v[2] * pct / 100.0).collect();
                 let fit = PoseFit {
