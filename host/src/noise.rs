@@ -561,15 +561,21 @@ mod tests {
     use super::*;
     use crate::simulate::SimConfig;
 
-    #[test]
-    fn recovers_the_simulated_noise_and_sees_separation_dependence() {
-        let cfg = SimConfig {
+    /// 10 samples per point at 5 and 20 in, noise 30 counts.
+    fn two_separations() -> Dataset {
+        SimConfig {
             separations: vec![5.0, 20.0],
             noise: 30.0,
             samples: 10,
             ..Default::default()
-        };
-        let (ds, _) = cfg.run();
+        }
+        .run()
+        .0
+    }
+
+    #[test]
+    fn recovers_the_simulated_noise_and_sees_separation_dependence() {
+        let ds = two_separations();
         let r = analyze_noise(&ds).unwrap();
         assert!((r.std_all[0] - 30.0).abs() < 1.5, "{:?}", r.std_all);
         assert!(!r.factors[0].significant, "uniform noise flagged");
@@ -598,13 +604,7 @@ mod tests {
 
     #[test]
     fn magnitude_repeatability_is_measured() {
-        let cfg = SimConfig {
-            separations: vec![5.0, 20.0],
-            noise: 30.0,
-            samples: 10,
-            ..Default::default()
-        };
-        let (mut ds, _) = cfg.run();
+        let mut ds = two_separations();
         // Simulated magnitudes carry no noise.
         let r = analyze_noise(&ds).unwrap();
         assert!(r.magnitude.as_ref().unwrap().percent < 1e-9);

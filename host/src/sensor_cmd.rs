@@ -862,6 +862,25 @@ impl AccuracyTable {
     /// systematic, and the noise floor.
     pub fn plot(&self, path: &std::path::Path) -> Result<()> {
         use crate::plot::{write_svg, Panel, Series};
+        type Get = fn(&AccuracyRow) -> f64;
+        // Label, dashed, position, attitude.
+        const CURVES: [(&str, bool, Get, Get); 5] = [
+            ("near-field, one frame", false, |r| r.nf_pos, |r| r.nf_att),
+            ("pinhole, one frame", false, |r| r.ph_pos, |r| r.ph_att),
+            ("noise floor", true, |r| r.floor_pos, |r| r.floor_att),
+            (
+                "near-field, systematic",
+                true,
+                |r| r.nf_pos_sys,
+                |r| r.nf_att_sys,
+            ),
+            (
+                "pinhole, systematic",
+                true,
+                |r| r.ph_pos_sys,
+                |r| r.ph_att_sys,
+            ),
+        ];
         let pts = |f: &dyn Fn(&AccuracyRow) -> f64| -> Vec<(f64, f64)> {
             self.rows.iter().map(|r| (r.range, f(r))).collect()
         };
@@ -871,28 +890,17 @@ impl AccuracyTable {
             y_desc: format!("RMS error ({unit})"),
             log_x: true,
             log_y: true,
-            series: vec![
-                Series::new(
-                    "near-field, one frame",
-                    pts(&|r| if att { r.nf_att } else { r.nf_pos }),
-                ),
-                Series::new(
-                    "pinhole, one frame",
-                    pts(&|r| if att { r.ph_att } else { r.ph_pos }),
-                ),
-                Series::dashed(
-                    "noise floor",
-                    pts(&|r| if att { r.floor_att } else { r.floor_pos }),
-                ),
-                Series::dashed(
-                    "near-field, systematic",
-                    pts(&|r| if att { r.nf_att_sys } else { r.nf_pos_sys }),
-                ),
-                Series::dashed(
-                    "pinhole, systematic",
-                    pts(&|r| if att { r.ph_att_sys } else { r.ph_pos_sys }),
-                ),
-            ],
+            series: CURVES
+                .iter()
+                .map(|&(label, dashed, pos, att_f)| {
+                    let p = pts(&|r| if att { att_f(r) } else { pos(r) });
+                    if dashed {
+                        Series::dashed(label, p)
+                    } else {
+                        Series::new(label, p)
+                    }
+                })
+                .collect(),
         };
         write_svg(
             path,
