@@ -295,38 +295,43 @@ impl Default for AccuracyArgs {
     }
 }
 
+/// Print a table (JSON or its text) and draw its plot when asked.
+fn print_table(
+    table: &impl Serialize,
+    text: String,
+    json: bool,
+    plot: Option<&std::path::Path>,
+    draw: impl FnOnce(&std::path::Path) -> Result<()>,
+) -> Result<()> {
+    if json {
+        println!("{}", serde_json::to_string_pretty(table)?);
+    } else {
+        print!("{text}");
+    }
+    if let Some(p) = plot {
+        draw(p)?;
+        if !json {
+            println!("\nplot: {}", p.display());
+        }
+    }
+    Ok(())
+}
+
 /// Run `cta sensor`.
 pub fn run(args: &SensorArgs) -> Result<()> {
     match &args.command {
         SensorCommand::Sim(s) => return run_sim(s),
         SensorCommand::Floor(a) => {
             let table = crate::pose_floor::floor_table(a)?;
-            if a.json {
-                println!("{}", serde_json::to_string_pretty(&table)?);
-            } else {
-                print!("{}", table.render());
-            }
-            if let Some(p) = &a.plot {
-                table.plot(p)?;
-                if !a.json {
-                    println!("\nplot: {}", p.display());
-                }
-            }
-            return Ok(());
+            return print_table(&table, table.render(), a.json, a.plot.as_deref(), |p| {
+                table.plot(p)
+            });
         }
         SensorCommand::Accuracy(a) => {
             let table = accuracy_table(a)?;
-            if a.json {
-                println!("{}", serde_json::to_string_pretty(&table)?);
-            } else {
-                print!("{}", table.render());
-            }
-            if let Some(p) = &a.plot {
-                table.plot(p)?;
-                if !a.json {
-                    println!("\nplot: {}", p.display());
-                }
-            }
+            print_table(&table, table.render(), a.json, a.plot.as_deref(), |p| {
+                table.plot(p)
+            })?;
             if a.check {
                 table.check()?;
             }
