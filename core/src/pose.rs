@@ -878,6 +878,48 @@ pub fn cta_constellation() -> Constellation {
     }
 }
 
+/// All 20 NorthStar channels spread over the CTA plate with four arrays in its quadrants
+/// (LEDs at +/-1.5 .. +/-10.5 in; REFERENCE.md section 4): the first five are inner beacons
+/// (seen from 2 in), the next five near the plate's edge (attitude at 8-10 in), then five
+/// more inner and five more outer. Its first ten alone are the host's `four-10`. The host's
+/// `cta sensor floor` and `cta sensor accuracy` compare it with [`cta_constellation`]; the QEMU
+/// harness counts a 20-beacon solve on it.
+pub fn four_array_constellation() -> Constellation {
+    const R: [[f32; 2]; 20] = [
+        [-1.5, -2.5],
+        [2.5, -1.5],
+        [1.5, 2.5],
+        [-2.5, 1.5],
+        [1.5, 1.5],
+        [-10.5, -3.5],
+        [10.5, 3.5],
+        [-3.5, 10.5],
+        [3.5, -10.5],
+        [8.5, -8.5],
+        [-1.5, -1.5],
+        [3.5, 2.5],
+        [-3.5, -1.5],
+        [2.5, -3.5],
+        [-2.5, 3.5],
+        [-8.5, 8.5],
+        [10.5, 10.5],
+        [-10.5, -10.5],
+        [6.5, -5.5],
+        [-6.5, 5.5],
+    ];
+    let mut beacons = Vec::new();
+    for (i, r) in R.iter().enumerate() {
+        let _ = beacons.push(Beacon {
+            id: i as u8,
+            r: [r[0], r[1], 0.0],
+        });
+    }
+    Constellation {
+        beacons,
+        boresight: [0.0, 0.0, -1.0],
+    }
+}
+
 /// The benchmark of the on-chip solve (QEMU instruction count and the f32-vs-f64 check):
 /// the [`cta_constellation`] seen through the eq 63 physics by the Table 3 head, the target
 /// at `t = (0.3, -0.2, 8.0)` in, rotated 3 deg about `(0.3, -0.5, 1.0)`; frame 2 after a
@@ -885,12 +927,20 @@ pub fn cta_constellation() -> Constellation {
 /// frames carry deterministic pseudo-random noise of 0.1 % of beta (uniform, same
 /// variance as the Gaussian) and are rounded to counts, so every machine produces the same
 /// integer spots. Returns `(frame1, frame2, true t2, true q2)`.
-pub fn benchmark_frames() -> (
+pub fn benchmark_frames() -> BenchmarkFrames {
+    benchmark_frames_of(&cta_constellation())
+}
+
+/// Frame 1, frame 2, and the true position and MRP of frame 2.
+pub type BenchmarkFrames = (
     Vec<Spot, MAX_BEACONS>,
     Vec<Spot, MAX_BEACONS>,
     Vector3<f64>,
     Vector3<f64>,
-) {
+);
+
+/// [`benchmark_frames`] for another constellation `con` (same poses, noise and rounding).
+pub fn benchmark_frames_of(con: &Constellation) -> BenchmarkFrames {
     let cal = Calibration::table3();
     let em = Emulator::new(
         Head::northstar(),
@@ -900,7 +950,6 @@ pub fn benchmark_frames() -> (
         },
         Effects::default(),
     );
-    let con = cta_constellation();
     let axis = Vector3::new(0.3, -0.5, 1.0);
     let t1 = Vector3::new(0.3, -0.2, 8.0);
     let q1 = mrp::from_axis_angle(&axis, rad(3.0));
@@ -915,8 +964,8 @@ pub fn benchmark_frames() -> (
         // Uniform on [-sqrt(3), sqrt(3)] sigma: unit variance times sigma.
         ((seed as f64) / 4294967296.0 - 0.5) * 2.0 * 1.7320508075688772 * sigma
     };
-    let f1 = simulate_spots(&em, &con, &t1, &q1, &mut noise);
-    let f2 = simulate_spots(&em, &con, &t2, &q2, &mut noise);
+    let f1 = simulate_spots(&em, con, &t1, &q1, &mut noise);
+    let f2 = simulate_spots(&em, con, &t2, &q2, &mut noise);
     (f1, f2, t2, q2)
 }
 
