@@ -7,6 +7,8 @@
 pub mod beacon_cmd;
 // Request/response client over a serial link, shared by both boards (firmware-beacon issue).
 pub mod link;
+// The CTA's beacon plate and the built-in constellations of the pose analyses (issue 5).
+pub mod plate;
 // `cta sensor floor`: the pose noise floor from spots alone and with magnitudes (issue 5).
 pub mod pose_floor;
 // `cta sensor ...` and the pose-accuracy table (firmware-sensor issue).

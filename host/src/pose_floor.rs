@@ -44,7 +44,8 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
-use crate::sensor_cmd::{angle_between_deg, pinhole_calibration, random_pose, test_constellation};
+use crate::plate::{test_scene, Plate};
+use crate::sensor_cmd::{angle_between_deg, pinhole_calibration, random_pose};
 
 /// Options of `cta sensor floor`.
 #[derive(Debug, Clone, Args)]
@@ -75,9 +76,14 @@ pub struct FloorArgs {
     /// Raise every beacon after the first five this far toward the sensor, in.
     #[arg(long, default_value_t = 0.0)]
     pub depth: f64,
-    /// Constellation JSON instead of the built-in 10-beacon CTA layout.
-    #[arg(long, value_name = "FILE")]
+    /// The constellation: a built-in name (one-10, one-20, four-10, four-20) or a JSON file,
+    /// as in `cta sensor accuracy`. Default one-10, the chip's benchmark.
+    #[arg(long, value_name = "NAME|FILE")]
     pub constellation: Option<String>,
+    /// The plate the pinhole calibration is swept over (`one` or `four` arrays). Default:
+    /// the built-in's own; for a file, `four` if a beacon lies beyond 4.5 in.
+    #[arg(long, value_enum)]
+    pub plate: Option<Plate>,
     /// Draw the attitude and position floors against range (spots only, each magnitude
     /// noise, and the attitude floor needed for 5x) to this SVG file.
     #[arg(long, value_name = "FILE.svg")]
@@ -98,6 +104,7 @@ impl Default for FloorArgs {
             seed: 2010,
             depth: 0.0,
             constellation: None,
+            plate: None,
             plot: None,
             json: false,
         }
@@ -150,6 +157,10 @@ pub struct FloorRow {
     /// The attitude floor a pose must reach for the pinhole pose to be >= 5x worse per frame:
     /// `pinhole_systematic / sqrt(24)` (pinhole per frame >= sqrt(sys^2 + floor^2)), deg.
     pub needed_for_5x_deg: f64,
+    /// The best one-frame attitude ratio pinhole / near-field that a pose from the spots
+    /// alone can show here: `sqrt(1 + (pinhole_systematic / spots floor)^2)` (a pose on the
+    /// floor against a pinhole pose with that systematic error and the same noise).
+    pub best_ratio_spots: f64,
     /// With magnitudes, per noise level.
     pub with_magnitude: Vec<WithMagnitude>,
 }
@@ -321,10 +332,11 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
     let mut truth = Calibration::table3();
     let noise = args.noise_fraction * cta_core::emulator::BETA;
     truth.noise = noise as f32;
-    let con = test_constellation(args.constellation.as_deref(), args.depth)?;
+    let test = test_scene(args.constellation.as_deref(), args.plate, args.depth)?;
+    let con = test.con;
     let em: Emulator<f64> = cta_firmware_sensor::sim::physics(&truth);
     let scene = Scene { em: &em, con: &con };
-    let ph_cal = pinhole_calibration(&truth)?;
+    let ph_cal = pinhole_calibration(&truth, test.plate)?;
     // A fresh solver per frame: every solve is a cold start, as in the accuracy table.
     let solver = |cal: &Calibration, model: ModelKind| {
         PoseSolver::<f64>::new(
@@ -472,6 +484,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
             solver_not_ok: n_ok - n_solved,
             pinhole_systematic_deg: ph_sys,
             needed_for_5x_deg: ph_sys / 24f64.sqrt(),
+            best_ratio_spots: (1.0 + (ph_sys / fl(spots, n).attitude_deg).powi(2)).sqrt(),
             with_magnitude: args
                 .magnitude_noise
                 .iter()
@@ -489,10 +502,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
         noise_counts: noise,
         poses: args.poses,
         monte_carlo: args.monte_carlo,
-        constellation: match &args.constellation {
-            Some(f) => format!("constellation {f}"),
-            None => "the built-in 10-beacon CTA constellation".into(),
-        },
+        constellation: test.label,
     })
 }
 
@@ -557,20 +567,20 @@ impl FloorTable {
         let mut s = String::new();
         s += &format!(
             "Noise floor of one frame (Cramer-Rao bound: no unbiased pose from these measurements does better),\n\
-             eq 60-63 physics, Table 3 head, spot noise {:.1} counts, {}, RMS over {} poses per range\n\
+             eq 60-63 physics, Table 3 head, spot noise {:.1} counts,\n{},\nRMS over {} poses per range \
              (lateral offset +/-0.5 in, attitude up to 3 deg).\n\n",
             self.noise_counts, self.constellation, self.poses
         );
         s += "Spots alone (what the chip solves with) against the attitude floor the pinhole comparison needs:\n";
-        s += "range  used |  floor, spots only       | solver's own | pinhole     | floor needed\n";
-        s += " (in)       |  pos (in)   att (deg)    | att (deg)    | syst. (deg) | for 5x (deg)\n";
+        s += "range  used |  floor, spots only       | solver's own | pinhole     | floor needed | best ratio\n";
+        s += " (in)       |  pos (in)   att (deg)    | att (deg)    | syst. (deg) | for 5x (deg) | one frame\n";
         for r in &self.rows {
             if r.poses_used == 0 {
                 s += &format!("{:5.1}       |  no pose with 4 usable beacons\n", r.range);
                 continue;
             }
             s += &format!(
-                "{:5.1} {:5.1} |  {:8.5}  {:9.4}     | {:9.4}    | {:9.4}   | {:9.4}{}\n",
+                "{:5.1} {:5.1} |  {:8.5}  {:9.4}     | {:9.4}    | {:9.4}   | {:9.4}    | {:6.1}x{}\n",
                 r.range,
                 r.beacons,
                 r.spots.position,
@@ -578,6 +588,7 @@ impl FloorTable {
                 r.solver_predicted.attitude_deg,
                 r.pinhole_systematic_deg,
                 r.needed_for_5x_deg,
+                r.best_ratio_spots,
                 if r.range > CLAIM_RANGE || r.spots.attitude_deg <= r.needed_for_5x_deg {
                     ""
                 } else {
@@ -737,6 +748,36 @@ mod tests {
         }
         let json = serde_json::to_value(&t).unwrap();
         assert_eq!(json["rows"].as_array().unwrap().len(), 2);
+    }
+
+    /// What the beacons' spread buys at 10 in, from the spots alone: on one array (one-10)
+    /// the best one-frame attitude ratio stays far below 5x; all 20 channels over four arrays
+    /// (four-20) lift it just above, by shrinking the floor more than the pinhole's error.
+    #[test]
+    fn spread_and_channels_lift_the_best_ratio_at_10_in() {
+        let run = |c: &str| {
+            floor_table(&FloorArgs {
+                ranges: vec![10.0],
+                magnitude_noise: vec![],
+                poses: 20,
+                constellation: Some(c.into()),
+                ..FloorArgs::default()
+            })
+            .unwrap()
+            .rows[0]
+                .clone()
+        };
+        let (one, four) = (run("one-10"), run("four-20"));
+        assert!(one.best_ratio_spots < 2.5, "{one:?}");
+        assert!(four.best_ratio_spots > 5.0, "{four:?}");
+        assert!(
+            four.spots.attitude_deg < one.spots.attitude_deg / 5.0,
+            "{four:?} {one:?}"
+        );
+        assert!(
+            four.pinhole_systematic_deg < one.pinhole_systematic_deg,
+            "{four:?} {one:?}"
+        );
     }
 
     /// The bound with magnitudes is reached by an actual fit (so the table's figures are

@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use cta_core::collinearity::{self, Fit, Obs as FitObs, Params, ParamsExt};
-use cta_core::emulator::{grid_position, Emulator, Head, Pose as HeadPose};
+use cta_core::emulator::{Emulator, Head, Pose as HeadPose};
 use cta_core::glsdc::{self, Settings};
 use cta_core::mrp;
 use cta_core::pose::{
@@ -45,6 +45,7 @@ use cta_firmware_sensor::sim::{SimBoard, SimNorthStar};
 pub use nalgebra::Vector3;
 
 use crate::link::{open_serial, Link, LinkConfig};
+use crate::plate::{built_in_constellation, test_scene, Plate};
 
 /// `cta sensor`: command the sensor board over its serial link.
 #[derive(Debug, Args)]
@@ -103,6 +104,10 @@ pub enum SensorCommand {
     Template {
         /// Which one.
         kind: TemplateKind,
+        /// For `constellation`: which built-in (one-10, one-20, four-10, four-20; see
+        /// `cta sensor accuracy --help`).
+        #[arg(long, default_value = "one-10")]
+        name: String,
     },
     /// Load a calibration (JSON file, see `template calibration`) into the board's flash.
     LoadCalibration {
@@ -152,6 +157,10 @@ pub enum SensorCommand {
     /// noise floor (the near-field solver's predicted 1-sigma), the systematic error (the same
     /// poses without noise) and the issue's claims with a verdict each. The near-field
     /// calibration is fitted to a simulated CTA sweep first, as the lab would do.
+    ///
+    /// The target's spread and beacon count decide the attitude figures: compare the
+    /// built-ins, e.g. `for c in one-10 one-20 four-10 four-20; do cta sensor accuracy
+    /// --constellation $c; done` (beacons on one array or over four, 10 or 20 channels).
     Accuracy(AccuracyArgs),
     /// Print the noise floor of one frame's pose: from the spots alone, and with the spot
     /// magnitudes as well (an assumed magnitude model, as a what-if).
@@ -162,7 +171,9 @@ pub enum SensorCommand {
     /// worse per frame. The magnitude rows assume magnitude = k x (sum of the cell signals),
     /// k common to all beacons and unknown, noise a fixed percentage: the NorthStar's real
     /// magnitude output has not been measured. `--monte-carlo N` solves noisy frames with the
-    /// magnitudes to show the bound is reached.
+    /// magnitudes to show the bound is reached. The "best ratio" column is the largest
+    /// one-frame attitude ratio pinhole / near-field any pose from the spots alone can show:
+    /// run it per `--constellation` to see what a wider target or more beacons would buy.
     Floor(crate::pose_floor::FloorArgs),
 }
 
@@ -251,10 +262,15 @@ pub struct AccuracyArgs {
     /// offset). 0: as given (the flat CTA plate).
     #[arg(long, default_value_t = 0.0)]
     pub depth: f64,
-    /// Constellation JSON (the shape of `cta sensor template constellation`) instead of the
-    /// built-in 10-beacon CTA layout.
-    #[arg(long, value_name = "FILE")]
+    /// The constellation: a built-in name (one-10, one-20, four-10, four-20: beacons on one
+    /// array or spread over four, 10 or all 20 NorthStar channels) or a JSON file (the shape
+    /// of `cta sensor template constellation`). Default one-10, the chip's benchmark.
+    #[arg(long, value_name = "NAME|FILE")]
     pub constellation: Option<String>,
+    /// The plate the calibration sweeps see: `one` array or `four` in the quadrants.
+    /// Default: the built-in's own; for a file, `four` if a beacon lies beyond 4.5 in.
+    #[arg(long, value_enum)]
+    pub plate: Option<Plate>,
     /// Samples averaged per beacon and separation in the simulated calibration sweep that
     /// the near-field calibration is fitted to (Ch VI takes 100-200).
     #[arg(long, default_value_t = 100)]
@@ -286,6 +302,7 @@ impl Default for AccuracyArgs {
             f64: false,
             depth: 0.0,
             constellation: None,
+            plate: None,
             cal_samples: 100,
             true_calibration: false,
             plot: None,
@@ -337,10 +354,13 @@ pub fn run(args: &SensorArgs) -> Result<()> {
             }
             return Ok(());
         }
-        SensorCommand::Template { kind } => {
+        SensorCommand::Template { kind, name } => {
             let text = match kind {
                 TemplateKind::Calibration => serde_json::to_string_pretty(&Calibration::table3())?,
-                TemplateKind::Constellation => serde_json::to_string_pretty(&cta_constellation())?,
+                TemplateKind::Constellation => {
+                    let con = built_in_constellation(name)?;
+                    serde_json::to_string_pretty(&con)?
+                }
             };
             println!("{text}");
             return Ok(());
@@ -503,7 +523,7 @@ fn small_angles_deg(q: &Vector3<f64>) -> [f64; 3] {
     [v.x.to_degrees(), v.y.to_degrees(), v.z.to_degrees()]
 }
 
-fn read_json<T: serde::de::DeserializeOwned>(file: &str) -> Result<T> {
+pub(crate) fn read_json<T: serde::de::DeserializeOwned>(file: &str) -> Result<T> {
     let text = std::fs::read_to_string(file).with_context(|| format!("reading {file}"))?;
     serde_json::from_str(&text).with_context(|| {
         format!(
@@ -702,11 +722,11 @@ impl AccuracyTable {
         s += &format!(
             "Pose accuracy on simulated data: eq 63 physics (proximity, intensity, Lambertian beacon), Table 3 head,\n\
              noise {:.1} counts (1-sigma), {} trials per range (random lateral offset +/-0.5 in, attitude +/-3 deg),\n\
-             {} (outer five raised {:.1} in), {} solver, cold start.\n",
-            self.noise_counts, self.trials, self.constellation, self.depth, self.arithmetic,
+             {},\n{} solver, cold start.\n",
+            self.noise_counts, self.trials, self.constellation, self.arithmetic,
         );
         s += &format!(
-            "pinhole    = eq 65 with the 7-parameter calibration fitted at 25 and 30 in as the thesis recommends\n\
+            "pinhole    = eq 65 with the 7-parameter calibration fitted at 25 and 30 in (every LED of the plate)\n\
              \x20            (noise-free data: the best case for it): d = {:.4} {:.4} {:.4} in, H = {:.1}.\n",
             pc.d[0], pc.d[1], pc.d[2], pc.h
         );
@@ -714,7 +734,7 @@ impl AccuracyTable {
             s += "near-field = the eq 60-63 model with the true head (--true-calibration).\n";
         } else {
             s += &format!(
-                "near-field = the eq 60-63 model with d, p, a, s fitted to a simulated CTA sweep (10 x 10 grid,\n\
+                "near-field = the eq 60-63 model with d, p, a, s fitted to a simulated CTA sweep (the plate's LEDs,\n\
                  \x20            2-30 in in 1 in steps, {} samples per point, same noise): d = {:.4} {:.4} {:.4} in\n\
                  \x20            (d3 +/-{:.1e}; truth 0.6 0.1 0.062), a = {:.4} deg (+/-{:.1e}; 30), s = {:.5} in (+/-{:.1e}; 0.175).\n",
                 self.cal_samples, nc.d[0], nc.d[1], nc.d[2], sg[2], nn.alpha_deg, sg[6], nn.s, sg[7]
@@ -934,13 +954,13 @@ impl AccuracyTable {
 }
 
 /// The 7-parameter pinhole calibration fitted (GLSDC, eq 65) to noise-free eq 63 data of
-/// the 10 x 10 grid at 25 and 30 in (Table 3's recommended procedure).
-pub fn pinhole_calibration(truth: &Calibration) -> Result<Calibration> {
+/// every LED of `plate` at 25 and 30 in (Table 3's recommended procedure; for the one-array
+/// plate, the thesis's own 10 x 10 grid).
+pub fn pinhole_calibration(truth: &Calibration, plate: Plate) -> Result<Calibration> {
     let em = cta_firmware_sensor::sim::physics(truth);
     let mut obs = Vec::new();
     for sep in [25.0, 30.0] {
-        for i in 0..100 {
-            let r = grid_position(10, 1.0, sep, i);
+        for r in plate.positions(sep) {
             if let Some(y) = em.output(&r) {
                 obs.push(FitObs { r, y, w: [1.0; 2] });
             }
@@ -968,14 +988,15 @@ pub fn pinhole_calibration(truth: &Calibration) -> Result<Calibration> {
 
 /// The near-field calibration the lab would load: `d`, `p`, the face angle `a` and the
 /// cell offset `s` of the eq 60-63 model fitted (GLSDC, finite-difference Jacobian) to a
-/// simulated CTA sweep of `truth`'s physics: the 10 x 10 grid at 2, 3, ..., 30 in (Ch VI's
-/// 1 in steps), each point the mean of `samples` noisy samples. The start is the pinhole
+/// simulated CTA sweep of `truth`'s physics: every LED of `plate` at 2, 3, ..., 30 in (Ch
+/// VI's 1 in steps), each point the mean of `samples` noisy samples. The start is the pinhole
 /// calibration's `d, p` and the nominal `a, s` (REFERENCE.md: start from the 7-parameter fit
 /// to avoid false minima). Returns the calibration and its fitted 1-sigma (d1..3, p1..3, a
 /// in degrees, s).
 pub fn nearfield_calibration(
     truth: &Calibration,
     start: &Calibration,
+    plate: Plate,
     samples: usize,
     rng: &mut StdRng,
 ) -> Result<(Calibration, [f64; 8])> {
@@ -984,8 +1005,7 @@ pub fn nearfield_calibration(
     let normal = Normal::new(0.0, sigma).context("noise")?;
     let mut obs = Vec::new();
     for sep in 2..=30 {
-        for i in 0..100 {
-            let r = grid_position(10, 1.0, sep as f64, i);
+        for r in plate.positions(sep as f64) {
             if let Some(y) = em.output(&r) {
                 // Points the NorthStar would report unsaturated.
                 if y.iter().all(|v| v.abs() < 32000.0) {
@@ -1137,24 +1157,6 @@ type Solved = (
     Vector3<f64>,
 );
 
-/// The constellation of the accuracy table and `cta sensor floor`: the built-in CTA layout
-/// or `file` (JSON, validated), with every beacon after the first five raised `depth` in
-/// toward the sensor.
-pub fn test_constellation(file: Option<&str>, depth: f64) -> Result<Constellation> {
-    let mut con = match file {
-        Some(file) => {
-            let con: Constellation = read_json(file)?;
-            con.validate().map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
-            con
-        }
-        None => cta_constellation(),
-    };
-    for b in con.beacons.iter_mut().skip(5) {
-        b.r[2] = -depth as f32;
-    }
-    Ok(con)
-}
-
 /// A pose of the accuracy table's distribution at `range`: lateral offset uniform in
 /// +/-0.5 in, rotation uniform in 0-3 deg about a random axis. Returns `(t, MRP)`.
 pub fn random_pose(rng: &mut StdRng, range: f64) -> (Vector3<f64>, Vector3<f64>) {
@@ -1179,15 +1181,16 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
     let mut truth = Calibration::table3();
     let noise = args.noise_fraction * cta_core::emulator::BETA;
     truth.noise = noise as f32;
-    let ph_cal = pinhole_calibration(&truth)?;
-    let con = test_constellation(args.constellation.as_deref(), args.depth)?;
+    let scene = test_scene(args.constellation.as_deref(), args.plate, args.depth)?;
+    let con = scene.con;
+    let ph_cal = pinhole_calibration(&truth, scene.plate)?;
     let em: Emulator<f64> = cta_firmware_sensor::sim::physics(&truth);
     let normal = Normal::new(0.0, noise).context("noise")?;
     let mut rng = StdRng::seed_from_u64(args.seed);
     let (nf_cal, nf_sigma) = if args.true_calibration {
         (truth, [0.0; 8])
     } else {
-        nearfield_calibration(&truth, &ph_cal, args.cal_samples, &mut rng)?
+        nearfield_calibration(&truth, &ph_cal, scene.plate, args.cal_samples, &mut rng)?
     };
     let mut rows = Vec::new();
     let nf_set = SolverSettings {
@@ -1283,10 +1286,7 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
         rows,
         pinhole_calibration: ph_cal,
         nearfield_calibration: nf_cal,
-        constellation: match &args.constellation {
-            Some(f) => format!("constellation {f}"),
-            None => "10-beacon CTA constellation".into(),
-        },
+        constellation: scene.label,
         nearfield_sigma: nf_sigma,
         true_calibration: args.true_calibration,
         cal_samples: args.cal_samples,
@@ -1307,10 +1307,36 @@ mod tests {
 
     #[test]
     fn pinhole_calibration_reproduces_table3_far_pair() {
-        let c = pinhole_calibration(&Calibration::table3()).unwrap();
+        let c = pinhole_calibration(&Calibration::table3(), Plate::One).unwrap();
         // REFERENCE.md Table 3, (25, 30) in: d3 = +1.1378, H = 19016.
         assert!((c.d[2] - 1.1378).abs() < 0.03, "{c:?}");
         assert!((c.h - 19016.0).abs() / 19016.0 < 0.003, "{c:?}");
+    }
+
+    /// A pinhole calibration only covers the angles its sweep saw: for the four-array
+    /// constellation at 30 in, calibrating over one array leaves a systematic position error
+    /// several times that of the calibration over the four-array plate it is used on.
+    #[test]
+    fn pinhole_calibration_follows_the_plate() {
+        let sys_30 = |plate| {
+            let t = accuracy_table(&AccuracyArgs {
+                trials: 8,
+                ranges: vec![30.0],
+                constellation: Some("four-20".into()),
+                plate: Some(plate),
+                cal_samples: 10,
+                ..AccuracyArgs::default()
+            })
+            .unwrap();
+            t.rows[0].ph_pos_sys
+        };
+        let (one, four) = (sys_30(Plate::One), sys_30(Plate::Four));
+        assert!(
+            one > 3.0 * four,
+            "one-array calibration {one}, four-array {four}"
+        );
+        let c = pinhole_calibration(&Calibration::table3(), Plate::Four).unwrap();
+        assert!((c.d[2] - 1.1378).abs() > 0.2, "{c:?}");
     }
 
     /// The accuracy table's claims on a short run: what the near-field model buys must show

@@ -1,0 +1,304 @@
+//! The CTA's beacon plate and the constellations the pose analyses (`cta sensor accuracy`,
+//! `cta sensor floor`) are run on.
+//!
+//! The thesis (Ch IV; REFERENCE.md section 4) mounts either one 10 x 10 array (1 in pitch)
+//! centred on the 24 in plate, or four of them in the plate's quadrants. The four-array
+//! positions assume each 12 x 12 in board sits centred in its quadrant, its grid centre at
+//! (+/-6, +/-6) in: LEDs at +/-1.5 .. +/-10.5 in on both axes, a 20 x 20 grid with a 3 in
+//! gap through the middle (where the rods' notches and the board edges meet).
+//!
+//! Which plate is mounted matters twice: the calibration sweeps (pinhole at 25 and 30 in,
+//! near-field at 2-30 in) see the plate's whole grid, so a calibration only covers the angles
+//! its plate spans; and the constellation's spread sets how well attitude is observed (the
+//! floor of `cta sensor floor`).
+
+use anyhow::{bail, Result};
+use cta_core::emulator::grid_position;
+use cta_core::pose::{cta_constellation, four_array_constellation, Beacon, Constellation};
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::sensor_cmd::read_json;
+
+/// Which beacon arrays are on the plate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Plate {
+    /// One 10 x 10 array centred over the sensor: x, y in -4.5 .. 4.5 in.
+    One,
+    /// Four arrays in the quadrants: x, y in +/-1.5 .. +/-10.5 in (a 20 x 20 grid with a
+    /// 3 in gap at the centre).
+    Four,
+}
+
+impl Plate {
+    /// Every LED position of the plate at `separation` (in), in the sensor frame N.
+    pub fn positions(self, separation: f64) -> Vec<Vector3<f64>> {
+        let one = (0..100).map(move |i| grid_position(10, 1.0, separation, i));
+        match self {
+            Plate::One => one.collect(),
+            Plate::Four => [(6.0, 6.0), (-6.0, 6.0), (-6.0, -6.0), (6.0, -6.0)]
+                .iter()
+                .flat_map(|&(cx, cy)| {
+                    (0..100).map(move |i| {
+                        grid_position(10, 1.0, separation, i) + Vector3::new(cx, cy, 0.0)
+                    })
+                })
+                .collect(),
+        }
+    }
+
+    /// Whether `(x, y)` (in) is an LED position of this plate (to 0.01 in).
+    pub fn holds(self, x: f64, y: f64) -> bool {
+        let on_axis = |v: f64| {
+            let a = v.abs();
+            let half = (a - 0.5).round() + 0.5; // nearest half-integer
+            let (lo, hi) = match self {
+                Plate::One => (0.5, 4.5),
+                Plate::Four => (1.5, 10.5),
+            };
+            (a - half).abs() < 0.01 && half >= lo - 0.01 && half <= hi + 0.01
+        };
+        on_axis(x) && on_axis(y)
+    }
+
+    /// Short description for table headers.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Plate::One => "one array (x, y within 4.5 in)",
+            Plate::Four => "four arrays (x, y 1.5-10.5 in)",
+        }
+    }
+}
+
+/// A built-in constellation: its name, plate, beacons (IDs in order, each one NorthStar
+/// frequency channel: the NorthStar tracks up to 20 spots) and what it is for. `--depth`
+/// raises every beacon after the first five.
+struct BuiltIn {
+    name: &'static str,
+    plate: Plate,
+    beacons: fn() -> Constellation,
+    what: &'static str,
+}
+
+const BUILT_IN: [BuiltIn; 4] = [
+    BuiltIn {
+        name: "one-10",
+        plate: Plate::One,
+        beacons: cta_constellation,
+        what: "the CTA constellation the chip is benchmarked on",
+    },
+    BuiltIn {
+        name: "one-20",
+        plate: Plate::One,
+        beacons: one_20,
+        what: "one-10 and ten more: all 20 NorthStar channels on one array",
+    },
+    BuiltIn {
+        name: "four-10",
+        plate: Plate::Four,
+        beacons: four_10,
+        what: "spread over four arrays: five inner (seen from 2 in), five near the edge",
+    },
+    BuiltIn {
+        name: "four-20",
+        plate: Plate::Four,
+        beacons: four_array_constellation,
+        what: "four-10 and ten more: all 20 NorthStar channels over four arrays",
+    },
+];
+
+/// one-10 and ten more LEDs of the one-array grid (corners and the gaps between).
+fn one_20() -> Constellation {
+    const ADD: [[f32; 2]; 10] = [
+        [-4.5, -4.5],
+        [4.5, 4.5],
+        [-4.5, 4.5],
+        [4.5, -4.5],
+        [-0.5, -0.5],
+        [-1.5, 2.5],
+        [2.5, -2.5],
+        [-4.5, 0.5],
+        [0.5, 4.5],
+        [-0.5, -4.5],
+    ];
+    let mut con = cta_constellation();
+    for r in ADD {
+        let id = con.beacons.len() as u8;
+        // Cannot fail: 10 + 10 <= MAX_BEACONS (20).
+        let _ = con.beacons.push(Beacon {
+            id,
+            r: [r[0], r[1], 0.0],
+        });
+    }
+    con
+}
+
+/// The first ten beacons of the four-array constellation.
+fn four_10() -> Constellation {
+    let mut con = four_array_constellation();
+    con.beacons.truncate(10);
+    con
+}
+
+/// The names of the built-in constellations, with what each is, for `--help` and errors.
+pub fn built_in_list() -> String {
+    BUILT_IN
+        .iter()
+        .map(|b| {
+            format!(
+                "\n  {:8} {} beacons, {}",
+                b.name,
+                (b.beacons)().beacons.len(),
+                b.what
+            )
+        })
+        .collect()
+}
+
+/// The built-in constellation `name`; an error lists the built-ins.
+pub fn built_in_constellation(name: &str) -> Result<Constellation> {
+    match BUILT_IN.iter().find(|b| b.name == name) {
+        Some(b) => Ok((b.beacons)()),
+        None => bail!(
+            "no built-in constellation {name}; the built-ins:{}",
+            built_in_list()
+        ),
+    }
+}
+
+/// The constellation a pose analysis runs on, the plate its calibrations are swept over,
+/// and a label for table headers.
+#[derive(Debug, Clone)]
+pub struct TestScene {
+    /// Beacons (outer ones raised by `depth`).
+    pub con: Constellation,
+    /// The plate of the calibration sweeps.
+    pub plate: Plate,
+    /// Header text: the constellation, its plate, the raise.
+    pub label: String,
+}
+
+/// Resolve `--constellation` (a built-in name or a JSON file; default `one-10`), `--plate`
+/// (default: the built-in's plate; for a file, `four` if a beacon lies outside the one-array
+/// grid's 4.5 in, else `one`) and `--depth` (every beacon after the first five raised this far
+/// toward the sensor, in).
+pub fn test_scene(
+    constellation: Option<&str>,
+    plate: Option<Plate>,
+    depth: f64,
+) -> Result<TestScene> {
+    let spec = constellation.unwrap_or("one-10");
+    let (mut con, own_plate, name) = match BUILT_IN.iter().find(|b| b.name == spec) {
+        Some(b) => ((b.beacons)(), b.plate, format!("constellation {spec}")),
+        None if !std::path::Path::new(spec).exists() => bail!(
+            "--constellation {spec}: no such file, and not a built-in name; the built-ins:{}",
+            built_in_list()
+        ),
+        None => {
+            let con: Constellation = read_json(spec)?;
+            con.validate().map_err(|e| anyhow::anyhow!("{spec}: {e}"))?;
+            let wide = con
+                .beacons
+                .iter()
+                .any(|b| b.r[0].abs() > 4.51 || b.r[1].abs() > 4.51);
+            let plate = if wide { Plate::Four } else { Plate::One };
+            (con, plate, format!("constellation {spec}"))
+        }
+    };
+    for b in con.beacons.iter_mut().skip(5) {
+        b.r[2] = -depth as f32;
+    }
+    let plate = plate.unwrap_or(own_plate);
+    let off_plate = con
+        .beacons
+        .iter()
+        .filter(|b| !plate.holds(b.r[0] as f64, b.r[1] as f64))
+        .count();
+    let mut label = format!(
+        "{name} ({} beacons), calibrations swept over {}",
+        con.beacons.len(),
+        plate.describe()
+    );
+    if depth != 0.0 {
+        label += &format!(", beacons after the fifth raised {depth:.1} in");
+    }
+    if off_plate > 0 {
+        label += &format!(
+            "; {off_plate} beacon(s) not on an LED position of that plate (the calibrations \
+             extrapolate to them)"
+        );
+    }
+    Ok(TestScene { con, plate, label })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plates_have_their_leds() {
+        let one = Plate::One.positions(5.0);
+        assert_eq!(one.len(), 100);
+        assert!(one
+            .iter()
+            .all(|r| r[2] == 5.0 && Plate::One.holds(r[0], r[1])));
+        let four = Plate::Four.positions(5.0);
+        assert_eq!(four.len(), 400);
+        assert!(four.iter().all(|r| Plate::Four.holds(r[0], r[1])));
+        let max = four
+            .iter()
+            .map(|r| r[0].abs().max(r[1].abs()))
+            .fold(0.0, f64::max);
+        let min = four
+            .iter()
+            .map(|r| r[0].abs().min(r[1].abs()))
+            .fold(99.0, f64::min);
+        assert_eq!((min, max), (1.5, 10.5));
+        // No LED twice.
+        for (i, a) in four.iter().enumerate() {
+            assert!(four[i + 1..].iter().all(|b| (a - b).norm() > 0.5));
+        }
+        assert!(!Plate::Four.holds(0.5, 2.5) && !Plate::One.holds(5.5, 0.5));
+        assert!(!Plate::One.holds(0.0, 0.5) && !Plate::Four.holds(11.5, 1.5));
+    }
+
+    #[test]
+    fn built_ins_are_valid_and_on_their_plate() {
+        let mut sizes = Vec::new();
+        for b in &BUILT_IN {
+            let s = test_scene(Some(b.name), None, 0.0).unwrap();
+            s.con.validate().unwrap();
+            assert_eq!(s.plate, b.plate);
+            assert!(
+                !s.label.contains("not on an LED"),
+                "{}: {}",
+                b.name,
+                s.label
+            );
+            sizes.push(s.con.beacons.len());
+        }
+        assert_eq!(sizes, [10, 20, 10, 20]);
+        // one-10 is the benchmark constellation itself.
+        let s = test_scene(None, None, 0.0).unwrap();
+        assert_eq!(s.con, cta_constellation());
+        // Forcing the one-array plate onto a four-array constellation is named.
+        let s = test_scene(Some("four-10"), Some(Plate::One), 0.0).unwrap();
+        assert!(s.label.contains("5 beacon(s) not on an LED"), "{}", s.label);
+        // A depth moves the outer beacons only.
+        let s = test_scene(Some("four-20"), None, 2.0).unwrap();
+        assert!(s.con.beacons[..5].iter().all(|b| b.r[2] == 0.0));
+        assert!(s.con.beacons[5..].iter().all(|b| b.r[2] == -2.0));
+    }
+
+    #[test]
+    fn unknown_name_lists_the_built_ins() {
+        let e = test_scene(Some("four-30"), None, 0.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("four-30") && e.contains("four-20") && e.contains("one-10"),
+            "{e}"
+        );
+    }
+}
