@@ -6,15 +6,17 @@
 //! start (not measured), then each measured segment is one solve of frame 2 warm-started
 //! from frame 1's solution, exactly as the board does from one NorthStar frame to the
 //! next. The model is chosen at build time: `POSE_MODEL=pinhole` or `nearfield`
-//! (default).
+//! (default); so is the constellation: `POSE_BEACONS=20` solves the 20-beacon
+//! [`cta_core::pose::four_array_constellation`] instead of the 10-beacon
+//! [`cta_core::pose::cta_constellation`] (same poses and noise).
 #![no_std]
 #![no_main]
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use cta_core::pose::{
-    benchmark_frames, cta_constellation, Calibration, ModelKind, PoseSolver, PoseStatus,
-    SolverSettings,
+    benchmark_frames_of, cta_constellation, four_array_constellation, Calibration, ModelKind,
+    PoseSolver, PoseStatus, SolverSettings,
 };
 use cta_qemu::{done, end, fail, mark};
 
@@ -55,14 +57,16 @@ fn main() -> ! {
         Some("pinhole") => ModelKind::Pinhole,
         _ => ModelKind::NearField,
     };
-    let (f1, f2, _, _) = benchmark_frames();
+    let con = match option_env!("POSE_BEACONS") {
+        Some("20") => four_array_constellation(),
+        _ => cta_constellation(),
+    };
+    let (f1, f2, _, _) = benchmark_frames_of(&con);
     let settings = SolverSettings {
         model,
         ..SolverSettings::default()
     };
-    let Ok(mut solver) =
-        PoseSolver::<f32>::new(&Calibration::table3(), &cta_constellation(), settings)
-    else {
+    let Ok(mut solver) = PoseSolver::<f32>::new(&Calibration::table3(), &con, settings) else {
         fail("solver rejected the configuration")
     };
     let (lo, sp) = paint_stack();
