@@ -76,7 +76,8 @@ pub struct Settings<T> {
     pub max_damping: usize,
     /// Stop, without taking it, when the Gauss-Newton step would lower `sum w r^2` by less
     /// than this (absolute; with absolute weights it is chi-square, and 0.01 is far below
-    /// the noise). The relative `cost_tol` applies to the predicted decrease too.
+    /// the noise), and after an undamped step that lowered it by less than this. The
+    /// relative `cost_tol` applies to the predicted decrease too.
     pub cost_abs_tol: T,
     /// Compute the condition number by eigen iteration (`true`), or report the cheap upper
     /// bound `sqrt(n trace(N^-1))` of the column-scaled normal matrix `N` (within a factor
@@ -559,7 +560,16 @@ where
                     let small_step = (0..n).all(|i| {
                         step[i].abs() <= settings.step_tol * (x[i].abs() + settings.step_tol)
                     });
-                    let small_cost = (wss - wn) <= settings.cost_tol * wss;
+                    // An undamped (Gauss-Newton) step that lowered the cost by less than
+                    // cost_abs_tol: the next would not be worth it either. In a flat valley
+                    // the predicted decrease can stay just above the tolerance step after
+                    // step while the actual one falls below it (the pose at 30 in: 20
+                    // iterations, then NotConverged next to the minimum). A damped step may
+                    // be small because of the damping, not the valley: it does not stop.
+                    let small_cost = (wss - wn) <= settings.cost_tol * wss
+                        || (lambda == T::zero()
+                            && settings.cost_abs_tol > T::zero()
+                            && (wss - wn) <= settings.cost_abs_tol);
                     x = xn;
                     let prev = wss;
                     wss = wn;

@@ -1192,6 +1192,50 @@ mod tests {
         assert_eq!(s3.solve_obs(&few).status, PoseStatus::Ok);
     }
 
+    /// At 30 in the one-array target's attitude is barely observed (floor ~4 deg): the cost
+    /// valley is flat and Gauss-Newton creeps along it, each step predicted to gain a little
+    /// more than 0.01 chi-square. About 1 frame in 400 ran out of its 20 iterations within a
+    /// fraction of a sigma of the minimum and was reported Diverged (7 pinhole and 8
+    /// near-field of these 3000). Stopping when a step actually gains less than 0.01 leaves
+    /// 0 and 2: creeps whose steps each gain 0.02-0.2 (raising the cap to 30 iterations still
+    /// leaves one). At most 1 in 1000 may remain.
+    #[test]
+    fn flat_valley_at_30_in_converges() {
+        let em = truth_emulator();
+        let con = cta_constellation();
+        let mut seed = 0x9e37_79b9_u32;
+        let mut uniform = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f64 / 4294967296.0 - 0.5
+        };
+        let sigma = 0.001 * crate::emulator::BETA;
+        let mut failed = [0usize; 2];
+        for _ in 0..3000 {
+            let t = Vector3::new(uniform(), uniform(), 30.0);
+            let axis = Vector3::new(uniform(), uniform(), uniform());
+            let q = mrp::from_axis_angle(&axis, rad(3.0 * (uniform() + 0.5)));
+            // Uniform noise of the same variance as the Gaussian, sqrt(12) x sigma wide.
+            let spots = simulate_spots(&em, &con, &t, &q, |_| 3.4641016 * sigma * uniform());
+            for (k, model) in [ModelKind::Pinhole, ModelKind::NearField]
+                .into_iter()
+                .enumerate()
+            {
+                let set = SolverSettings {
+                    model,
+                    ..SolverSettings::default()
+                };
+                let mut s = PoseSolver::<f32>::new(&Calibration::table3(), &con, set).unwrap();
+                failed[k] += usize::from(s.solve(&spots).status != PoseStatus::Ok);
+            }
+        }
+        assert!(
+            failed.iter().all(|&f| f <= 3),
+            "frames not solved of 3000 (pinhole, near-field): {failed:?}"
+        );
+    }
+
     #[test]
     fn garbage_spots_never_give_nan() {
         let con = cta_constellation();
