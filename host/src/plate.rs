@@ -177,6 +177,8 @@ pub struct TestScene {
     pub plate: Plate,
     /// Header text: the constellation, its plate, the raise.
     pub label: String,
+    /// Plot titles: the constellation, its beacon count, the raise.
+    pub short: String,
 }
 
 /// Resolve `--constellation` (a built-in name or a JSON file; default `one-10`), `--plate`
@@ -215,6 +217,10 @@ pub fn test_scene(
         .iter()
         .filter(|b| !plate.holds(b.r[0] as f64, b.r[1] as f64))
         .count();
+    let mut short = format!("{name}, {} beacons", con.beacons.len());
+    if depth != 0.0 {
+        short += &format!(", raised {depth:.1} in");
+    }
     let mut label = format!(
         "{name} ({} beacons), calibrations swept over {}",
         con.beacons.len(),
@@ -229,7 +235,12 @@ pub fn test_scene(
              extrapolate to them)"
         );
     }
-    Ok(TestScene { con, plate, label })
+    Ok(TestScene {
+        con,
+        plate,
+        label,
+        short,
+    })
 }
 
 #[cfg(test)]

@@ -178,6 +178,8 @@ pub struct FloorTable {
     pub monte_carlo: usize,
     /// The constellation.
     pub constellation: String,
+    /// The constellation, short (plot title).
+    pub constellation_short: String,
 }
 
 /// The measurements of one frame as a function of the pose: for each beacon of `visible`,
@@ -503,6 +505,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
         poses: args.poses,
         monte_carlo: args.monte_carlo,
         constellation: test.label,
+        constellation_short: test.short,
     })
 }
 
@@ -555,7 +558,7 @@ impl FloorTable {
             path,
             &format!(
                 "Pose noise floor of one frame ({}, spot noise {:.1} counts; magnitude model assumed)",
-                self.constellation, self.noise_counts
+                self.constellation_short, self.noise_counts
             ),
             &[panel(true), panel(false)],
             2,

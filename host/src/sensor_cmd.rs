@@ -703,8 +703,10 @@ pub struct AccuracyTable {
     pub trials: usize,
     /// Noise, counts.
     pub noise_counts: f64,
-    /// The constellation (built-in layout or the file).
+    /// The constellation (built-in layout or the file), its plate and raise.
     pub constellation: String,
+    /// The constellation, short (plot title).
+    pub constellation_short: String,
     /// Height of the outer beacons above the plate, in.
     pub depth: f64,
     /// Arithmetic of the solver.
@@ -931,7 +933,7 @@ impl AccuracyTable {
             path,
             &format!(
                 "Pose accuracy, near-field vs pinhole ({}, noise {:.1} counts, {} trials per range)",
-                self.constellation, self.noise_counts, self.trials
+                self.constellation_short, self.noise_counts, self.trials
             ),
             &[panel("position", "in", false), panel("attitude", "deg", true)],
             2,
@@ -1287,6 +1289,7 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
         pinhole_calibration: ph_cal,
         nearfield_calibration: nf_cal,
         constellation: scene.label,
+        constellation_short: scene.short,
         nearfield_sigma: nf_sigma,
         true_calibration: args.true_calibration,
         cal_samples: args.cal_samples,
