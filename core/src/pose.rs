@@ -849,6 +849,24 @@ pub fn simulate_spots<T: Real>(
     out
 }
 
+/// A flat constellation on the plate `z = 0` of T, LEDs along `-z` (the plate faces the
+/// board): beacon `i` (channel `i`) at `(r[i][0], r[i][1], 0)` in; at most [`MAX_BEACONS`]
+/// (more are left out).
+pub fn flat_constellation(r: &[[f32; 2]]) -> Constellation {
+    let mut beacons = Vec::new();
+    for (i, r) in r.iter().take(MAX_BEACONS).enumerate() {
+        // Cannot fail: at most MAX_BEACONS are taken.
+        let _ = beacons.push(Beacon {
+            id: i as u8,
+            r: [r[0], r[1], 0.0],
+        });
+    }
+    Constellation {
+        beacons,
+        boresight: [0.0, 0.0, -1.0],
+    }
+}
+
 /// A 10-beacon constellation on the CTA's 1 in grid (channels 0..=9): five beacons within
 /// about 2 in of the centre (seen down to 2 in separation) and five out to 4.5 in (lever
 /// arm at range). LEDs along `-z` of T (the plate faces the board).
@@ -865,17 +883,7 @@ pub fn cta_constellation() -> Constellation {
         [2.5, -3.5],
         [4.5, -0.5],
     ];
-    let mut beacons = Vec::new();
-    for (i, r) in R.iter().enumerate() {
-        let _ = beacons.push(Beacon {
-            id: i as u8,
-            r: [r[0], r[1], 0.0],
-        });
-    }
-    Constellation {
-        beacons,
-        boresight: [0.0, 0.0, -1.0],
-    }
+    flat_constellation(&R)
 }
 
 /// All 20 NorthStar channels spread over the CTA plate with four arrays in its quadrants
@@ -907,17 +915,7 @@ pub fn four_array_constellation() -> Constellation {
         [6.5, -5.5],
         [-6.5, 5.5],
     ];
-    let mut beacons = Vec::new();
-    for (i, r) in R.iter().enumerate() {
-        let _ = beacons.push(Beacon {
-            id: i as u8,
-            r: [r[0], r[1], 0.0],
-        });
-    }
-    Constellation {
-        beacons,
-        boresight: [0.0, 0.0, -1.0],
-    }
+    flat_constellation(&R)
 }
 
 /// The benchmark of the on-chip solve (QEMU instruction count and the f32-vs-f64 check):

@@ -14,7 +14,9 @@
 
 use anyhow::{bail, Result};
 use cta_core::emulator::grid_position;
-use cta_core::pose::{cta_constellation, four_array_constellation, Beacon, Constellation};
+use cta_core::pose::{
+    cta_constellation, flat_constellation, four_array_constellation, Constellation,
+};
 use nalgebra::Vector3;
 use serde::Serialize;
 
@@ -122,16 +124,13 @@ fn one_20() -> Constellation {
         [0.5, 4.5],
         [-0.5, -4.5],
     ];
-    let mut con = cta_constellation();
-    for r in ADD {
-        let id = con.beacons.len() as u8;
-        // Cannot fail: 10 + 10 <= MAX_BEACONS (20).
-        let _ = con.beacons.push(Beacon {
-            id,
-            r: [r[0], r[1], 0.0],
-        });
-    }
-    con
+    let xy: Vec<[f32; 2]> = cta_constellation()
+        .beacons
+        .iter()
+        .map(|b| [b.r[0], b.r[1]])
+        .chain(ADD)
+        .collect();
+    flat_constellation(&xy)
 }
 
 /// The first ten beacons of the four-array constellation.
@@ -164,6 +163,32 @@ pub fn built_in_constellation(name: &str) -> Result<Constellation> {
             "no built-in constellation {name}; the built-ins:{}",
             built_in_list()
         ),
+    }
+}
+
+/// The target of a pose analysis (`cta sensor accuracy`, `cta sensor floor`): which
+/// constellation, on which plate, raised how far.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct SceneArgs {
+    /// The constellation: a built-in name (one-10, one-20, four-10, four-20: beacons on one
+    /// array or spread over four, 10 or all 20 NorthStar channels) or a JSON file (the shape
+    /// of `cta sensor template constellation`). Default one-10, the chip's benchmark.
+    #[arg(long, value_name = "NAME|FILE")]
+    pub constellation: Option<String>,
+    /// The plate the calibration sweeps see: `one` array or `four` in the quadrants.
+    /// Default: the built-in's own; for a file, `four` if a beacon lies beyond 4.5 in.
+    #[arg(long, value_enum)]
+    pub plate: Option<Plate>,
+    /// Raise every beacon after the first five this far toward the sensor, in (beacons on
+    /// posts: a 3-D target decorrelates tilt from lateral offset). 0: the flat plate.
+    #[arg(long, default_value_t = 0.0)]
+    pub depth: f64,
+}
+
+impl SceneArgs {
+    /// Resolve the arguments ([`test_scene`]).
+    pub fn scene(&self) -> Result<TestScene> {
+        test_scene(self.constellation.as_deref(), self.plate, self.depth)
     }
 }
 

@@ -44,7 +44,7 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
-use crate::plate::{test_scene, Plate};
+use crate::plate::SceneArgs;
 use crate::sensor_cmd::{angle_between_deg, pinhole_calibration, random_pose};
 
 /// Options of `cta sensor floor`.
@@ -73,17 +73,9 @@ pub struct FloorArgs {
     /// Random seed.
     #[arg(long, default_value_t = 2010)]
     pub seed: u64,
-    /// Raise every beacon after the first five this far toward the sensor, in.
-    #[arg(long, default_value_t = 0.0)]
-    pub depth: f64,
-    /// The constellation: a built-in name (one-10, one-20, four-10, four-20) or a JSON file,
-    /// as in `cta sensor accuracy`. Default one-10, the chip's benchmark.
-    #[arg(long, value_name = "NAME|FILE")]
-    pub constellation: Option<String>,
-    /// The plate the pinhole calibration is swept over (`one` or `four` arrays). Default:
-    /// the built-in's own; for a file, `four` if a beacon lies beyond 4.5 in.
-    #[arg(long, value_enum)]
-    pub plate: Option<Plate>,
+    /// The target: constellation, plate (of the pinhole calibration sweep), raise.
+    #[command(flatten)]
+    pub scene: SceneArgs,
     /// Draw the attitude and position floors against range (spots only, each magnitude
     /// noise, and the attitude floor needed for 5x) to this SVG file.
     #[arg(long, value_name = "FILE.svg")]
@@ -102,9 +94,7 @@ impl Default for FloorArgs {
             poses: 20,
             monte_carlo: 0,
             seed: 2010,
-            depth: 0.0,
-            constellation: None,
-            plate: None,
+            scene: SceneArgs::default(),
             plot: None,
             json: false,
         }
@@ -334,7 +324,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
     let mut truth = Calibration::table3();
     let noise = args.noise_fraction * cta_core::emulator::BETA;
     truth.noise = noise as f32;
-    let test = test_scene(args.constellation.as_deref(), args.plate, args.depth)?;
+    let test = args.scene.scene()?;
     let con = test.con;
     let em: Emulator<f64> = cta_firmware_sensor::sim::physics(&truth);
     let scene = Scene { em: &em, con: &con };
@@ -763,7 +753,10 @@ mod tests {
                 ranges: vec![10.0],
                 magnitude_noise: vec![],
                 poses: 20,
-                constellation: Some(c.into()),
+                scene: SceneArgs {
+                    constellation: Some(c.into()),
+                    ..SceneArgs::default()
+                },
                 ..FloorArgs::default()
             })
             .unwrap()

@@ -45,7 +45,7 @@ use cta_firmware_sensor::sim::{SimBoard, SimNorthStar};
 pub use nalgebra::Vector3;
 
 use crate::link::{open_serial, Link, LinkConfig};
-use crate::plate::{built_in_constellation, test_scene, Plate};
+use crate::plate::{built_in_constellation, Plate, SceneArgs};
 
 /// `cta sensor`: command the sensor board over its serial link.
 #[derive(Debug, Args)]
@@ -257,20 +257,9 @@ pub struct AccuracyArgs {
     /// Solve in f64 (default: f32, as on the chip).
     #[arg(long)]
     pub f64: bool,
-    /// Raise every beacon after the first five (the built-in layout's outer five) this far
-    /// toward the sensor, in (beacons on posts: a 3-D target decorrelates tilt from lateral
-    /// offset). 0: as given (the flat CTA plate).
-    #[arg(long, default_value_t = 0.0)]
-    pub depth: f64,
-    /// The constellation: a built-in name (one-10, one-20, four-10, four-20: beacons on one
-    /// array or spread over four, 10 or all 20 NorthStar channels) or a JSON file (the shape
-    /// of `cta sensor template constellation`). Default one-10, the chip's benchmark.
-    #[arg(long, value_name = "NAME|FILE")]
-    pub constellation: Option<String>,
-    /// The plate the calibration sweeps see: `one` array or `four` in the quadrants.
-    /// Default: the built-in's own; for a file, `four` if a beacon lies beyond 4.5 in.
-    #[arg(long, value_enum)]
-    pub plate: Option<Plate>,
+    /// The target: constellation, plate, raise.
+    #[command(flatten)]
+    pub scene: SceneArgs,
     /// Samples averaged per beacon and separation in the simulated calibration sweep that
     /// the near-field calibration is fitted to (Ch VI takes 100-200).
     #[arg(long, default_value_t = 100)]
@@ -300,9 +289,7 @@ impl Default for AccuracyArgs {
             noise_fraction: 0.001,
             seed: 2010,
             f64: false,
-            depth: 0.0,
-            constellation: None,
-            plate: None,
+            scene: SceneArgs::default(),
             cal_samples: 100,
             true_calibration: false,
             plot: None,
@@ -1183,7 +1170,7 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
     let mut truth = Calibration::table3();
     let noise = args.noise_fraction * cta_core::emulator::BETA;
     truth.noise = noise as f32;
-    let scene = test_scene(args.constellation.as_deref(), args.plate, args.depth)?;
+    let scene = args.scene.scene()?;
     let con = scene.con;
     let ph_cal = pinhole_calibration(&truth, scene.plate)?;
     let em: Emulator<f64> = cta_firmware_sensor::sim::physics(&truth);
@@ -1295,7 +1282,7 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
         cal_samples: args.cal_samples,
         trials: args.trials,
         noise_counts: noise,
-        depth: args.depth,
+        depth: args.scene.depth,
         arithmetic: if args.f64 {
             "f64"
         } else {
@@ -1325,8 +1312,11 @@ mod tests {
             let t = accuracy_table(&AccuracyArgs {
                 trials: 8,
                 ranges: vec![30.0],
-                constellation: Some("four-20".into()),
-                plate: Some(plate),
+                scene: SceneArgs {
+                    constellation: Some("four-20".into()),
+                    plate: Some(plate),
+                    depth: 0.0,
+                },
                 cal_samples: 10,
                 ..AccuracyArgs::default()
             })
