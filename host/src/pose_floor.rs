@@ -670,7 +670,8 @@ impl FloorTable {
               'solver's own' is the on-chip near-field solver's 1-sigma (f64 here) on the noise-free frame before its\n\
               scaling by the residual variance: it should equal the spots-only bound. 'floor needed for 5x' =\n\
               pinhole systematic / sqrt(24), since the pinhole's error per frame is at least\n\
-              sqrt(systematic^2 + floor^2). --json has every figure.\n";
+              sqrt(systematic^2 + floor^2); 'best ratio' = sqrt(1 + (systematic / spots floor)^2), the most a pose\n\
+              from the spots alone can show (try other --constellation). --json has every figure.\n";
         if self.monte_carlo > 0 {
             s += &format!(
                 "[reached] = RMS attitude error of a host GLSDC pose fit with magnitudes, {} noisy frames per pose.\n",
