@@ -1,10 +1,11 @@
 //! The host's f64 answer to the QEMU pose benchmark (`tests/qemu/src/bin/pose.rs`), printed
 //! in the same format so that `firmware-sensor/ci.sh` can compare the on-target f32 answer
-//! with it: `cargo run -p cta-firmware-sensor --example pose_reference -- [pinhole|nearfield]`.
+//! with it: `cargo run -p cta-firmware-sensor --example pose_reference -- [pinhole|nearfield]
+//! [20]` (`20`: the 20-beacon four-array constellation, as `POSE_BEACONS=20` on the target).
 
 use cta_core::pose::{
-    benchmark_frames, cta_constellation, Calibration, ModelKind, PoseSolver, PoseStatus,
-    SolverSettings,
+    benchmark_frames_of, cta_constellation, four_array_constellation, Calibration, ModelKind,
+    PoseSolver, PoseStatus, SolverSettings,
 };
 
 fn main() {
@@ -12,12 +13,16 @@ fn main() {
         Some("pinhole") => ModelKind::Pinhole,
         _ => ModelKind::NearField,
     };
-    let (f1, f2, t2, q2) = benchmark_frames();
+    let con = match std::env::args().nth(2).as_deref() {
+        Some("20") => four_array_constellation(),
+        _ => cta_constellation(),
+    };
+    let (f1, f2, t2, q2) = benchmark_frames_of(&con);
     let settings = SolverSettings {
         model,
         ..SolverSettings::default()
     };
-    let mut solver = PoseSolver::<f64>::new(&Calibration::table3(), &cta_constellation(), settings)
+    let mut solver = PoseSolver::<f64>::new(&Calibration::table3(), &con, settings)
         .expect("valid configuration");
     let first = solver.solve(&f1);
     let sol = solver.solve(&f2);
