@@ -5,7 +5,7 @@
 //! centred on the 24 in plate, or four of them in the plate's quadrants. The four-array
 //! positions assume each 12 x 12 in board sits centred in its quadrant, its grid centre at
 //! (+/-6, +/-6) in: LEDs at +/-1.5 .. +/-10.5 in on both axes, a 20 x 20 grid with a 3 in
-//! gap through the middle (where the rods' notches and the board edges meet).
+//! gap through the middle (the arrays' 1.5 in margins meeting).
 //!
 //! Which plate is mounted matters twice: the calibration sweeps (pinhole at 25 and 30 in,
 //! near-field at 2-30 in) see the plate's whole grid, so a calibration only covers the angles
