@@ -179,12 +179,15 @@ pub struct Emulator<T: Real> {
     pub head: Head<T>,
     /// Pose of the head on the board.
     pub pose: Pose<T>,
-    /// Physics switches and effects.
+    /// Physics switches and effects (read at construction too: build a new emulator to
+    /// change them).
     pub effects: Effects<T>,
-    // Cached: normals and centres in N, and the LED boresight unit vector in N.
+    // Cached: normals and centres in N, the LED boresight unit vector in N, and whether the
+    // raw cell signals pass unchanged (unit gains, no bias, cross-talk or saturation).
     n_n: [Vector3<T>; 4],
     o_n: [Vector3<T>; 4],
     bore: Vector3<T>,
+    plain: bool,
 }
 
 /// One cell's signal before gain, bias, cross-talk and saturation, and its gradient in
@@ -202,6 +205,18 @@ struct Cell<T: Real> {
 impl<T: Real> Emulator<T> {
     /// Build an emulator (caches the cell geometry in N).
     pub fn new(head: Head<T>, pose: Pose<T>, effects: Effects<T>) -> Self {
+        Self::with_led_boresight(head, pose, effects, &effects.boresight())
+    }
+
+    /// [`Self::new`] with the LEDs' boresight given directly as the unit vector `bore`
+    /// (N) rather than by `effects.tilt`/`tilt_az`: no trigonometry (the chip's pose
+    /// solver, which sets the boresight from the target's attitude anyway).
+    pub fn with_led_boresight(
+        head: Head<T>,
+        pose: Pose<T>,
+        effects: Effects<T>,
+        bore: &Vector3<T>,
+    ) -> Self {
         let c: Matrix3<T> = mrp::dcm(&pose.p);
         let ct = c.transpose();
         let s = if effects.proximity { head.s } else { T::zero() };
@@ -209,7 +224,11 @@ impl<T: Real> Emulator<T> {
         let o_o = Head::centres(s);
         let n_n = core::array::from_fn(|k| ct * n_o[k]);
         let o_n = core::array::from_fn(|k| pose.d + ct * o_o[k]);
-        let bore = effects.boresight();
+        let bore = *bore;
+        let plain = effects.gain.iter().all(|&g| g == T::one())
+            && effects.bias.iter().all(|&b| b == T::zero())
+            && effects.crosstalk == T::zero()
+            && effects.saturation.is_none();
         Emulator {
             head,
             pose,
@@ -217,6 +236,7 @@ impl<T: Real> Emulator<T> {
             n_n,
             o_n,
             bore,
+            plain,
         }
     }
 
@@ -268,7 +288,8 @@ impl<T: Real> Emulator<T> {
         let l = T::one() / len2.sqrt();
         let v = nr * l;
         let i = if e.intensity { l * l } else { T::one() };
-        let w = (-(ray.dot(&self.bore) * l)).max(-T::one()).min(T::one());
+        // A cosine: within [-1, 1] but for rounding, which only acos (below) minds.
+        let w = -(ray.dot(&self.bore) * l);
         // c and dc/dw.
         let (c, dcdw) = match e.pattern {
             Pattern::Uniform => (T::one(), z),
@@ -283,7 +304,7 @@ impl<T: Real> Emulator<T> {
                 }
             }
             p => {
-                let gam = w.acos();
+                let gam = w.max(-T::one()).min(T::one()).acos();
                 let c = p.eval(gam);
                 let dcdw = if grad {
                     // d/dgamma by a central difference of the (polynomial) pattern,
@@ -314,6 +335,9 @@ impl<T: Real> Emulator<T> {
     /// `dS_k/draw_k` (the gain, or 0 when clipped; cross-talk adds `x` times that to
     /// `dS_k/draw_{k^2}`).
     fn mixed(&self, raw: [T; 4]) -> ([T; 4], [T; 4]) {
+        if self.plain {
+            return (raw, [T::one(); 4]);
+        }
         let e = &self.effects;
         let x = e.crosstalk;
         let mut s = [T::zero(); 4];

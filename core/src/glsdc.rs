@@ -9,6 +9,8 @@
 //! - Jacobi column scaling (so millimetres, milliradians and counts-per-unit parameters mix);
 //! - a damped (Levenberg) step whenever a Gauss-Newton step raises the cost;
 //! - stopping on a small step, a small cost change, or an iteration cap;
+//! - optionally ([`solve_with`]), the last linearisation carried to the next solve of a
+//!   tracked problem, for a first step that costs a residual pass only;
 //! - the covariance `P = (G^T W G)^-1`, scaled by the residual variance
 //!   `sum w r^2 / (m - n)` unless the weights are absolute (`W = R^-1`);
 //! - 1-sigma per parameter, residual RMS, iterations and the condition number of the scaled,
@@ -74,11 +76,15 @@ pub struct Settings<T> {
     pub rank_tol: T,
     /// How many times the damping may grow within one iteration before giving up.
     pub max_damping: usize,
-    /// Stop, without taking it, when the Gauss-Newton step would lower `sum w r^2` by less
-    /// than this (absolute; with absolute weights it is chi-square, and 0.01 is far below
-    /// the noise), and after an undamped step that lowered it by less than this. The
-    /// relative `cost_tol` applies to the predicted decrease too.
+    /// Stop after an undamped step that lowered `sum w r^2` by less than this (absolute;
+    /// with absolute weights it is chi-square, and 0.01 is far below the noise).
     pub cost_abs_tol: T,
+    /// When the Gauss-Newton step would lower `sum w r^2` by less than this (absolute), or
+    /// by less than `cost_tol` of it, take the step without evaluating the model at its end
+    /// and stop. With absolute weights a step worth `p` of chi-square is `sqrt(p)` standard
+    /// deviations long (in the metric of the covariance): far inside the linear regime for
+    /// `p` below 1, so its predicted end is its end.
+    pub final_step_tol: T,
     /// Compute the condition number by eigen iteration (`true`), or report the cheap upper
     /// bound `sqrt(n trace(N^-1))` of the column-scaled normal matrix `N` (within a factor
     /// `sqrt(n)`; for the chip's instruction budget).
@@ -100,6 +106,7 @@ impl<T: Real> Default for Settings<T> {
             rank_tol: eps * T::lit(1e4),
             max_damping: 30,
             cost_abs_tol: T::zero(),
+            final_step_tol: T::zero(),
             exact_condition: true,
             jacobian_in_trial: false,
         }
@@ -117,8 +124,9 @@ pub enum Stop {
     ZeroCost,
     /// No damped step lowers the cost any more: a minimum to working precision.
     NoFurtherDecrease,
-    /// The Gauss-Newton step would lower the cost by less than the tolerances: the current
-    /// estimate is kept (and its covariance is exact there).
+    /// The Gauss-Newton step would lower the cost by less than the tolerances: it was taken
+    /// without evaluating the model at its end (the cost there is the linear prediction,
+    /// the covariance that of the point one sub-tolerance step before).
     SmallPredictedDecrease,
 }
 
@@ -196,6 +204,8 @@ where
     g: OVector<T, D>,
     wss: T,
     ss: T,
+    /// Weighted Jacobian rows kept in the caller's store (0: none).
+    rows: usize,
 }
 
 impl<T: Real, D: Dim> Normal<T, D>
@@ -228,6 +238,7 @@ where
 /// reciprocals of its diagonal: one division per column and none in the solves (each
 /// soft-float division costs several multiplications on the chip). One factorisation per
 /// iteration serves the rank test, the Gauss-Newton step and the covariance.
+#[derive(Debug, Clone)]
 struct Chol<T: Real, D: Dim>
 where
     DefaultAllocator: Allocator<D> + Allocator<D, D>,
@@ -361,6 +372,7 @@ where
 fn accumulate<T: Real, P: Problem<T>>(
     prob: &P,
     x: &OVector<T, P::D>,
+    store: Option<&mut [T]>,
 ) -> Result<Normal<T, P::D>, ModelError>
 where
     DefaultAllocator: Allocator<P::D> + Allocator<P::D, P::D>,
@@ -371,15 +383,29 @@ where
     let mut g = OVector::<T, P::D>::zeros_generic(d, U1);
     let mut wss = T::zero();
     let mut ss = T::zero();
+    let mut store = store;
+    let cap = store.as_ref().map_or(0, |s| s.len() / nn.max(1));
+    let mut row = 0;
     prob.rows(x, true, &mut |r, w, j| {
         debug_assert_eq!(j.len(), nn);
         let rr = r * r;
-        wss += w * rr;
+        wss += if w == T::one() { rr } else { w * rr };
         ss += rr;
+        // The weighted row w J_i, kept for chord steps when there is room.
+        let mut kept = match store.as_deref_mut() {
+            Some(s) if row < cap => Some(&mut s[row * nn..(row + 1) * nn]),
+            _ => None,
+        };
+        row += 1;
+        // Unit weights save a multiplication per element (a soft-float call on the chip).
+        let unit = w == T::one();
         // Upper triangle, column by column (contiguous in nalgebra's column-major storage).
         let ns = n.as_mut_slice();
         for (b, &jb) in j.iter().enumerate() {
-            let wjb = w * jb;
+            let wjb = if unit { jb } else { w * jb };
+            if let Some(k) = kept.as_deref_mut() {
+                k[b] = wjb;
+            }
             if wjb == T::zero() {
                 continue;
             }
@@ -397,7 +423,55 @@ where
     if !(wss.is_finite() && g.iter().all(|v| v.is_finite()) && n.iter().all(|v| v.is_finite())) {
         return Err(ModelError::NonFinite);
     }
-    Ok(Normal { n, g, wss, ss })
+    let rows = if row <= cap { row } else { 0 };
+    Ok(Normal {
+        n,
+        g,
+        wss,
+        ss,
+        rows,
+    })
+}
+
+/// The gradient and the sums `sum w r^2`, `sum r^2` of a chord evaluation.
+type ChordEval<T, D> = (OVector<T, D>, T, T);
+
+/// A chord evaluation at `x`: the residuals there and the gradient `g = sum (w J_i) r_i`
+/// from the weighted rows `kept` (`rows` of them) of an earlier linearisation. `None` when
+/// the model visits a different number of rows at `x` (the kept rows no longer line up).
+fn chord_at<T: Real, P: Problem<T>>(
+    prob: &P,
+    x: &OVector<T, P::D>,
+    kept: &[T],
+    rows: usize,
+) -> Result<Option<ChordEval<T, P::D>>, ModelError>
+where
+    DefaultAllocator: Allocator<P::D>,
+{
+    let d = prob.dim();
+    let nn = d.value();
+    let mut g = OVector::<T, P::D>::zeros_generic(d, U1);
+    let mut wss = T::zero();
+    let mut ss = T::zero();
+    let mut row = 0;
+    prob.rows(x, false, &mut |r, w, _| {
+        if row < rows {
+            for (gb, &jb) in g.iter_mut().zip(&kept[row * nn..(row + 1) * nn]) {
+                *gb += jb * r;
+            }
+        }
+        row += 1;
+        let rr = r * r;
+        wss += if w == T::one() { rr } else { w * rr };
+        ss += rr;
+    })?;
+    if row != rows {
+        return Ok(None);
+    }
+    if !(wss.is_finite() && g.iter().all(|v| v.is_finite())) {
+        return Err(ModelError::NonFinite);
+    }
+    Ok(Some((g, wss, ss)))
 }
 
 /// Extreme eigenvalues of a symmetric positive semi-definite matrix and the eigenvector of
@@ -460,6 +534,68 @@ where
     (lmax, lmin, u)
 }
 
+/// One linearisation: the scaled normal matrix at `x`, its scale and Cholesky factor, and
+/// how many weighted Jacobian rows of it the caller's store holds (0: none).
+#[derive(Debug, Clone)]
+struct Lin<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    x: OVector<T, D>,
+    ns: OMatrix<T, D, D>,
+    scale: OVector<T, D>,
+    ch: Option<Chol<T, D>>,
+    kept: usize,
+}
+
+impl<T: Real, D: Dim> Lin<T, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    fn new(ne: &Normal<T, D>, x: &OVector<T, D>) -> Self {
+        let (ns, scale) = ne.scaled();
+        let ch = Chol::new(&ns);
+        Lin {
+            x: x.clone(),
+            ns,
+            scale,
+            ch,
+            kept: ne.rows,
+        }
+    }
+}
+
+/// The last linearisation of a [`solve_with`], carried to the next solve of a similar
+/// problem (the next frame of a tracked pose): its factored normal matrix here, its
+/// weighted Jacobian rows in the caller's store.
+#[derive(Debug, Clone)]
+pub struct Carry<T: Real, D: Dim>(Lin<T, D>)
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>;
+
+/// A trial point's evaluation.
+enum Trial<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    /// Cost only (`wss`, `ss`): the next iteration linearises there.
+    Cost(T, T),
+    /// A fresh linearisation there.
+    Fresh(Normal<T, D>),
+}
+
+impl<T: Real, D: Dim> Trial<T, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    fn sums(&self) -> (T, T) {
+        match self {
+            Trial::Cost(w, s) => (*w, *s),
+            Trial::Fresh(ne) => (ne.wss, ne.ss),
+        }
+    }
+}
+
 /// Run GLSDC from `x0`.
 pub fn solve<T: Real, P: Problem<T>>(
     prob: &P,
@@ -469,6 +605,32 @@ pub fn solve<T: Real, P: Problem<T>>(
 where
     DefaultAllocator: Allocator<P::D> + Allocator<P::D, P::D>,
 {
+    solve_with(prob, x0, settings, &mut [], &mut None)
+}
+
+/// [`solve`] for a sequence of similar problems (a tracked pose, frame after frame), with a
+/// linearisation carried from one to the next. `store` keeps the weighted Jacobian rows
+/// `w J_i` of each linearisation (room for `m n` values; less: none are kept and nothing is
+/// carried). On entry, `carry` is the previous solve's last linearisation (`None`: start
+/// afresh); on return, this one's (`None` after an error).
+///
+/// A carried linearisation whose rows line up with this problem's (the same count) serves
+/// the first step: the residuals at `x0` cost one pass without the Jacobian, and the
+/// gradient is `sum (w J_i) r_i` over the kept rows (a chord step). A carried Jacobian only
+/// moves the estimate: no stop is decided from it (the next point is linearised afresh
+/// before any stop), so the answer is the Gauss-Newton answer, and a step it spoils (the
+/// cost rises) is retried from a fresh linearisation at `x0`.
+pub fn solve_with<T: Real, P: Problem<T>>(
+    prob: &P,
+    x0: OVector<T, P::D>,
+    settings: &Settings<T>,
+    store: &mut [T],
+    carry: &mut Option<Carry<T, P::D>>,
+) -> Result<Solution<T, P::D>, Error<T, P::D>>
+where
+    DefaultAllocator: Allocator<P::D> + Allocator<P::D, P::D>,
+{
+    let carried = carry.take();
     let d = prob.dim();
     let n = d.value();
     let m = prob.n_rows();
@@ -477,43 +639,69 @@ where
     }
     let half = T::lit(0.5);
     let mut x = x0;
-    // With `jacobian_in_trial`, the normal equations at an accepted trial point serve the
-    // next iteration, and the first ones give the starting cost.
-    let mut next: Option<Normal<T, P::D>> = None;
-    let (mut wss, mut ss) = if settings.jacobian_in_trial {
-        let ne = accumulate(prob, &x).map_err(Error::Model)?;
-        let c = (ne.wss, ne.ss);
-        next = Some(ne);
-        c
-    } else {
-        cost_at(prob, &x).map_err(Error::Model)?
+    // Fresh normal equations at `x` not yet factored (the start with `jacobian_in_trial`,
+    // or an accepted trial), or the gradient at `x` from the carried linearisation.
+    let mut fresh: Option<Normal<T, P::D>> = None;
+    let mut lin: Option<Lin<T, P::D>> = None;
+    let mut chord_g: Option<OVector<T, P::D>> = None;
+    let mut start = None;
+    if let Some(Carry(l)) = carried {
+        if l.kept == m && store.len() >= m * n {
+            if let Some((g, w, s)) = chord_at(prob, &x, store, m).map_err(Error::Model)? {
+                chord_g = Some(g);
+                lin = Some(l);
+                start = Some((w, s));
+            }
+        }
+    }
+    let (mut wss, mut ss) = match start {
+        Some(c) => c,
+        None if settings.jacobian_in_trial => {
+            let ne = accumulate(prob, &x, Some(&mut *store)).map_err(Error::Model)?;
+            let c = (ne.wss, ne.ss);
+            fresh = Some(ne);
+            c
+        }
+        None => cost_at(prob, &x).map_err(Error::Model)?,
     };
     let mut lambda = T::zero();
     let mut iterations = 0;
     let mut stop = None;
-    let mut last = None;
     while iterations < settings.max_iter {
         iterations += 1;
-        let ne = match next.take() {
-            Some(ne) => ne,
-            None => accumulate(prob, &x).map_err(Error::Model)?,
+        // The normal equations of this iteration: a new linearisation at `x`, or the
+        // carried one with the gradient at `x`.
+        let g = match (fresh.take(), chord_g.take(), lin.is_some()) {
+            (None, Some(g), true) => g,
+            (ne, _, _) => {
+                let ne = match ne {
+                    Some(ne) => ne,
+                    None => accumulate(prob, &x, Some(&mut *store)).map_err(Error::Model)?,
+                };
+                let l = Lin::new(&ne, &x);
+                if let Some(err) = rank_check(&l.ns, l.ch.as_ref(), &l.scale, &x, settings) {
+                    return Err(err);
+                }
+                lin = Some(l);
+                ne.g
+            }
         };
-        let (ns, scale) = ne.scaled();
-        let gs = ne.g.component_mul(&scale);
-        // One factorisation of the scaled normal matrix: rank check, the undamped step and,
-        // if this is the last linearisation, the covariance.
-        let ch = Chol::new(&ns);
-        if let Some(err) = rank_check(&ns, ch.as_ref(), &scale, &x, settings) {
-            return Err(err);
-        }
+        let Some(l) = lin.as_mut() else {
+            // Not reached: a linearisation was just made or kept.
+            return Err(Error::Model(ModelError::NoData));
+        };
+        let gs = g.component_mul(&l.scale);
+        // Stops are decided only from a linearisation at the current point.
+        let current = l.x == x;
         // Gauss-Newton first, Levenberg damping when the cost rises.
         let mut accepted = false;
+        let mut relinearise = false;
         for _ in 0..settings.max_damping {
             let damped;
             let factor = if lambda == T::zero() {
-                ch.as_ref()
+                l.ch.as_ref()
             } else {
-                let mut a = ns.clone();
+                let mut a = l.ns.clone();
                 for i in 0..n {
                     a[(i, i)] += lambda;
                 }
@@ -523,18 +711,28 @@ where
             let step = match factor {
                 Some(ch) => {
                     let ds = ch.solve(&gs);
-                    if lambda == T::zero() {
-                        // Gauss-Newton predicts sum w r^2 to fall by g^T dx.
+                    let step = ds.component_mul(&l.scale);
+                    if lambda == T::zero() && current {
+                        // Gauss-Newton predicts sum w r^2 to fall by g^T dx. Below the
+                        // tolerances the step is taken without evaluating the model at its
+                        // end: it is far inside the linear regime, so the prediction is
+                        // the cost there (and `ss` scales with it).
                         let predicted = gs.dot(&ds);
-                        if predicted <= settings.cost_abs_tol
+                        if predicted <= settings.final_step_tol
                             || predicted <= settings.cost_tol * wss
                         {
+                            let wn = (wss - predicted).max(T::zero());
+                            if wss > T::zero() {
+                                ss *= wn / wss;
+                            }
+                            wss = wn;
+                            x += step;
                             stop = Some(Stop::SmallPredictedDecrease);
                             accepted = true;
                             break;
                         }
                     }
-                    ds.component_mul(&scale)
+                    step
                 }
                 None => {
                     lambda = if lambda == T::zero() {
@@ -547,16 +745,15 @@ where
             };
             let xn = &x + &step;
             let trial = if settings.jacobian_in_trial {
-                accumulate(prob, &xn).map(|t| {
-                    let c = (t.wss, t.ss);
-                    next = Some(t);
-                    c
-                })
+                // The store now holds the trial's rows, not the linearisation's.
+                l.kept = 0;
+                accumulate(prob, &xn, Some(&mut *store)).map(Trial::Fresh)
             } else {
-                cost_at(prob, &xn)
+                cost_at(prob, &xn).map(|(w, s)| Trial::Cost(w, s))
             };
             match trial {
-                Ok((wn, sn)) if wn <= wss => {
+                Ok(t) if t.sums().0 <= wss => {
+                    let (wn, sn) = t.sums();
                     let small_step = (0..n).all(|i| {
                         step[i].abs() <= settings.step_tol * (x[i].abs() + settings.step_tol)
                     });
@@ -570,6 +767,9 @@ where
                         || (lambda == T::zero()
                             && settings.cost_abs_tol > T::zero()
                             && (wss - wn) <= settings.cost_abs_tol);
+                    if let Trial::Fresh(ne) = t {
+                        fresh = Some(ne);
+                    }
                     x = xn;
                     let prev = wss;
                     wss = wn;
@@ -582,6 +782,8 @@ where
                     };
                     if wss == T::zero() {
                         stop = Some(Stop::ZeroCost);
+                    } else if !current {
+                        // A step of the carried Jacobian: decide at the new point.
                     } else if small_step {
                         stop = Some(Stop::SmallStep);
                     } else if small_cost && prev > T::zero() {
@@ -589,8 +791,12 @@ where
                     }
                     break;
                 }
+                _ if !current => {
+                    // The carried Jacobian may be what failed: linearise afresh at `x`.
+                    relinearise = true;
+                    break;
+                }
                 _ => {
-                    next = None;
                     lambda = if lambda == T::zero() {
                         T::lit(1e-3)
                     } else {
@@ -599,10 +805,14 @@ where
                 }
             }
         }
+        if relinearise {
+            lin = None;
+            fresh = None;
+            continue;
+        }
         if !accepted {
             stop = Some(Stop::NoFurtherDecrease);
         }
-        last = Some((ns, scale, ch));
         if stop.is_some() {
             break;
         }
@@ -614,21 +824,17 @@ where
             iterations,
         });
     };
-    // Prefer the normal equations at the final point when a trial computed them.
-    let (ns, scale, ch) = match next {
-        Some(ne) => {
-            let (ns, scale) = ne.scaled();
-            let ch = Chol::new(&ns);
-            (ns, scale, ch)
-        }
-        None => last.expect("at least one iteration ran"),
+    // Prefer fresh normal equations at the final point when a trial computed them.
+    let l = match (fresh, lin) {
+        (Some(ne), _) => Lin::new(&ne, &x),
+        (None, Some(l)) => l,
+        // Not reached: at least one iteration ran.
+        (None, None) => return Err(Error::Model(ModelError::NoData)),
     };
-    finish(
+    let out = finish(
         Final {
             x,
-            ns,
-            ch,
-            scale,
+            lin: &l,
             wss,
             ss,
             m,
@@ -636,7 +842,11 @@ where
             stop,
         },
         settings,
-    )
+    );
+    if out.is_ok() && l.kept == m {
+        *carry = Some(Carry(l));
+    }
+    out
 }
 
 fn rank_check<T: Real, D: Dim>(
@@ -700,15 +910,14 @@ where
 /// The state GLSDC stops in: the solution, the scaled normal matrix of the last
 /// linearisation (at most one sub-tolerance step before `x`, so it is reused for the
 /// covariance rather than paying one more Jacobian pass), and the final residual sums.
-struct Final<T: Real, D: Dim>
+struct Final<'a, T: Real, D: Dim>
 where
     DefaultAllocator: Allocator<D> + Allocator<D, D>,
 {
     x: OVector<T, D>,
-    ns: OMatrix<T, D, D>,
-    /// Its Cholesky factor (`None`: not positive definite).
-    ch: Option<Chol<T, D>>,
-    scale: OVector<T, D>,
+    /// The scaled normal matrix, its scale and its Cholesky factor (`None`: not positive
+    /// definite).
+    lin: &'a Lin<T, D>,
     wss: T,
     ss: T,
     m: usize,
@@ -717,7 +926,7 @@ where
 }
 
 fn finish<T: Real, D: Dim>(
-    f: Final<T, D>,
+    f: Final<'_, T, D>,
     settings: &Settings<T>,
 ) -> Result<Solution<T, D>, Error<T, D>>
 where
@@ -725,21 +934,20 @@ where
 {
     let Final {
         x,
-        ns,
-        ch,
-        scale,
+        lin,
         wss,
         ss,
         m,
         iterations,
         stop,
     } = f;
+    let (ns, scale) = (&lin.ns, &lin.scale);
     let (dim, _) = ns.shape_generic();
     let n = dim.value();
-    let inv = match ch {
+    let inv = match &lin.ch {
         Some(ch) => ch.inverse(),
         None => {
-            let (_, _, v) = extreme_eigen(&ns, settings.rank_tol);
+            let (_, _, v) = extreme_eigen(ns, settings.rank_tol);
             return Err(Error::RankDeficient {
                 x,
                 null: v,
@@ -748,7 +956,7 @@ where
         }
     };
     let condition = if settings.exact_condition {
-        let (lmax, lmin, _) = extreme_eigen(&ns, T::zero());
+        let (lmax, lmin, _) = extreme_eigen(ns, T::zero());
         if lmin > T::zero() {
             (lmax / lmin).sqrt()
         } else {
@@ -795,7 +1003,7 @@ pub fn weakest_direction<T: Real, P: Problem<T>>(
 where
     DefaultAllocator: Allocator<P::D> + Allocator<P::D, P::D>,
 {
-    let (ns, _) = accumulate(prob, x)?.scaled();
+    let (ns, _) = accumulate(prob, x, None)?.scaled();
     let (lmax, lmin, v) = extreme_eigen(&ns, lmax_guard::<T>());
     let ratio = if lmax > T::zero() {
         lmin / lmax
@@ -1013,6 +1221,76 @@ mod tests {
             }
             other => panic!("expected NotConverged, got {other:?}"),
         }
+    }
+
+    /// [`Exp`] counting its Jacobian passes.
+    struct Counted<'a>(Exp<'a>, core::cell::Cell<usize>);
+    impl Problem<f64> for Counted<'_> {
+        type D = U2;
+        fn dim(&self) -> U2 {
+            U2
+        }
+        fn n_rows(&self) -> usize {
+            self.0.n_rows()
+        }
+        fn rows(
+            &self,
+            x: &Vector2<f64>,
+            jac: bool,
+            sink: &mut dyn FnMut(f64, f64, &[f64]),
+        ) -> Result<(), ModelError> {
+            self.1.set(self.1.get() + usize::from(jac));
+            self.0.rows(x, jac, sink)
+        }
+    }
+
+    #[test]
+    fn carried_linearisation_starts_the_next_solve() {
+        let t: [f64; 8] = [0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5];
+        // Residuals of +-0.01, so that the covariance is not all rounding.
+        let e = |i: usize| if i.is_multiple_of(2) { 0.01 } else { -0.01 };
+        let y1: [f64; 8] = core::array::from_fn(|i| 2.0 * (-0.7 * t[i]).exp() + e(i));
+        let y2: [f64; 8] = core::array::from_fn(|i| 2.02 * (-0.69 * t[i]).exp() - e(i));
+        let settings = Settings {
+            jacobian_in_trial: true,
+            ..Settings::default()
+        };
+        let mut store = [0.0; 16];
+        let mut carry = None;
+        let p1 = Counted(Exp { t: &t, y: &y1 }, Default::default());
+        let s1 = solve_with(
+            &p1,
+            Vector2::new(1.5, -0.5),
+            &settings,
+            &mut store,
+            &mut carry,
+        )
+        .unwrap();
+        assert!(carry.is_some(), "the last linearisation is carried");
+        // The next problem from the last answer, with and without the carried one.
+        let fresh = Counted(Exp { t: &t, y: &y2 }, Default::default());
+        let a = solve_with(&fresh, s1.x, &settings, &mut [0.0; 16], &mut None).unwrap();
+        let carried = Counted(Exp { t: &t, y: &y2 }, Default::default());
+        let b = solve_with(&carried, s1.x, &settings, &mut store, &mut carry).unwrap();
+        assert!((a.x - b.x).norm() < 1e-9, "{:?} vs {:?}", a.x, b.x);
+        assert!((a.sigma - b.sigma).norm() < 1e-6 * a.sigma.norm());
+        assert!(
+            carried.1.get() < fresh.1.get(),
+            "Jacobian passes: {} carried, {} fresh",
+            carried.1.get(),
+            fresh.1.get()
+        );
+        // Too small a store keeps nothing and carries nothing.
+        let mut none = None;
+        solve_with(
+            &p1,
+            Vector2::new(1.5, -0.5),
+            &settings,
+            &mut [0.0; 15],
+            &mut none,
+        )
+        .unwrap();
+        assert!(none.is_none());
     }
 
     #[test]

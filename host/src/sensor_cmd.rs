@@ -753,9 +753,10 @@ impl AccuracyTable {
         }
         s += "\nSystematic error: the same poses seen without noise (rounded to counts). This is the part a\n\
               navigation filter cannot average away; the rows above add the noise of one frame. The near-field\n\
-              column is calibration error, f32 rounding and the solver's stop rule (a step worth less than\n\
-              0.01 chi-square is not taken: at most ~0.1 of the floor). 'not ok' counts noise-free frames whose\n\
-              solve failed (e.g. too few usable coordinates at 1 in); their fallback pose is in the columns.\n\n";
+              column is calibration error, f32 rounding and the solver's stop rule (its last step, worth less\n\
+              than 0.1 chi-square, is taken as predicted: what that leaves is second order). 'not ok' counts\n\
+              noise-free frames whose solve failed (e.g. too few usable coordinates at 1 in); their fallback\n\
+              pose is in the columns.\n\n";
         s += "range |  position error (in)              |  attitude error (deg)              | not ok\n";
         s += " (in) |  near-field   pinhole     ratio   |  near-field  pinhole     ratio   | nf  ph\n";
         for r in &self.rows {
