@@ -319,7 +319,11 @@ impl NsDecoder {
     fn drop_front(&mut self, k: usize) {
         let k = k.min(self.buf.len());
         let len = self.buf.len();
-        self.buf.copy_within(k..len, 0);
+        // A forward byte loop rather than copy_within: the only memmove on the chip would
+        // bring 1.5 KB of compiler-builtins' memmove into a 48 KiB budget.
+        for i in k..len {
+            self.buf[i - k] = self.buf[i];
+        }
         self.buf.truncate(len - k);
     }
 }
