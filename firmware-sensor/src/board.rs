@@ -2,6 +2,7 @@
 //! and poses out. Hardware-free: the chip's `main.rs` and the simulated board drive the
 //! same [`Board`] through [`Io`].
 
+use core::mem::MaybeUninit;
 use cta_core::pose::{
     Calibration, Constellation, ModelKind, PoseSolver, PoseStatus, SolverSettings,
 };
@@ -11,7 +12,7 @@ use cta_core::wire::sensor::{
 };
 use cta_core::wire::{
     encode_frame, BoardKind, ErrorReply, FrameDecoder, Header, Identity, Reply, Request, Response,
-    MAX_FRAME, PROTOCOL_VERSION, SEQ_NONE,
+    PROTOCOL_VERSION, SEQ_NONE,
 };
 use serde::{Deserialize, Serialize};
 
@@ -20,6 +21,24 @@ use crate::storage::{self, FlashPages};
 
 /// Largest frame the board sends (a full constellation read-back fits with room to spare).
 pub const TX_FRAME: usize = 512;
+
+/// Largest frame the board receives (announced as `max_frame` by identify): the largest
+/// request, a 20-beacon constellation, takes about 290 bytes (a test checks it fits). Half
+/// the protocol's [`MAX_FRAME`]: RAM is the board's tightest budget.
+pub const RX_FRAME: usize = 512;
+
+/// Save a configuration to flash from borrowed parts; returns the new generation.
+/// `(calibration, constellation)` serialises exactly as [`Stored`] (postcard writes a
+/// struct as the tuple of its fields), without a copy of the whole configuration on the
+/// stack.
+#[inline(never)]
+fn save<F: FlashPages>(
+    flash: &mut F,
+    calibration: Option<&Calibration>,
+    constellation: Option<&Constellation>,
+) -> Result<u32, SensorError> {
+    storage::save(flash, &(calibration, constellation)).map_err(|_| SensorError::Flash)
+}
 
 /// What the board needs from its surroundings.
 pub trait Io {
@@ -52,14 +71,17 @@ fn us_to_ms(us: u64) -> u64 {
 pub struct Board<F: FlashPages> {
     flash: F,
     simulated: bool,
-    pc: FrameDecoder<MAX_FRAME>,
+    pc: FrameDecoder<RX_FRAME>,
     ns: NsDecoder,
     mode: Mode,
     sensitivity: u8,
     rate_hz: u8,
     stored: Stored,
     generation: u32,
-    solver: Option<PoseSolver<f32>>,
+    /// Configured in place (about 2 KiB: never copied on the stack); `solver_ready` says
+    /// whether it holds the stored configuration for pose mode.
+    solver: PoseSolver<f32>,
+    solver_ready: bool,
     reports: u32,
     dropped: u32,
     refused: u32,
@@ -81,13 +103,31 @@ impl<F: FlashPages> Board<F> {
             rate_hz: 10,
             stored,
             generation,
-            solver: None,
+            solver: PoseSolver::blank(),
+            solver_ready: false,
             reports: 0,
             dropped: 0,
             refused: 0,
             last_host_us: 0,
             last_pose: None,
         }
+    }
+
+    /// Build the board in `slot` (a static on the chip, where the linker's static RAM
+    /// counts it) and return it. Never inlined, like [`Self::poll`]: the chip's `main`
+    /// and the QEMU harness that measures the board's stack (tests/qemu/src/bin/board.rs)
+    /// run the same function with its own frame.
+    #[inline(never)]
+    pub fn init(slot: &mut MaybeUninit<Self>, flash: F, simulated: bool) -> &mut Self {
+        slot.write(Self::new(flash, simulated))
+    }
+
+    /// One pass of the main loop: the bytes received from the PC, then those from the
+    /// NorthStar (either may be empty). Never inlined (see [`Self::init`]).
+    #[inline(never)]
+    pub fn poll(&mut self, pc_bytes: &[u8], ns_bytes: &[u8], io: &mut impl Io) {
+        self.on_pc_bytes(pc_bytes, io);
+        self.on_ns_bytes(ns_bytes, io);
     }
 
     /// Commands to send the NorthStar at start-up (sensitivity and rate in force).
@@ -106,7 +146,10 @@ impl<F: FlashPages> Board<F> {
         self.mode
     }
 
-    /// Bytes received from the PC.
+    /// Bytes received from the PC. Never inlined into [`Self::poll`] (nor is
+    /// [`Self::on_ns_bytes`]): the request being decoded and the frame being parsed do not
+    /// share a stack frame.
+    #[inline(never)]
     pub fn on_pc_bytes(&mut self, bytes: &[u8], io: &mut impl Io) {
         for &b in bytes {
             let Some(frame) = self.pc.push::<Request<SensorRequest>>(b) else {
@@ -114,7 +157,7 @@ impl<F: FlashPages> Board<F> {
             };
             self.last_host_us = io.now_us();
             let (seq, reply) = match frame {
-                Ok((h, req)) => (h.seq, self.handle(req, io)),
+                Ok((h, req)) => (h.seq, self.handle(&req, io)),
                 Err(e) => (e.seq, Err(ErrorReply::BadFrame(e.fault))),
             };
             if reply.is_err() {
@@ -125,6 +168,7 @@ impl<F: FlashPages> Board<F> {
     }
 
     /// Bytes received from the NorthStar.
+    #[inline(never)]
     pub fn on_ns_bytes(&mut self, bytes: &[u8], io: &mut impl Io) {
         let mut ns = core::mem::take(&mut self.ns);
         ns.feed(bytes, |ev| {
@@ -135,6 +179,7 @@ impl<F: FlashPages> Board<F> {
         self.ns = ns;
     }
 
+    #[inline(never)]
     fn send(&mut self, seq: u16, reply: &SensorReply, io: &mut impl Io) -> bool {
         let mut buf = [0u8; TX_FRAME];
         let ok = match encode_frame(Header::new(seq), reply, &mut buf) {
@@ -153,14 +198,18 @@ impl<F: FlashPages> Board<F> {
         io.send_ns(&out[..n]);
     }
 
-    fn handle(&mut self, req: Request<SensorRequest>, io: &mut impl Io) -> SensorReply {
+    // The request and frame paths, the solver's construction and the reply's encoding are
+    // never inlined into `poll`: each keeps its large temporaries (requests, replies, the
+    // solver) in its own frame, so the stack peak is the deepest path, not their sum.
+    #[inline(never)]
+    fn handle(&mut self, req: &Request<SensorRequest>, io: &mut impl Io) -> SensorReply {
         match req {
             Request::Identify => Ok(Response::Identity(Identity {
                 board: BoardKind::Sensor,
                 protocol: PROTOCOL_VERSION,
                 firmware: heapless::String::try_from(env!("CARGO_PKG_VERSION")).unwrap_or_default(),
                 simulated: self.simulated,
-                max_frame: MAX_FRAME as u16,
+                max_frame: RX_FRAME as u16,
             })),
             Request::Heartbeat => Ok(Response::Ack),
             Request::Board(r) => self.handle_board(r, io).map_err(ErrorReply::Board),
@@ -169,10 +218,10 @@ impl<F: FlashPages> Board<F> {
 
     fn handle_board(
         &mut self,
-        req: SensorRequest,
+        req: &SensorRequest,
         io: &mut impl Io,
     ) -> Result<Response<SensorResponse>, SensorError> {
-        match req {
+        match *req {
             SensorRequest::Status => Ok(Response::Board(SensorResponse::Status(self.status(io)))),
             SensorRequest::GetConfig => Ok(Response::Board(SensorResponse::Config(SensorConfig {
                 generation: self.generation,
@@ -181,9 +230,9 @@ impl<F: FlashPages> Board<F> {
             }))),
             SensorRequest::SetMode(mode) => {
                 if let Mode::Pose(model) = mode {
-                    self.solver = Some(self.build_solver(model)?);
+                    self.build_solver(model)?;
                 } else {
-                    self.solver = None;
+                    self.solver_ready = false;
                 }
                 self.mode = mode;
                 Ok(Response::Ack)
@@ -204,31 +253,41 @@ impl<F: FlashPages> Board<F> {
                 self.command_ns(NsCommand::SetRate(r), io);
                 Ok(Response::Ack)
             }
-            SensorRequest::LoadCalibration(cal) => {
+            SensorRequest::LoadCalibration(ref cal) => {
                 cal.validate()?;
-                let mut next = self.stored.clone();
-                next.calibration = Some(cal);
-                self.store(next)?;
+                self.generation = save(
+                    &mut self.flash,
+                    Some(cal),
+                    self.stored.constellation.as_ref(),
+                )?;
+                self.stored.calibration = Some(*cal);
+                self.rebuild_solver();
                 Ok(Response::Ack)
             }
-            SensorRequest::LoadConstellation(con) => {
+            SensorRequest::LoadConstellation(ref con) => {
                 con.validate()?;
-                let mut next = self.stored.clone();
-                next.constellation = Some(con);
-                self.store(next)?;
+                self.generation =
+                    save(&mut self.flash, self.stored.calibration.as_ref(), Some(con))?;
+                self.stored.constellation = Some(con.clone());
+                self.rebuild_solver();
                 Ok(Response::Ack)
             }
         }
     }
 
-    fn build_solver(&self, model: ModelKind) -> Result<PoseSolver<f32>, SensorError> {
+    /// Configure the solver for `model` from the stored configuration, in place.
+    #[inline(never)]
+    fn build_solver(&mut self, model: ModelKind) -> Result<(), SensorError> {
+        self.solver_ready = false;
         match (&self.stored.calibration, &self.stored.constellation) {
             (Some(cal), Some(con)) => {
                 let settings = SolverSettings {
                     model,
                     ..SolverSettings::default()
                 };
-                Ok(PoseSolver::new(cal, con, settings)?)
+                self.solver.configure(cal, con, settings)?;
+                self.solver_ready = true;
+                Ok(())
             }
             (cal, con) => Err(SensorError::NotConfigured {
                 calibration: cal.is_some(),
@@ -237,20 +296,13 @@ impl<F: FlashPages> Board<F> {
         }
     }
 
-    fn store(&mut self, next: Stored) -> Result<(), SensorError> {
-        self.generation = storage::save(&mut self.flash, &next).map_err(|_| SensorError::Flash)?;
-        self.stored = next;
-        // A new configuration invalidates the solver (and its warm start).
+    /// A new configuration invalidates the solver (and its warm start).
+    fn rebuild_solver(&mut self) {
         if let Mode::Pose(model) = self.mode {
-            match self.build_solver(model) {
-                Ok(s) => self.solver = Some(s),
-                Err(_) => {
-                    self.solver = None;
-                    self.mode = Mode::Idle;
-                }
+            if self.build_solver(model).is_err() {
+                self.mode = Mode::Idle;
             }
         }
-        Ok(())
     }
 
     fn status(&mut self, io: &mut impl Io) -> SensorStatus {
@@ -279,6 +331,7 @@ impl<F: FlashPages> Board<F> {
         }
     }
 
+    #[inline(never)]
     fn on_frame(&mut self, frame: &SpotFrame, io: &mut impl Io) {
         let t_us = io.now_us();
         let seq = self.reports;
@@ -292,10 +345,10 @@ impl<F: FlashPages> Board<F> {
                 spots: frame.spots.clone(),
             }),
             Mode::Pose(model) => {
-                let Some(solver) = self.solver.as_mut() else {
+                if !self.solver_ready {
                     return;
-                };
-                let sol = solver.solve(&frame.spots);
+                }
+                let sol = self.solver.solve(&frame.spots);
                 let solve_us = io.now_us().saturating_sub(t_us).min(u32::MAX as u64) as u32;
                 self.last_pose = Some(sol.status);
                 let a = |v: nalgebra::Vector3<f32>| [v.x, v.y, v.z];
@@ -329,7 +382,35 @@ mod tests {
     use super::*;
     use crate::storage::RamFlash;
     use cta_core::pose::{cta_constellation, Beacon, CalField, ConfigError, Spot};
+    use cta_core::wire::MAX_FRAME;
     use std::vec::Vec;
+
+    #[test]
+    fn the_largest_request_fits_the_receive_buffer() {
+        // A full constellation (every beacon, every field at its widest encoding) and a
+        // calibration with near-field parameters.
+        let mut con = cta_core::pose::four_array_constellation();
+        for b in con.beacons.iter_mut() {
+            b.r = [-1.0e30, 1.0e-30, f32::MAX];
+        }
+        let mut cal = Calibration::table3();
+        cal.near_field = Some(cta_core::pose::NearField::nominal());
+        let mut buf = [0u8; MAX_FRAME];
+        for req in [
+            SensorRequest::LoadConstellation(con),
+            SensorRequest::LoadCalibration(cal),
+        ] {
+            let f = encode_frame(Header::new(u16::MAX), &Request::Board(req), &mut buf).unwrap();
+            // The decoder keeps one byte free (see FrameDecoder::push).
+            assert!(f.len() + 1 < RX_FRAME, "{} bytes", f.len());
+            let mut d = FrameDecoder::<RX_FRAME>::new();
+            let got = f
+                .iter()
+                .filter_map(|&b| d.push::<Request<SensorRequest>>(b))
+                .last();
+            assert!(matches!(got, Some(Ok(_))), "{got:?}");
+        }
+    }
 
     type Frame = (Header, SensorReply);
 

@@ -19,7 +19,14 @@ cd "$here"
 rustup target add thumbv7m-none-eabi >/dev/null 2>&1 || true
 rustup component add llvm-tools >/dev/null 2>&1 || true
 command -v qemu-system-arm >/dev/null || { echo "run.sh: qemu-system-arm not found" >&2; exit 1; }
-cargo build --release --quiet --bin "$bin"
+# Each program at the opt-level of the firmware whose code it measures (with fat LTO the
+# final crate's level governs everything inlined into it): the sensor firmware is built
+# for size ("z", firmware-sensor/.cargo/config.toml), the beacon firmware at "s".
+case $bin in
+  pose|board) level='"z"' ;;
+  *) level='"s"' ;;
+esac
+cargo build --release --quiet --bin "$bin" --config "profile.release.package.cta-qemu.opt-level=$level"
 target_dir=${CARGO_TARGET_DIR:-$here/target}
 elf="$target_dir/thumbv7m-none-eabi/release/$bin"
 nm="$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin/llvm-nm"

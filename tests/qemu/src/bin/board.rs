@@ -1,0 +1,191 @@
+//! Peak stack of the sensor board's work on a Cortex-M3 (QEMU lm3s6965evb): the same
+//! [`Board::init`] and [`Board::poll`] the chip's `main` calls (firmware-sensor/src/chip.rs),
+//! built at the firmware's opt-level, fed a session that reaches every deep path: identify,
+//! status, a bad frame, loading the calibration and the 20-beacon constellation (stored to
+//! flash, solver built), reading the configuration back, pose mode with the near-field
+//! model, then NorthStar frames solved for the pose (cold start, then warm starts with the
+//! carried linearisation), then stream mode.
+//!
+//! The instruction count (run.sh) is of one warm frame in pose mode, from the NorthStar's
+//! bytes to the pose report sent: decoding, matching, the 20-beacon near-field solve and
+//! encoding.
+//!
+//! Prints `STACK board_peak_bytes=N`: the bytes of stack used below this program's `main`
+//! by `init` or by the session, whichever is more (the stack is painted before each and
+//! scanned after). firmware-sensor/ci.sh adds the
+//! chip's own `main` frame (from its disassembly) and an interrupt allowance, and the
+//! firmware's static RAM (the board lives in a static there, as here).
+#![no_std]
+#![no_main]
+
+use core::mem::MaybeUninit;
+
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
+use cta_core::pose::{benchmark_frames_of, four_array_constellation, Calibration, ModelKind};
+use cta_core::wire::sensor::{Mode, SensorRequest, SensorResponse};
+use cta_core::wire::{encode_frame, FrameDecoder, Header, Reply, Request, MAX_FRAME};
+use cta_firmware_sensor::board::{Board, Io};
+use cta_firmware_sensor::northstar::{self, SpotFrame};
+use cta_firmware_sensor::storage::RamFlash;
+use cta_qemu::{done, end, fail, mark};
+
+/// Stack region painted below the current stack pointer.
+const PAINT: usize = 24 * 1024;
+const PATTERN: u32 = 0xC0FF_EE55;
+
+/// The PC side: counts frames, keeps the last one.
+struct HarnessIo {
+    t_us: u64,
+    frames: u32,
+    last: [u8; 512],
+    last_len: usize,
+}
+
+impl Io for HarnessIo {
+    fn now_us(&mut self) -> u64 {
+        self.t_us += 100;
+        self.t_us
+    }
+    fn send_pc(&mut self, bytes: &[u8]) -> bool {
+        self.frames += 1;
+        let n = bytes.len().min(self.last.len());
+        self.last[..n].copy_from_slice(&bytes[..n]);
+        self.last_len = n;
+        true
+    }
+    fn send_ns(&mut self, _bytes: &[u8]) {}
+}
+
+/// Fill the `PAINT` bytes below the current stack pointer (minus a gap for this
+/// function's own frame) with `PATTERN`; returns the painted range `[lo, sp)`.
+#[inline(never)]
+fn paint_stack() -> (usize, usize) {
+    let sp = cortex_m::register::msp::read() as usize;
+    let hi = (sp - 256) & !3;
+    let lo = hi - PAINT;
+    for a in (lo..hi).step_by(4) {
+        // SAFETY: unused stack memory below the live frames (64 KiB of RAM on the
+        // lm3s6965; this program's statics are far below).
+        unsafe { (a as *mut u32).write_volatile(PATTERN) };
+    }
+    (lo, sp)
+}
+
+/// Bytes of stack used below `sp` since `paint_stack`: the lowest overwritten word.
+fn stack_used(lo: usize, sp: usize) -> usize {
+    let mut a = lo;
+    // SAFETY: reads of the painted region.
+    while a < sp && unsafe { (a as *const u32).read_volatile() } == PATTERN {
+        a += 4;
+    }
+    sp - a
+}
+
+/// One request from the PC, as bytes on the wire.
+fn pc(io: &mut HarnessIo, board: &mut Board<RamFlash>, seq: u16, req: Request<SensorRequest>) {
+    let mut buf = [0u8; MAX_FRAME];
+    let Ok(f) = encode_frame(Header::new(seq), &req, &mut buf) else {
+        fail("request does not encode")
+    };
+    board.poll(f, &[], io);
+}
+
+#[entry]
+fn main() -> ! {
+    static mut BOARD: MaybeUninit<Board<RamFlash>> = MaybeUninit::uninit();
+    let con = four_array_constellation();
+    let (f1, f2, _, _) = benchmark_frames_of(&con);
+    let mut cal = Calibration::table3();
+    cal.near_field = Some(cta_core::pose::NearField::nominal());
+    let mut io = HarnessIo {
+        t_us: 0,
+        frames: 0,
+        last: [0; 512],
+        last_len: 0,
+    };
+    let (lo, sp) = paint_stack();
+    let board = Board::init(BOARD, RamFlash::default(), false);
+    let init_used = stack_used(lo, sp);
+    let (lo, sp) = paint_stack();
+    board.start(&mut io);
+    pc(&mut io, board, 1, Request::Identify);
+    pc(&mut io, board, 2, Request::Board(SensorRequest::Status));
+    board.poll(&[0x13, 0x37, 0x00, 0x42, 0x00], &[], &mut io);
+    pc(
+        &mut io,
+        board,
+        3,
+        Request::Board(SensorRequest::LoadCalibration(cal)),
+    );
+    pc(
+        &mut io,
+        board,
+        4,
+        Request::Board(SensorRequest::LoadConstellation(con)),
+    );
+    pc(&mut io, board, 5, Request::Board(SensorRequest::GetConfig));
+    let pose = Mode::Pose(ModelKind::NearField);
+    pc(
+        &mut io,
+        board,
+        6,
+        Request::Board(SensorRequest::SetMode(pose)),
+    );
+    let mut bytes = [0u8; northstar::MAX_FRAME];
+    // Empty segments: the marker overhead run.sh subtracts.
+    for _ in 0..4 {
+        mark();
+    }
+    for (k, spots) in [&f1, &f2, &f1, &f2].into_iter().enumerate() {
+        let frame = SpotFrame {
+            seq: k as u8,
+            sensitivity: 4,
+            spots: spots.clone(),
+        };
+        let n = northstar::encode_report(&frame, &mut bytes);
+        // Measured: the warm frames (the first is solved from the cold start), each from
+        // its bytes to the pose report sent.
+        if k > 0 {
+            mark();
+        }
+        board.poll(&[], &bytes[..n], &mut io);
+    }
+    end();
+    // The last frame sent is the last pose: it must be one, solved.
+    let mut d = FrameDecoder::<MAX_FRAME>::new();
+    let mut last = None;
+    for &b in &io.last[..io.last_len] {
+        if let Some(r) = d.push::<Reply<SensorResponse, cta_core::wire::sensor::SensorError>>(b) {
+            last = Some(r);
+        }
+    }
+    match last {
+        Some(Ok((_, Ok(cta_core::wire::Response::Board(SensorResponse::Pose(p))))))
+            if p.status == cta_core::pose::PoseStatus::Ok => {}
+        _ => fail("the last NorthStar frame gave no Ok pose"),
+    }
+    pc(
+        &mut io,
+        board,
+        7,
+        Request::Board(SensorRequest::SetMode(Mode::Stream)),
+    );
+    let frame = SpotFrame {
+        seq: 9,
+        sensitivity: 4,
+        spots: f2.clone(),
+    };
+    let n = northstar::encode_report(&frame, &mut bytes);
+    board.poll(&[], &bytes[..n], &mut io);
+    let poll_used = stack_used(lo, sp);
+    hprintln!(
+        "STACK board_peak_bytes={} (below main: init {} B, a session of polls {} B; {} frames sent)",
+        init_used.max(poll_used),
+        init_used,
+        poll_used,
+        io.frames
+    );
+    hprintln!("BOARD bytes={}", core::mem::size_of::<Board<RamFlash>>());
+    done("board: ok")
+}
