@@ -470,8 +470,8 @@ impl<T: Real> PoseSolver<T> {
         Ok(s)
     }
 
-    /// A solver with nothing configured (every solve reports too few beacons): the
-    /// placeholder a board keeps until [`Self::configure`] succeeds.
+    /// A solver with nothing configured (every solve reports too few beacons), as a board
+    /// holds one before [`Self::configure`] first succeeds.
     pub fn blank() -> Self {
         let params = Params::<T>::zeros();
         PoseSolver {
@@ -1082,6 +1082,16 @@ pub fn benchmark_frames_of(con: &Constellation) -> BenchmarkFrames {
 mod tests {
     use super::*;
 
+    /// Deterministic uniform numbers in [-0.5, 0.5) (xorshift32 from `seed`).
+    fn uniform_from(mut seed: u32) -> impl FnMut() -> f64 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f64 / 4294967296.0 - 0.5
+        }
+    }
+
     fn truth_emulator() -> Emulator<f64> {
         let cal = Calibration::table3();
         let head_pose = HeadPose {
@@ -1309,13 +1319,7 @@ mod tests {
     fn flat_valley_at_30_in_converges() {
         let em = truth_emulator();
         let con = cta_constellation();
-        let mut seed = 0x9e37_79b9_u32;
-        let mut uniform = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed as f64 / 4294967296.0 - 0.5
-        };
+        let mut uniform = uniform_from(0x9e37_79b9);
         let sigma = 0.001 * crate::emulator::BETA;
         let mut failed = [0usize; 2];
         for _ in 0..3000 {
@@ -1349,13 +1353,7 @@ mod tests {
     /// the frames compared, and how many of them took more passes with the carry.
     fn carried_vs_fresh(con: &Constellation, range: f64) -> (f64, f64, usize, usize) {
         let em = truth_emulator();
-        let mut seed = 0x2545_f491_u32 ^ (range as u32);
-        let mut uniform = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed as f64 / 4294967296.0 - 0.5
-        };
+        let mut uniform = uniform_from(0x2545_f491 ^ (range as u32));
         let sigma = 0.001 * crate::emulator::BETA;
         let new = || {
             PoseSolver::<f32>::new(&Calibration::table3(), con, SolverSettings::default()).unwrap()

@@ -66,6 +66,36 @@ pub fn fail(msg: &str) -> ! {
     }
 }
 
+/// Word written below the stack pointer by [`paint_stack`].
+const PATTERN: u32 = 0xC0FF_EE55;
+
+/// Fill the `bytes` below the current stack pointer (minus a 256-byte gap for this
+/// function's own frame) with a pattern; returns the painted range's low end and the
+/// stack pointer, for [`stack_used`].
+#[inline(never)]
+pub fn paint_stack(bytes: usize) -> (usize, usize) {
+    let sp = cortex_m::register::msp::read() as usize;
+    let hi = (sp - 256) & !3;
+    let lo = hi - bytes;
+    for a in (lo..hi).step_by(4) {
+        // SAFETY: unused stack memory below the live frames (64 KiB of RAM on the
+        // lm3s6965; the programs' statics are far below).
+        unsafe { (a as *mut u32).write_volatile(PATTERN) };
+    }
+    (lo, sp)
+}
+
+/// Bytes of stack used below `sp` since [`paint_stack`]: down to the lowest overwritten
+/// word.
+pub fn stack_used(lo: usize, sp: usize) -> usize {
+    let mut a = lo;
+    // SAFETY: reads of the painted region.
+    while a < sp && unsafe { (a as *const u32).read_volatile() } == PATTERN {
+        a += 4;
+    }
+    sp - a
+}
+
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
     fail("panic")

@@ -28,11 +28,10 @@ use cta_core::wire::{encode_frame, FrameDecoder, Header, Reply, Request, MAX_FRA
 use cta_firmware_sensor::board::{Board, Io};
 use cta_firmware_sensor::northstar::{self, SpotFrame};
 use cta_firmware_sensor::storage::RamFlash;
-use cta_qemu::{done, end, fail, mark};
+use cta_qemu::{done, end, fail, mark, paint_stack, stack_used};
 
 /// Stack region painted below the current stack pointer.
 const PAINT: usize = 24 * 1024;
-const PATTERN: u32 = 0xC0FF_EE55;
 
 /// The PC side: counts frames, keeps the last one.
 struct HarnessIo {
@@ -57,31 +56,6 @@ impl Io for HarnessIo {
     fn send_ns(&mut self, _bytes: &[u8]) {}
 }
 
-/// Fill the `PAINT` bytes below the current stack pointer (minus a gap for this
-/// function's own frame) with `PATTERN`; returns the painted range `[lo, sp)`.
-#[inline(never)]
-fn paint_stack() -> (usize, usize) {
-    let sp = cortex_m::register::msp::read() as usize;
-    let hi = (sp - 256) & !3;
-    let lo = hi - PAINT;
-    for a in (lo..hi).step_by(4) {
-        // SAFETY: unused stack memory below the live frames (64 KiB of RAM on the
-        // lm3s6965; this program's statics are far below).
-        unsafe { (a as *mut u32).write_volatile(PATTERN) };
-    }
-    (lo, sp)
-}
-
-/// Bytes of stack used below `sp` since `paint_stack`: the lowest overwritten word.
-fn stack_used(lo: usize, sp: usize) -> usize {
-    let mut a = lo;
-    // SAFETY: reads of the painted region.
-    while a < sp && unsafe { (a as *const u32).read_volatile() } == PATTERN {
-        a += 4;
-    }
-    sp - a
-}
-
 /// One request from the PC, as bytes on the wire.
 fn pc(io: &mut HarnessIo, board: &mut Board<RamFlash>, seq: u16, req: Request<SensorRequest>) {
     let mut buf = [0u8; MAX_FRAME];
@@ -104,10 +78,10 @@ fn main() -> ! {
         last: [0; 512],
         last_len: 0,
     };
-    let (lo, sp) = paint_stack();
+    let (lo, sp) = paint_stack(PAINT);
     let board = Board::init(BOARD, RamFlash::default(), false);
     let init_used = stack_used(lo, sp);
-    let (lo, sp) = paint_stack();
+    let (lo, sp) = paint_stack(PAINT);
     board.start(&mut io);
     pc(&mut io, board, 1, Request::Identify);
     pc(&mut io, board, 2, Request::Board(SensorRequest::Status));

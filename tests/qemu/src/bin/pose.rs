@@ -18,38 +18,12 @@ use cta_core::pose::{
     benchmark_frames_of, cta_constellation, four_array_constellation, Calibration, ModelKind,
     PoseSolver, PoseStatus, SolverSettings,
 };
-use cta_qemu::{done, end, fail, mark};
+use cta_qemu::{done, end, fail, mark, paint_stack, stack_used};
 
 /// Measured solves (each from the same warm start).
 const RUNS: usize = 3;
-/// Stack region painted below the current stack pointer to measure the solver's peak use.
+/// Stack region painted below the current stack pointer.
 const PAINT: usize = 16 * 1024;
-const PATTERN: u32 = 0xC0FF_EE55;
-
-/// Fill the `PAINT` bytes below the current stack pointer (minus a safety gap for this
-/// function's own frame) with `PATTERN`; returns the painted range `[lo, hi)`.
-#[inline(never)]
-fn paint_stack() -> (usize, usize) {
-    let sp = cortex_m::register::msp::read() as usize;
-    let hi = (sp - 256) & !3;
-    let lo = hi - PAINT;
-    for a in (lo..hi).step_by(4) {
-        // SAFETY: unused stack memory below the live frames (64 KiB of RAM on the
-        // lm3s6965; this program's statics are far below).
-        unsafe { (a as *mut u32).write_volatile(PATTERN) };
-    }
-    (lo, sp)
-}
-
-/// Bytes of stack used below `sp` since `paint_stack`: the lowest overwritten word.
-fn stack_used(lo: usize, sp: usize) -> usize {
-    let mut a = lo;
-    // SAFETY: reads of the painted region.
-    while a < sp && unsafe { (a as *const u32).read_volatile() } == PATTERN {
-        a += 4;
-    }
-    sp - a
-}
 
 #[entry]
 fn main() -> ! {
@@ -69,7 +43,7 @@ fn main() -> ! {
     let Ok(mut solver) = PoseSolver::<f32>::new(&Calibration::table3(), &con, settings) else {
         fail("solver rejected the configuration")
     };
-    let (lo, sp) = paint_stack();
+    let (lo, sp) = paint_stack(PAINT);
     let first = solver.solve(&f1);
     if first.status != PoseStatus::Ok {
         fail("cold-start solve of frame 1 failed");
