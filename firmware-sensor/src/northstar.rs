@@ -171,10 +171,27 @@ pub fn encode_ack(kind: u8, status: u8, out: &mut [u8; 8]) -> usize {
 }
 
 /// The bounded, resynchronising frame decoder.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct NsDecoder {
     buf: Vec<u8, MAX_FRAME>,
+    /// Where the sync word starts in `buf` after the head: the only places a frame embedded
+    /// in a false start can begin. Kept as bytes arrive, so that looking for one costs a
+    /// few checks per byte, not a scan of the buffer (that was O(n^2) per frame: 140,000
+    /// instructions for a 20-spot frame on the chip). `None` after more than fit (noise
+    /// full of sync words): then the buffer is scanned.
+    syncs: Option<Vec<u8, SYNCS>>,
     stats: NsStats,
+}
+
+/// Sync words remembered inside one pending frame (beyond the head).
+const SYNCS: usize = 8;
+// Positions in the buffer fit a byte.
+const _: () = assert!(MAX_FRAME < 256);
+
+impl Default for NsDecoder {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 /// Outcome of examining the buffered bytes.
@@ -211,6 +228,7 @@ impl NsDecoder {
     pub const fn new() -> Self {
         Self {
             buf: Vec::new(),
+            syncs: Some(Vec::new()),
             stats: NsStats {
                 frames: 0,
                 crc_errors: 0,
@@ -231,6 +249,15 @@ impl NsDecoder {
                 // Cannot happen (every full buffer is resolved below), but never panic:
                 self.drop_front(1);
                 let _ = self.buf.push(b);
+            }
+            let len = self.buf.len();
+            if len >= 3 && self.buf[len - 2] == SYNC[0] && b == SYNC[1] {
+                // A sync word starting after the head (position >= 1; MAX_FRAME < 256).
+                if let Some(v) = self.syncs.as_mut() {
+                    if v.push((len - 2) as u8).is_err() {
+                        self.syncs = None;
+                    }
+                }
             }
             self.drain(&mut on_event);
         }
@@ -307,13 +334,19 @@ impl NsDecoder {
     fn embedded_frame(&self) -> Option<usize> {
         let b = &self.buf;
         let len = b.len();
-        (1..len.saturating_sub(5)).find(|&p| {
-            b[p] == SYNC[0]
+        let fits = |p: usize| {
+            p >= 1
+                && p + 6 <= len
+                && b[p] == SYNC[0]
                 && b[p + 1] == SYNC[1]
                 && plausible(b[p + 2], b[p + 3] as usize)
                 && p + 6 + b[p + 3] as usize == len
                 && crc_ok(&b[p..])
-        })
+        };
+        match &self.syncs {
+            Some(v) => v.iter().map(|&p| p as usize).find(|&p| fits(p)),
+            None => (1..len.saturating_sub(5)).find(|&p| fits(p)),
+        }
     }
 
     fn drop_front(&mut self, k: usize) {
@@ -325,6 +358,23 @@ impl NsDecoder {
             self.buf[i - k] = self.buf[i];
         }
         self.buf.truncate(len - k);
+        // The remembered sync words move with the bytes; one that becomes the head (or is
+        // dropped) is no longer after it. After an overflow, recount them.
+        match self.syncs.as_mut() {
+            Some(v) => v.retain_mut(|p| {
+                let keep = *p as usize > k;
+                *p = p.wrapping_sub(k as u8);
+                keep
+            }),
+            None => {
+                let b = &self.buf;
+                let mut v = Vec::new();
+                let full = (1..b.len().saturating_sub(1))
+                    .filter(|&p| b[p] == SYNC[0] && b[p + 1] == SYNC[1])
+                    .any(|p| v.push(p as u8).is_err());
+                self.syncs = if full { None } else { Some(v) };
+            }
+        }
     }
 }
 
@@ -426,6 +476,35 @@ mod tests {
             })
             .collect();
         assert_eq!(seqs, [2, 4]);
+    }
+
+    #[test]
+    fn a_false_start_full_of_sync_words_lets_the_next_frames_through() {
+        // A plausible head of a 20-spot report that never completes, more sync words than
+        // the decoder remembers, then two whole frames: each is found as soon as it ends.
+        let mut stream = StdVec::from([SYNC[0], SYNC[1], KIND_REPORT, MAX_BODY as u8]);
+        for _ in 0..2 * SYNCS {
+            stream.extend_from_slice(&SYNC);
+        }
+        let mut buf = [0; MAX_FRAME];
+        for seq in [7, 8] {
+            let len = encode_report(&frame(seq, 3), &mut buf);
+            stream.extend_from_slice(&buf[..len]);
+        }
+        let seqs: StdVec<u8> = decode_all(&stream)
+            .into_iter()
+            .map(|e| match e {
+                NsEvent::Report(f) => f.seq,
+                _ => panic!("unexpected {e:?}"),
+            })
+            .collect();
+        assert_eq!(seqs, [7, 8]);
+        // The same with a few sync words only (remembered, no scan).
+        let mut stream = StdVec::from([SYNC[0], SYNC[1], KIND_REPORT, MAX_BODY as u8]);
+        stream.extend_from_slice(&[SYNC[0], SYNC[1], 0x00]);
+        let len = encode_report(&frame(9, 2), &mut buf);
+        stream.extend_from_slice(&buf[..len]);
+        assert_eq!(decode_all(&stream).len(), 1);
     }
 
     #[test]
