@@ -388,17 +388,18 @@ where
     let mut row = 0;
     prob.rows(x, true, &mut |r, w, j| {
         debug_assert_eq!(j.len(), nn);
+        // Unit weights save a multiplication per element (a soft-float call on the chip).
+        let unit = w == T::one();
         let rr = r * r;
-        wss += if w == T::one() { rr } else { w * rr };
+        wss += if unit { rr } else { w * rr };
         ss += rr;
-        // The weighted row w J_i, kept for chord steps when there is room.
+        // The weighted row w J_i, kept (when there is room) so that this linearisation can
+        // be carried to the next solve.
         let mut kept = match store.as_deref_mut() {
             Some(s) if row < cap => Some(&mut s[row * nn..(row + 1) * nn]),
             _ => None,
         };
         row += 1;
-        // Unit weights save a multiplication per element (a soft-float call on the chip).
-        let unit = w == T::one();
         // Upper triangle, column by column (contiguous in nalgebra's column-major storage).
         let ns = n.as_mut_slice();
         for (b, &jb) in j.iter().enumerate() {
