@@ -1072,10 +1072,20 @@ mod tests {
     use super::*;
     use nalgebra::{Vector2, U2};
 
-    /// y = a exp(b t): a small nonlinear problem.
+    /// y = a exp(b t): a small nonlinear problem (counting its Jacobian passes).
     struct Exp<'a> {
         t: &'a [f64],
         y: &'a [f64],
+        jacobians: core::cell::Cell<usize>,
+    }
+    impl<'a> Exp<'a> {
+        fn new(t: &'a [f64], y: &'a [f64]) -> Self {
+            Exp {
+                t,
+                y,
+                jacobians: Default::default(),
+            }
+        }
     }
     impl Problem<f64> for Exp<'_> {
         type D = U2;
@@ -1091,6 +1101,7 @@ mod tests {
             jac: bool,
             sink: &mut dyn FnMut(f64, f64, &[f64]),
         ) -> Result<(), ModelError> {
+            self.jacobians.set(self.jacobians.get() + usize::from(jac));
             for (&t, &y) in self.t.iter().zip(self.y) {
                 let e = (x[1] * t).exp();
                 let f = x[0] * e;
@@ -1108,7 +1119,7 @@ mod tests {
     fn recovers_exponential() {
         let t: [f64; 8] = [0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5];
         let y: [f64; 8] = core::array::from_fn(|i| 2.0 * (-0.7 * t[i]).exp());
-        let p = Exp { t: &t, y: &y };
+        let p = Exp::new(&t, &y);
         // A poor start: the GN step overshoots, so damping is exercised.
         let s = solve(&p, Vector2::new(10.0, 1.0), &Settings::default()).unwrap();
         assert!(
@@ -1206,7 +1217,7 @@ mod tests {
     fn iteration_cap_reports_last_cost_not_nan() {
         let t: [f64; 8] = [0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5];
         let y: [f64; 8] = core::array::from_fn(|i| 2.0 * (-0.7 * t[i]).exp());
-        let p = Exp { t: &t, y: &y };
+        let p = Exp::new(&t, &y);
         let s = Settings {
             max_iter: 1,
             ..Settings::default()
@@ -1224,27 +1235,6 @@ mod tests {
         }
     }
 
-    /// [`Exp`] counting its Jacobian passes.
-    struct Counted<'a>(Exp<'a>, core::cell::Cell<usize>);
-    impl Problem<f64> for Counted<'_> {
-        type D = U2;
-        fn dim(&self) -> U2 {
-            U2
-        }
-        fn n_rows(&self) -> usize {
-            self.0.n_rows()
-        }
-        fn rows(
-            &self,
-            x: &Vector2<f64>,
-            jac: bool,
-            sink: &mut dyn FnMut(f64, f64, &[f64]),
-        ) -> Result<(), ModelError> {
-            self.1.set(self.1.get() + usize::from(jac));
-            self.0.rows(x, jac, sink)
-        }
-    }
-
     #[test]
     fn carried_linearisation_starts_the_next_solve() {
         let t: [f64; 8] = [0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5];
@@ -1258,7 +1248,7 @@ mod tests {
         };
         let mut store = [0.0; 16];
         let mut carry = None;
-        let p1 = Counted(Exp { t: &t, y: &y1 }, Default::default());
+        let p1 = Exp::new(&t, &y1);
         let s1 = solve_with(
             &p1,
             Vector2::new(1.5, -0.5),
@@ -1269,17 +1259,17 @@ mod tests {
         .unwrap();
         assert!(carry.is_some(), "the last linearisation is carried");
         // The next problem from the last answer, with and without the carried one.
-        let fresh = Counted(Exp { t: &t, y: &y2 }, Default::default());
+        let fresh = Exp::new(&t, &y2);
         let a = solve_with(&fresh, s1.x, &settings, &mut [0.0; 16], &mut None).unwrap();
-        let carried = Counted(Exp { t: &t, y: &y2 }, Default::default());
+        let carried = Exp::new(&t, &y2);
         let b = solve_with(&carried, s1.x, &settings, &mut store, &mut carry).unwrap();
         assert!((a.x - b.x).norm() < 1e-9, "{:?} vs {:?}", a.x, b.x);
         assert!((a.sigma - b.sigma).norm() < 1e-6 * a.sigma.norm());
         assert!(
-            carried.1.get() < fresh.1.get(),
+            carried.jacobians.get() < fresh.jacobians.get(),
             "Jacobian passes: {} carried, {} fresh",
-            carried.1.get(),
-            fresh.1.get()
+            carried.jacobians.get(),
+            fresh.jacobians.get()
         );
         // Too small a store keeps nothing and carries nothing.
         let mut none = None;

@@ -443,6 +443,17 @@ mod tests {
         out
     }
 
+    /// The sequence numbers of the reports decoded from `stream` (nothing else expected).
+    fn report_seqs(stream: &[u8]) -> StdVec<u8> {
+        decode_all(stream)
+            .into_iter()
+            .map(|e| match e {
+                NsEvent::Report(f) => f.seq,
+                _ => panic!("unexpected {e:?}"),
+            })
+            .collect()
+    }
+
     #[test]
     fn round_trip_every_size() {
         for n in 0..=MAX_SPOTS {
@@ -468,14 +479,7 @@ mod tests {
         stream.extend_from_slice(&buf[..len]);
         let len = encode_report(&frame(4, 4), &mut buf);
         stream.extend_from_slice(&buf[..len]);
-        let seqs: StdVec<u8> = decode_all(&stream)
-            .into_iter()
-            .map(|e| match e {
-                NsEvent::Report(f) => f.seq,
-                _ => panic!("unexpected {e:?}"),
-            })
-            .collect();
-        assert_eq!(seqs, [2, 4]);
+        assert_eq!(report_seqs(&stream), [2, 4]);
     }
 
     #[test]
@@ -491,14 +495,7 @@ mod tests {
             let len = encode_report(&frame(seq, 3), &mut buf);
             stream.extend_from_slice(&buf[..len]);
         }
-        let seqs: StdVec<u8> = decode_all(&stream)
-            .into_iter()
-            .map(|e| match e {
-                NsEvent::Report(f) => f.seq,
-                _ => panic!("unexpected {e:?}"),
-            })
-            .collect();
-        assert_eq!(seqs, [7, 8]);
+        assert_eq!(report_seqs(&stream), [7, 8]);
         // The same with a few sync words only (remembered, no scan).
         let mut stream = StdVec::from([SYNC[0], SYNC[1], KIND_REPORT, MAX_BODY as u8]);
         stream.extend_from_slice(&[SYNC[0], SYNC[1], 0x00]);
