@@ -542,7 +542,9 @@ mod tests {
         // Reset: a new board on the same flash.
         let flash = b.flash.clone();
         let mut b = Board::new(flash, false);
+        // Saved from borrowed parts, read back whole (see `save`).
         assert_eq!(b.stored().constellation.as_ref(), Some(&con));
+        assert_eq!(b.stored().calibration, Some(Calibration::table3()));
         assert_eq!(
             request(
                 &mut b,
