@@ -180,7 +180,8 @@ pub struct SceneArgs {
     #[arg(long, value_enum)]
     pub plate: Option<Plate>,
     /// Raise every beacon after the first five this far toward the sensor, in (beacons on
-    /// posts: a 3-D target decorrelates tilt from lateral offset). 0: the flat plate.
+    /// posts: a 3-D target decorrelates tilt from lateral offset), on top of the height a
+    /// file gives them. 0: as given (the built-ins are flat).
     #[arg(long, default_value_t = 0.0)]
     pub depth: f64,
 }
@@ -233,8 +234,9 @@ pub fn test_scene(
             (con, plate, format!("constellation {spec}"))
         }
     };
+    // On top of the beacons' own heights: a file's 3-D target keeps its shape.
     for b in con.beacons.iter_mut().skip(5) {
-        b.r[2] = -depth as f32;
+        b.r[2] -= depth as f32;
     }
     let plate = plate.unwrap_or(own_plate);
     let off_plate = con
@@ -325,6 +327,25 @@ mod tests {
         let s = test_scene(Some("four-20"), None, 2.0).unwrap();
         assert!(s.con.beacons[..5].iter().all(|b| b.r[2] == 0.0));
         assert!(s.con.beacons[5..].iter().all(|b| b.r[2] == -2.0));
+    }
+
+    #[test]
+    fn a_files_heights_are_kept_and_the_depth_adds_to_them() {
+        let path = std::env::temp_dir().join(format!("cta-posts-{}.json", std::process::id()));
+        let mut con = cta_constellation();
+        for (i, b) in con.beacons.iter_mut().enumerate() {
+            b.r[2] = -0.25 * i as f32;
+        }
+        std::fs::write(&path, serde_json::to_string(&con).unwrap()).unwrap();
+        let spec = path.to_str().unwrap();
+        let s = test_scene(Some(spec), None, 0.0).unwrap();
+        assert_eq!(s.con, con);
+        let s = test_scene(Some(spec), None, 1.0).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        for (i, b) in s.con.beacons.iter().enumerate() {
+            let want = -0.25 * i as f32 - if i >= 5 { 1.0 } else { 0.0 };
+            assert_eq!(b.r[2], want, "beacon {i}");
+        }
     }
 
     #[test]
