@@ -251,7 +251,7 @@ pub enum TableError {
 
 impl Modulator {
     /// A modulator that drives nothing (no table, no pins): the initial value of the
-    /// firmware's static, replaced at boot by [`Modulator::new`]. Its tick does nothing.
+    /// firmware's static, loaded at boot by [`Modulator::load`]. Its tick does nothing.
     pub const EMPTY: Modulator = Modulator {
         half_period: [0; MAX_FREQS],
         frac: [0; MAX_FREQS],
@@ -270,17 +270,22 @@ impl Modulator {
 
     /// All LEDs off, frequency table `table_mhz`, LED pins `pins` (normally [`BEACON_PINS`]).
     pub fn new(table_mhz: &[u32], pins: &[Pin; LED_COUNT]) -> Result<Self, TableError> {
+        let mut m = Modulator::EMPTY;
+        m.load(table_mhz, pins)?;
+        Ok(m)
+    }
+
+    /// [`Modulator::new`] in place, over whatever this modulator held: the firmware loads
+    /// its static this way at boot, without a 2.6 KiB temporary on the stack.
+    pub fn load(&mut self, table_mhz: &[u32], pins: &[Pin; LED_COUNT]) -> Result<(), TableError> {
         let mut owned = [0u16; PORTS];
         for p in pins {
             owned[p.port as usize % PORTS] |= 1 << (p.bit & 15);
         }
-        let mut m = Modulator {
-            pins: *pins,
-            owned,
-            ..Modulator::EMPTY
-        };
-        m.set_table(table_mhz)?;
-        Ok(m)
+        self.pins = *pins;
+        self.owned = owned;
+        // A new table clears the rest: the waves, the assignment and the tick count.
+        self.set_table(table_mhz)
     }
 
     /// Load a new frequency table; all LEDs go off and every wave restarts low.
@@ -769,6 +774,35 @@ mod tests {
         // A new table restarts with everything dark.
         m.set_table(&[1_000_000]).unwrap();
         assert_eq!(m.levels(), [0; PORTS]);
+    }
+
+    #[test]
+    fn loading_in_place_equals_a_new_modulator() {
+        let mut modes = all_modulated();
+        modes[4] = LedMode::Modulated(FreqSet((1 << 19) | (1 << 7) | 1));
+        modes[5] = LedMode::On;
+        // A used modulator (other pins, table, assignment and phase) loaded in place...
+        let mut reused = Modulator::new(&[1_000_000, 2_000_000], &BEACON_PINS).unwrap();
+        let mut other = BEACON_PINS;
+        other.swap(0, 1);
+        reused.load(&[1_000_000], &other).unwrap();
+        reused.configure(&[LedMode::On; LED_COUNT]);
+        for _ in 0..777 {
+            reused.tick(&mut Levels::default());
+        }
+        reused.load(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+        // ...drives the pins exactly as a fresh one, tick by tick.
+        let mut fresh = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+        assert_eq!(reused.all_bsrr(), fresh.all_bsrr());
+        reused.configure(&modes);
+        fresh.configure(&modes);
+        let (mut a, mut b) = (Levels::default(), Levels::default());
+        for _ in 0..20_000 {
+            reused.tick(&mut a);
+            fresh.tick(&mut b);
+            assert_eq!((a, reused.levels()), (b, fresh.levels()));
+        }
+        assert_eq!(reused.now(), fresh.now());
     }
 
     #[test]

@@ -12,6 +12,8 @@
 //! * when no valid frame has arrived for [`Limits::deadman_ms`] (default 10 s), every LED
 //!   goes off ([`Board::poll`]); the host keeps the board alive with heartbeats.
 
+use core::mem::MaybeUninit;
+
 use cta_core::schedule::{half_period_q24, NORTHSTAR_TABLE_MHZ, TICK_HZ};
 use cta_core::wire::beacon::{
     BeaconError, BeaconRequest, BeaconResponse, BeaconStatus, LedMode, LedSetting, Limits,
@@ -71,6 +73,15 @@ impl Board {
         }
     }
 
+    /// [`Self::new`] written into `slot`: the chip keeps the board in a static, so its
+    /// state (the receive buffer above all) counts as static RAM and not as part of
+    /// `main`'s stack frame, which `firmware-beacon/ci.sh` reads from the disassembly.
+    /// Requests are handled in [`Self::feed`]'s own frame (never inlined), whose peak the
+    /// QEMU program `tests/qemu/src/bin/beacon_board.rs` measures.
+    pub fn init(slot: &mut MaybeUninit<Self>, simulated: bool, watchdog_reset: bool) -> &mut Self {
+        slot.write(Self::new(simulated, watchdog_reset))
+    }
+
     /// Push the boot state (table, all LEDs off) to the outputs.
     pub fn start(&mut self, out: &mut impl Outputs) {
         out.set_table(&self.table);
@@ -115,7 +126,8 @@ impl Board {
     }
 
     /// Feed one received byte. When it completes a frame, the reply frame is written to
-    /// `tx` and returned.
+    /// `tx` and returned. Never inlined (see [`Self::init`]).
+    #[inline(never)]
     pub fn feed<'t>(
         &mut self,
         byte: u8,

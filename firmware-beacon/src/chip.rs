@@ -14,6 +14,7 @@
 //!   interrupt: all LEDs off, then wait for the watchdog.
 
 use core::cell::RefCell;
+use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m::peripheral::NVIC;
@@ -229,13 +230,20 @@ fn main() -> ! {
     critical_section::with(|cs| RX.borrow(cs).replace(Some(rx)));
 
     // Modulator and board, all LEDs off.
-    let modulator = match Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS) {
-        Ok(m) => m,
-        Err(_) => panic!("default table rejected"),
-    };
-    critical_section::with(|cs| MODULATOR.borrow(cs).replace(modulator));
+    // In place: the modulator is too large for a temporary on the stack.
+    let loaded = critical_section::with(|cs| {
+        MODULATOR
+            .borrow_ref_mut(cs)
+            .load(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS)
+    });
+    if loaded.is_err() {
+        panic!("default table rejected");
+    }
     let mut out = ChipOutputs;
-    let mut board = Board::new(false, watchdog_reset);
+    static mut BOARD: MaybeUninit<Board> = MaybeUninit::uninit();
+    // SAFETY: main runs once and is the only user of BOARD.
+    let slot = unsafe { &mut *core::ptr::addr_of_mut!(BOARD) };
+    let board = Board::init(slot, false, watchdog_reset);
     board.start(&mut out);
 
     // Tick timer: TIM2 at exactly TICK_HZ.
