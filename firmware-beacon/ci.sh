@@ -1,10 +1,20 @@
 #!/usr/bin/env bash
 # CI for the beacon board (called by the root .ci/run as `bash firmware-beacon/ci.sh`):
 #  1. build the firmware for thumbv7m-none-eabi in its own cargo invocation;
-#  2. print its flash and RAM use and fail if over the root memory.x budget;
-#  3. count the instructions of the modulator tick under QEMU (Cortex-M3) with all 100
-#     LEDs modulated, and print the interrupt load at 72 MHz; fail above 25 %.
-# Needs rustup, and qemu-system-arm for step 3 (installed by .ci/run).
+#  2. count the instructions of the modulator tick under QEMU (Cortex-M3) with all 100
+#     LEDs modulated, and print the interrupt load at 72 MHz; fail above 25 %;
+#  3. run the QEMU board program (the board's own code, as the chip's main calls it,
+#     through every request) and measure its peak stack by painting;
+#  4. print flash and RAM use and fail if over the root memory.x budget.
+#
+# RAM = static (.data + .bss + .uninit: the board and the modulator are statics)
+#     + the chip main's own frame (from the firmware's disassembly: its prologue)
+#     + the board's peak stack below main (QEMU, step 3)
+#     + the tick interrupt's stack (QEMU, step 2) and its 32-byte exception frame: the
+#       tick has the highest priority and can land on top of everything else
+#     + ENTRY_IRQ_ALLOWANCE: the reset handler's frame and the USART interrupt (its
+#       exception frame, saved registers and small callees).
+# Needs rustup, and qemu-system-arm for steps 2-3 (installed by .ci/run).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -12,6 +22,7 @@ rustup target add thumbv7m-none-eabi >/dev/null
 rustup component add llvm-tools >/dev/null
 bin_dir="$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin"
 target_dir=${CARGO_TARGET_DIR:-$root/target}
+ENTRY_IRQ_ALLOWANCE=256
 
 echo "== firmware-beacon: build (thumbv7m-none-eabi, release)"
 cargo build --release --target thumbv7m-none-eabi -p cta-firmware-beacon
@@ -31,13 +42,6 @@ read -r flash ram < <("$bin_dir/llvm-size" -A "$elf" | awk '
   $1 == ".data" { f += $2; r += $2 }
   $1 == ".bss" || $1 == ".uninit" { r += $2 }
   END { print f, r }')
-printf 'firmware-beacon flash: %d bytes of %d (%.1f %%)\n' "$flash" "$flash_budget" "$(echo "$flash $flash_budget" | awk '{print 100*$1/$2}')"
-printf 'firmware-beacon RAM (static): %d bytes of %d (%.1f %%), %d left for the stack\n' "$ram" "$ram_budget" "$(echo "$ram $ram_budget" | awk '{print 100*$1/$2}')" $((ram_budget - ram))
-if [ "$flash" -gt "$flash_budget" ] || [ "$ram" -gt "$ram_budget" ]; then
-  echo "firmware-beacon: over the memory.x budget" >&2
-  exit 1
-fi
-
 echo "== firmware-beacon: tick cost under QEMU (all 100 LEDs modulated)"
 tick_hz=$(sed -n 's/^pub const TICK_HZ: u32 = \([0-9_]*\);.*/\1/p' core/src/schedule.rs | tr -d _)
 # (Not `tee /dev/stderr`: when stderr is a log file, tee would truncate it.)
@@ -51,3 +55,26 @@ echo "$mean $max $tick_hz" | awk '{
   printf "beacon tick: %.1f instructions per tick on average (max %d) at %d Hz: interrupt load %.1f %% of 72 MHz (target <= 25 %%)\n", $1, $2, $3, load
   if (load > 25) { print "beacon tick: interrupt load over 25 %" > "/dev/stderr"; exit 1 }
 }'
+tick_stack=$(echo "$out" | sed -n 's/^STACK tick_peak_bytes=\([0-9]*\).*/\1/p')
+[ -n "$tick_stack" ] || { echo "ci.sh: QEMU tick run printed no stack figure" >&2; exit 1; }
+
+echo "== firmware-beacon: board session under QEMU (the board's code below main)"
+out=$(CARGO_TARGET_DIR="$target_dir/qemu" bash tests/qemu/run.sh beacon_board)
+echo "$out"
+peak=$(echo "$out" | sed -n 's/^STACK beacon_board_peak_bytes=\([0-9]*\).*/\1/p')
+[ -n "$peak" ] || { echo "ci.sh: QEMU board run printed no stack figure" >&2; exit 1; }
+main_frame=$(bash tests/qemu/main_frame.sh "$elf")
+ram_total=$(( ram + main_frame + peak + tick_stack + 32 + ENTRY_IRQ_ALLOWANCE ))
+
+echo "== firmware-beacon figures"
+printf 'firmware-beacon flash: %d bytes of %d (%.1f %%)\n' "$flash" "$flash_budget" "$(echo "$flash $flash_budget" | awk '{print 100*$1/$2}')"
+printf 'RAM static                   %6d B\n' "$ram"
+printf 'RAM stack: main frame        %6d B\n' "$main_frame"
+printf 'RAM stack: board below main  %6d B (QEMU)\n' "$peak"
+printf 'RAM stack: tick interrupt    %6d B (QEMU, + 32 B exception frame)\n' "$tick_stack"
+printf 'RAM stack: entry, USART      %6d B (allowance)\n' "$ENTRY_IRQ_ALLOWANCE"
+printf 'firmware-beacon RAM: %d bytes of %d (%.1f %%)\n' "$ram_total" "$ram_budget" "$(echo "$ram_total $ram_budget" | awk '{print 100*$1/$2}')"
+if [ "$flash" -gt "$flash_budget" ] || [ "$ram_total" -gt "$ram_budget" ]; then
+  echo "firmware-beacon: over the memory.x budget" >&2
+  exit 1
+fi

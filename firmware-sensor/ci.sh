@@ -93,19 +93,7 @@ echo "$out"
 peak=$(echo "$out" | sed -n 's/^STACK board_peak_bytes=\([0-9]*\).*/\1/p')
 [ -n "$peak" ] || { echo "ci.sh: QEMU board run printed no stack figure" >&2; exit 1; }
 # The chip main's own frame: its prologue's pushed registers and stack adjustment.
-objdump="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-objdump"
-nm="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-nm"
-# (No early exit in these awk programs: the writer would die of SIGPIPE under pipefail.)
-main_sym=$("$nm" "$elf" | awk '/__cortex_m_rt_main[0-9a-zA-Z_$]*$/ && $2 ~ /[tT]/ && !s { s = $3 } END { print s }')
-[ -n "$main_sym" ] || { echo "ci.sh: the firmware's main was not found" >&2; exit 1; }
-main_frame=$("$objdump" -d --no-show-raw-insn --disassemble-symbols="$main_sym" "$elf" | awk '
-  function num(v) { gsub("#", "", v); if (v ~ /^0x/) { n = 0; v = tolower(substr(v, 3)); for (i = 1; i <= length(v); i++) n = n * 16 + index("0123456789abcdef", substr(v, i, 1)) - 1; return n } return v + 0 }
-  # The prologue: the first instructions, before any branch.
-  /\tb/ { done = 1 }
-  !done && /\t(push|push\.w|stmdb)\t/ { r = $0; gsub(/[^,{]/, "", r); b += 4 * length(r) }
-  !done && /\tsub(\.w|w)?\tsp, (sp, )?#/ { b += num($NF) }
-  END { print b + 0 }')
-[ "$main_frame" -gt 0 ] || { echo "ci.sh: could not read main's frame" >&2; exit 1; }
+main_frame=$(bash "$root/tests/qemu/main_frame.sh" "$elf")
 ram=$(( ram_static + main_frame + peak + ENTRY_IRQ_ALLOWANCE ))
 verdict() { if [ "$1" -le "$2" ]; then echo "ok"; else echo "OVER BUDGET"; fi; }
 check() { [ "$1" -le "$2" ] || over=1; }

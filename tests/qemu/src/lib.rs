@@ -69,15 +69,15 @@ pub fn fail(msg: &str) -> ! {
 /// Word written below the stack pointer by [`paint_stack`].
 const PATTERN: u32 = 0xC0FF_EE55;
 
-/// Fill the `bytes` below the current stack pointer (minus a 256-byte gap for this
-/// function's own frame) with a pattern; returns the painted range's low end and the
-/// stack pointer, for [`stack_used`].
-#[inline(never)]
+/// Fill the `bytes` below the current stack pointer with a pattern; returns the painted
+/// range's low end and the stack pointer, for [`stack_used`]. Always inlined: the stack
+/// pointer read is the caller's own (its frame is fixed), so everything its later callees
+/// put on the stack lies in the painted range.
+#[inline(always)]
 pub fn paint_stack(bytes: usize) -> (usize, usize) {
-    let sp = cortex_m::register::msp::read() as usize;
-    let hi = (sp - 256) & !3;
-    let lo = hi - bytes;
-    for a in (lo..hi).step_by(4) {
+    let sp = cortex_m::register::msp::read() as usize & !3;
+    let lo = sp - bytes;
+    for a in (lo..sp).step_by(4) {
         // SAFETY: unused stack memory below the live frames (64 KiB of RAM on the
         // lm3s6965; the programs' statics are far below).
         unsafe { (a as *mut u32).write_volatile(PATTERN) };

@@ -7,16 +7,20 @@
 //! toggled port (`BSRR` store for multi-frequency LEDs). The timer and GPIO registers are
 //! stand-ins in RAM (the lm3s6965 has no STM32 peripherals); the code path is the same. Hardware exception entry and exit
 //! (12 + 10 cycles on the Cortex-M3) are not instructions and are added in the report.
+//!
+//! Also prints `STACK tick_peak_bytes=N`, the stack the interrupt body uses (painted),
+//! for the RAM figure of firmware-beacon/ci.sh.
 #![no_std]
 #![no_main]
 
 use core::cell::RefCell;
 
 use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
 use critical_section::Mutex;
 use cta_core::schedule::{Gpio, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ};
 use cta_core::wire::beacon::{FreqSet, LedMode, LED_COUNT};
-use cta_qemu::{done, fail, mark};
+use cta_qemu::{done, end, fail, mark, paint_stack, stack_used};
 
 /// Ticks measured (~0.1 s of modulation at 125 kHz: every frequency toggles many times).
 const TICKS: u32 = 12_500;
@@ -76,9 +80,13 @@ fn main() -> ! {
     for _ in 0..4 {
         mark();
     }
+    let (lo, sp) = paint_stack(1024);
     for _ in 0..TICKS {
         mark();
         tim2_isr();
     }
+    end();
+    // The interrupt body's stack (the hardware's 32-byte exception frame comes on top).
+    hprintln!("STACK tick_peak_bytes={}", stack_used(lo, sp));
     done("beacon_tick: done")
 }
