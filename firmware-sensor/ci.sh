@@ -6,15 +6,16 @@
 #     `cargo run --release`), and print flash and static RAM;
 #  2. run the QEMU pose program (tests/qemu, Cortex-M3 lm3s6965evb, built at the
 #     firmware's opt-level) for the pinhole and the near-field model: instructions of one
-#     warm 10-beacon solve (and, reported without a budget, of the 20-beacon four-array
-#     constellation `cta sensor accuracy --constellation four-20` evaluates);
+#     warm 10-beacon solve, and of the 20-beacon four-array constellation `cta sensor
+#     accuracy --constellation four-20` evaluates (the one that meets every accuracy claim);
 #  3. compare the on-target f32 answer with the host's f64 answer (example pose_reference),
 #     for both models and for the 20-beacon run;
 #  4. run the QEMU board program: the board's own code (Board::init and Board::poll, as
 #     the chip's main calls them) through a session that reaches every deep path (requests,
 #     flash writes, the 20-beacon near-field pose), and measure its peak stack by painting;
 #  5. fail when over budget: flash <= 48 KiB, RAM <= 12 KiB, one warm 10-beacon solve
-#     <= 1,000,000 instructions, for each model.
+#     <= 1,000,000 instructions, for each model (the issue's budget), and the warm
+#     20-beacon near-field solve under the same line (ours: so that four-20 stays an option).
 #
 # RAM = static (.data + .bss + .uninit of the firmware: the board's state is a static)
 #     + the chip main's own frame (from the firmware's disassembly: its prologue)
@@ -101,6 +102,7 @@ check "$flash" "$FLASH_BUDGET"; check "$ram" "$RAM_BUDGET"
 # The instruction budget holds for both models: the pinhole (calibrated eq 65) and the
 # near-field (eq 60-63) solve; see firmware-sensor/README.md, "Budgets".
 check "${insn[pinhole]}" "$INSN_BUDGET"; check "${insn[nearfield]}" "$INSN_BUDGET"
+check "$insn20" "$INSN_BUDGET"
 echo "== firmware-sensor figures"
 printf 'flash                        %6d B (%.1f KiB) / %d B: %s\n' "$flash" "$(awk -v f="$flash" 'BEGIN { print f / 1024 }')" "$FLASH_BUDGET" "$(verdict "$flash" "$FLASH_BUDGET")"
 printf 'RAM static                   %6d B\n' "$ram_static"
@@ -111,7 +113,7 @@ printf 'RAM total                    %6d B / %d B: %s\n' "$ram" "$RAM_BUDGET" "$
 for model in pinhole nearfield; do
   printf 'warm 10-beacon solve, %-9s %8d instructions / %d: %s\n' "$model" "${insn[$model]}" "$INSN_BUDGET" "$(verdict "${insn[$model]}" "$INSN_BUDGET")"
 done
-printf 'warm 20-beacon solve, nearfield %8d instructions (no budget; %.0f Hz at 72 MHz)\n' "$insn20" "$(awk -v n="$insn20" 'BEGIN { print 72e6 / n }')"
+printf 'warm 20-beacon solve, nearfield %8d instructions / %d (four-20; %.0f Hz at 72 MHz): %s\n' "$insn20" "$INSN_BUDGET" "$(awk -v n="$insn20" 'BEGIN { print 72e6 / n }')" "$(verdict "$insn20" "$INSN_BUDGET")"
 if [ "$over" -ne 0 ]; then
   if [ "$mode" = report ]; then
     echo "firmware-sensor: OVER BUDGET (CTA_SENSOR_BUDGETS=report: not failing)"

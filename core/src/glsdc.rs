@@ -10,7 +10,8 @@
 //! - a damped (Levenberg) step whenever a Gauss-Newton step raises the cost;
 //! - stopping on a small step, a small cost change, or an iteration cap;
 //! - optionally ([`solve_with`]), the last linearisation carried to the next solve of a
-//!   tracked problem, for a first step that costs a residual pass only;
+//!   tracked problem, for a first step that costs no model evaluation (the residuals at
+//!   the start predicted from it) or a residual pass only;
 //! - the covariance `P = (G^T W G)^-1`, scaled by the residual variance
 //!   `sum w r^2 / (m - n)` unless the weights are absolute (`W = R^-1`);
 //! - 1-sigma per parameter, residual RMS, iterations and the condition number of the scaled,
@@ -53,6 +54,14 @@ pub trait Problem<T: Real> {
     ) -> Result<(), ModelError>
     where
         DefaultAllocator: Allocator<Self::D>;
+    /// Visit the measured value `y_i` and the weight `w_i` of every row, in the order of
+    /// [`Problem::rows`], without evaluating the model; `false` when the problem cannot
+    /// (the default). With them, a linearisation carried by [`solve_with`] predicts the
+    /// residuals at the next solve's start, `y_i - (h_i + J_i dx)`, and its first step
+    /// evaluates no model at all.
+    fn measurements(&self, _sink: &mut dyn FnMut(T, T)) -> bool {
+        false
+    }
     /// Write the name of parameter `i` (used to name unobservable combinations).
     fn param_name(&self, i: usize, w: &mut dyn core::fmt::Write) -> core::fmt::Result {
         write!(w, "x{}", i + 1)
@@ -204,7 +213,7 @@ where
     g: OVector<T, D>,
     wss: T,
     ss: T,
-    /// Weighted Jacobian rows kept in the caller's store (0: none).
+    /// Rows kept in the caller's store (0: none): see [`accumulate`].
     rows: usize,
 }
 
@@ -384,7 +393,9 @@ where
     let mut wss = T::zero();
     let mut ss = T::zero();
     let mut store = store;
-    let cap = store.as_ref().map_or(0, |s| s.len() / nn.max(1));
+    // Each kept row: w J_i, then r_i.
+    let stride = nn + 1;
+    let cap = store.as_ref().map_or(0, |s| s.len() / stride);
     let mut row = 0;
     prob.rows(x, true, &mut |r, w, j| {
         debug_assert_eq!(j.len(), nn);
@@ -393,10 +404,14 @@ where
         let rr = r * r;
         wss += if unit { rr } else { w * rr };
         ss += rr;
-        // The weighted row w J_i, kept (when there is room) so that this linearisation can
-        // be carried to the next solve.
+        // The weighted row w J_i and the residual, kept (when there is room) so that this
+        // linearisation can be carried to the next solve.
         let mut kept = match store.as_deref_mut() {
-            Some(s) if row < cap => Some(&mut s[row * nn..(row + 1) * nn]),
+            Some(s) if row < cap => {
+                let k = &mut s[row * stride..(row + 1) * stride];
+                k[nn] = r;
+                Some(k)
+            }
             _ => None,
         };
         row += 1;
@@ -438,8 +453,9 @@ where
 type ChordEval<T, D> = (OVector<T, D>, T, T);
 
 /// A chord evaluation at `x`: the residuals there and the gradient `g = sum (w J_i) r_i`
-/// from the weighted rows `kept` (`rows` of them) of an earlier linearisation. `None` when
-/// the model visits a different number of rows at `x` (the kept rows no longer line up).
+/// from the weighted rows `kept` (`rows` of them, see [`accumulate`]) of an earlier
+/// linearisation. `None` when the model visits a different number of rows at `x` (the kept
+/// rows no longer line up).
 fn chord_at<T: Real, P: Problem<T>>(
     prob: &P,
     x: &OVector<T, P::D>,
@@ -457,7 +473,7 @@ where
     let mut row = 0;
     prob.rows(x, false, &mut |r, w, _| {
         if row < rows {
-            for (gb, &jb) in g.iter_mut().zip(&kept[row * nn..(row + 1) * nn]) {
+            for (gb, &jb) in g.iter_mut().zip(&kept[row * (nn + 1)..]) {
                 *gb += jb * r;
             }
         }
@@ -473,6 +489,80 @@ where
         return Err(ModelError::NonFinite);
     }
     Ok(Some((g, wss, ss)))
+}
+
+/// The start of a solve from a carried linearisation whose kept rows hold the predicted
+/// model values `h_i` at the carried solution (see [`predict`]): the residuals there,
+/// `y_i - h_i` with this problem's measurements, and the gradient from the kept rows, with
+/// no model evaluation. `None` when the problem does not give its measurements or they do
+/// not line up with the kept rows.
+fn predicted_start<T: Real, P: Problem<T>>(
+    prob: &P,
+    kept: &[T],
+    rows: usize,
+) -> Option<ChordEval<T, P::D>>
+where
+    DefaultAllocator: Allocator<P::D>,
+{
+    let d = prob.dim();
+    let nn = d.value();
+    let mut g = OVector::<T, P::D>::zeros_generic(d, U1);
+    let mut wss = T::zero();
+    let mut ss = T::zero();
+    let mut row = 0;
+    let told = prob.measurements(&mut |y, w| {
+        if row < rows {
+            let k = &kept[row * (nn + 1)..(row + 1) * (nn + 1)];
+            let r = y - k[nn];
+            for (gb, &jb) in g.iter_mut().zip(k) {
+                *gb += jb * r;
+            }
+            let rr = r * r;
+            wss += if w == T::one() { rr } else { w * rr };
+            ss += rr;
+        }
+        row += 1;
+    });
+    let finite = wss.is_finite() && g.iter().all(|v| v.is_finite());
+    (told && row == rows && finite).then_some((g, wss, ss))
+}
+
+/// Turn the kept rows of the linearisation at `x_lin` (`w J_i`, `r_i`) into predictions for
+/// the next solve: `r_i` is replaced by the model value the linearisation predicts at the
+/// solution `x`, `h_i = y_i - r_i + J_i (x - x_lin)`. `false` (nothing usable) when the
+/// problem does not give its measurements or they do not line up.
+fn predict<T: Real, P: Problem<T>>(
+    prob: &P,
+    x: &OVector<T, P::D>,
+    x_lin: &OVector<T, P::D>,
+    kept: &mut [T],
+    rows: usize,
+) -> bool
+where
+    DefaultAllocator: Allocator<P::D>,
+{
+    let nn = prob.dim().value();
+    let dx = x - x_lin;
+    let moved = dx.iter().any(|v| *v != T::zero());
+    let mut row = 0;
+    let told = prob.measurements(&mut |y, w| {
+        if row < rows {
+            let k = &mut kept[row * (nn + 1)..(row + 1) * (nn + 1)];
+            // J_i dx from the weighted row.
+            let mut jdx = T::zero();
+            if moved {
+                for (&jb, &db) in k.iter().zip(dx.iter()) {
+                    jdx += jb * db;
+                }
+                if w != T::one() {
+                    jdx /= w;
+                }
+            }
+            k[nn] = y - k[nn] + jdx;
+        }
+        row += 1;
+    });
+    told && row == rows
 }
 
 /// Extreme eigenvalues of a symmetric positive semi-definite matrix and the eigenvector of
@@ -536,7 +626,7 @@ where
 }
 
 /// One linearisation: the scaled normal matrix at `x`, its scale and Cholesky factor, and
-/// how many weighted Jacobian rows of it the caller's store holds (0: none).
+/// how many rows of it the caller's store holds (0: none; see [`accumulate`]).
 #[derive(Debug, Clone)]
 struct Lin<T: Real, D: Dim>
 where
@@ -547,6 +637,9 @@ where
     scale: OVector<T, D>,
     ch: Option<Chol<T, D>>,
     kept: usize,
+    /// When the kept rows end in the model values predicted at a solution ([`predict`]),
+    /// not in the residuals at `x`: that solution.
+    predicted: Option<OVector<T, D>>,
 }
 
 impl<T: Real, D: Dim> Lin<T, D>
@@ -562,13 +655,15 @@ where
             scale,
             ch,
             kept: ne.rows,
+            predicted: None,
         }
     }
 }
 
 /// The last linearisation of a [`solve_with`], carried to the next solve of a similar
 /// problem (the next frame of a tracked pose): its factored normal matrix here, its
-/// weighted Jacobian rows in the caller's store.
+/// weighted Jacobian rows (and the predicted model values, when the problem gives its
+/// measurements) in the caller's store.
 #[derive(Debug, Clone)]
 pub struct Carry<T: Real, D: Dim>(Lin<T, D>)
 where
@@ -611,13 +706,19 @@ where
 
 /// [`solve`] for a sequence of similar problems (a tracked pose, frame after frame), with a
 /// linearisation carried from one to the next. `store` keeps the weighted Jacobian rows
-/// `w J_i` of each linearisation (room for `m n` values; less: none are kept and nothing is
-/// carried). On entry, `carry` is the previous solve's last linearisation (`None`: start
-/// afresh); on return, this one's (`None` after an error).
+/// `w J_i` of each linearisation and one value more per row (room for `m (n + 1)` values;
+/// less: none are kept and nothing is carried). On entry, `carry` is the previous solve's
+/// last linearisation (`None`: start afresh); on return, this one's (`None` after an
+/// error).
 ///
 /// A carried linearisation whose rows line up with this problem's (the same count) serves
-/// the first step: the residuals at `x0` cost one pass without the Jacobian, and the
-/// gradient is `sum (w J_i) r_i` over the kept rows (a chord step). A carried Jacobian only
+/// the first step, a chord step with the gradient `sum (w J_i) r_i` over the kept rows. The
+/// residuals at `x0` are predicted when the problem gives its measurements
+/// ([`Problem::measurements`]): `r_i = y_i - h_i`, with `h_i` the model value the carried
+/// linearisation predicts at the previous solution (the previous solve's last step is
+/// often taken as predicted anyway), so the step evaluates no model. Otherwise (another
+/// `x0` than the previous solution, or no measurements) they cost one pass without the
+/// Jacobian. A carried Jacobian only
 /// moves the estimate: no stop is decided from it (the next point is linearised afresh
 /// before any stop), so the answer is the Gauss-Newton answer, and a step it spoils (the
 /// cost rises) is retried from a fresh linearisation at `x0`.
@@ -647,8 +748,18 @@ where
     let mut chord_g: Option<OVector<T, P::D>> = None;
     let mut start = None;
     if let Some(Carry(l)) = carried {
-        if l.kept == m && store.len() >= m * n {
-            if let Some((g, w, s)) = chord_at(prob, &x, store, m).map_err(Error::Model)? {
+        if l.kept == m && store.len() >= m * (n + 1) {
+            // Predicted residuals serve a start at the point they were predicted for;
+            // otherwise (or when the problem cannot give its measurements) a residual pass.
+            let eval = match &l.predicted {
+                Some(at) if *at == x => predicted_start(prob, store, m),
+                _ => None,
+            };
+            let eval = match eval {
+                Some(e) => Some(e),
+                None => chord_at(prob, &x, store, m).map_err(Error::Model)?,
+            };
+            if let Some((g, w, s)) = eval {
                 chord_g = Some(g);
                 lin = Some(l);
                 start = Some((w, s));
@@ -826,7 +937,7 @@ where
         });
     };
     // Prefer fresh normal equations at the final point when a trial computed them.
-    let l = match (fresh, lin) {
+    let mut l = match (fresh, lin) {
         (Some(ne), _) => Lin::new(&ne, &x),
         (None, Some(l)) => l,
         // Not reached: at least one iteration ran.
@@ -844,8 +955,11 @@ where
         },
         settings,
     );
-    if out.is_ok() && l.kept == m {
-        *carry = Some(Carry(l));
+    if let Ok(sol) = &out {
+        if l.kept == m {
+            l.predicted = predict(prob, &sol.x, &l.x, store, m).then(|| sol.x.clone());
+            *carry = Some(Carry(l));
+        }
     }
     out
 }
@@ -1076,15 +1190,24 @@ mod tests {
     struct Exp<'a> {
         t: &'a [f64],
         y: &'a [f64],
+        /// Gives its measurements ([`Problem::measurements`]).
+        tells: bool,
         jacobians: core::cell::Cell<usize>,
+        residual_passes: core::cell::Cell<usize>,
     }
     impl<'a> Exp<'a> {
         fn new(t: &'a [f64], y: &'a [f64]) -> Self {
             Exp {
                 t,
                 y,
+                tells: true,
                 jacobians: Default::default(),
+                residual_passes: Default::default(),
             }
+        }
+        /// Model passes: (with the Jacobian, without).
+        fn passes(&self) -> (usize, usize) {
+            (self.jacobians.get(), self.residual_passes.get())
         }
     }
     impl Problem<f64> for Exp<'_> {
@@ -1102,6 +1225,8 @@ mod tests {
             sink: &mut dyn FnMut(f64, f64, &[f64]),
         ) -> Result<(), ModelError> {
             self.jacobians.set(self.jacobians.get() + usize::from(jac));
+            self.residual_passes
+                .set(self.residual_passes.get() + usize::from(!jac));
             for (&t, &y) in self.t.iter().zip(self.y) {
                 let e = (x[1] * t).exp();
                 let f = x[0] * e;
@@ -1112,6 +1237,12 @@ mod tests {
                 }
             }
             Ok(())
+        }
+        fn measurements(&self, sink: &mut dyn FnMut(f64, f64)) -> bool {
+            if self.tells {
+                self.y.iter().for_each(|&y| sink(y, 1.0));
+            }
+            self.tells
         }
     }
 
@@ -1246,41 +1377,50 @@ mod tests {
             jacobian_in_trial: true,
             ..Settings::default()
         };
-        let mut store = [0.0; 16];
-        let mut carry = None;
-        let p1 = Exp::new(&t, &y1);
-        let s1 = solve_with(
-            &p1,
-            Vector2::new(1.5, -0.5),
-            &settings,
-            &mut store,
-            &mut carry,
-        )
-        .unwrap();
-        assert!(carry.is_some(), "the last linearisation is carried");
-        // The next problem from the last answer, with and without the carried one.
+        // A store of m (n + 1) values; the first problem's solve, carried.
+        let first = |tells: bool, x0: Vector2<f64>| {
+            let mut p1 = Exp::new(&t, &y1);
+            p1.tells = tells;
+            let mut store = [0.0; 24];
+            let mut carry = None;
+            let s1 = solve_with(&p1, x0, &settings, &mut store, &mut carry).unwrap();
+            assert!(carry.is_some(), "the last linearisation is carried");
+            (s1, store, carry)
+        };
+        let (s1, _, _) = first(true, Vector2::new(1.5, -0.5));
+        // The next problem from the last answer, afresh.
         let fresh = Exp::new(&t, &y2);
-        let a = solve_with(&fresh, s1.x, &settings, &mut [0.0; 16], &mut None).unwrap();
-        let carried = Exp::new(&t, &y2);
-        let b = solve_with(&carried, s1.x, &settings, &mut store, &mut carry).unwrap();
-        assert!((a.x - b.x).norm() < 1e-9, "{:?} vs {:?}", a.x, b.x);
-        assert!((a.sigma - b.sigma).norm() < 1e-6 * a.sigma.norm());
-        assert!(
-            carried.jacobians.get() < fresh.jacobians.get(),
-            "Jacobian passes: {} carried, {} fresh",
-            carried.jacobians.get(),
-            fresh.jacobians.get()
-        );
+        let a = solve_with(&fresh, s1.x, &settings, &mut [0.0; 24], &mut None).unwrap();
+        // With the carried linearisation: from the predicted residuals (no model pass
+        // before the first step), from a residual pass when the problem does not give its
+        // measurements, and from a residual pass when the start is not the carried answer.
+        let x_other = s1.x + Vector2::new(1e-3, -1e-3);
+        for (tells, x0, residual_passes) in [(true, s1.x, 0), (false, s1.x, 1), (true, x_other, 1)]
+        {
+            let (_, mut store, mut carry) = first(tells, Vector2::new(1.5, -0.5));
+            let mut carried = Exp::new(&t, &y2);
+            carried.tells = tells;
+            let b = solve_with(&carried, x0, &settings, &mut store, &mut carry).unwrap();
+            let case = format!("measurements given: {tells}, start {x0:?}");
+            assert!((a.x - b.x).norm() < 1e-9, "{case}: {:?} vs {:?}", a.x, b.x);
+            assert!((a.sigma - b.sigma).norm() < 1e-6 * a.sigma.norm(), "{case}");
+            assert!(
+                carried.passes().0 < fresh.passes().0,
+                "{case}: Jacobian passes: {} carried, {} fresh",
+                carried.passes().0,
+                fresh.passes().0
+            );
+            assert_eq!(
+                carried.passes().1,
+                residual_passes,
+                "{case}: residual passes"
+            );
+        }
         // Too small a store keeps nothing and carries nothing.
+        let p1 = Exp::new(&t, &y1);
         let mut none = None;
-        solve_with(
-            &p1,
-            Vector2::new(1.5, -0.5),
-            &settings,
-            &mut [0.0; 15],
-            &mut none,
-        )
-        .unwrap();
+        let x0 = Vector2::new(1.5, -0.5);
+        solve_with(&p1, x0, &settings, &mut [0.0; 23], &mut none).unwrap();
         assert!(none.is_none());
     }
 

@@ -46,10 +46,11 @@
 //! residual variance, so model misfit shows in the 1-sigma.
 //!
 //! A warm solve also starts from the last solve's linearisation when the same coordinates
-//! of the same beacons are in view ([`glsdc::solve_with`]): its first step costs a residual
-//! pass, without the Jacobian; the point it reaches is linearised afresh before any stop, so
-//! the answer is Gauss-Newton's. A last step predicted to gain less than 0.1 chi-square is
-//! taken without another pass. A warm solve is thus one residual and one Jacobian pass.
+//! of the same beacons are in view ([`glsdc::solve_with`]): its first step uses the model
+//! values that linearisation predicts at the last solution (the warm start) against the new
+//! spots, so it evaluates no model at all; the point it reaches is linearised afresh before
+//! any stop, so the answer is Gauss-Newton's. A last step predicted to gain less than 0.1
+//! chi-square is taken without another pass. A warm solve is thus one Jacobian pass.
 //!
 //! Status: [`PoseStatus::Ok`]; [`PoseStatus::IllConditioned`] when GLSDC reports a rank
 //! deficiency or the condition number exceeds the limit; [`PoseStatus::Diverged`] when the
@@ -442,9 +443,10 @@ pub struct PoseSolver<T: Real> {
     noise2: T,
     warm: Option<SVector<T, 6>>,
     /// The last solve's linearisation, carried to the next frame's first step
-    /// ([`glsdc::solve_with`]): its weighted Jacobian rows (2 per beacon), the factored
-    /// normal matrix, and which coordinates of which beacons the rows belong to.
-    rows: [T; 2 * MAX_BEACONS * 6],
+    /// ([`glsdc::solve_with`]): its weighted Jacobian rows (2 per beacon) with the model
+    /// values predicted at the solution, the factored normal matrix, and which coordinates
+    /// of which beacons the rows belong to.
+    rows: [T; 2 * MAX_BEACONS * 7],
     carry: Option<glsdc::Carry<T, U6>>,
     carry_key: u64,
 }
@@ -484,7 +486,7 @@ impl<T: Real> PoseSolver<T> {
             head_axis: Vector3::new(T::zero(), T::zero(), T::one()),
             noise2: T::one(),
             warm: None,
-            rows: [T::zero(); 2 * MAX_BEACONS * 6],
+            rows: [T::zero(); 2 * MAX_BEACONS * 7],
             carry: None,
             carry_key: 0,
         }
@@ -646,7 +648,8 @@ impl<T: Real> PoseSolver<T> {
 
     /// Solve; `key` names the observations' beacons and coordinates (see
     /// [`Self::match_keyed`]). The last solve's linearisation serves the first step when
-    /// the warm start is in use and the key is the same: one pass without the Jacobian.
+    /// the warm start is in use and the key is the same: no model evaluation when the warm
+    /// start is that solve's answer, else one pass without the Jacobian.
     // Never inlined: on the chip its frame (the solve's matrices) is its own, not added to
     // the caller's (the board's reply being built).
     #[inline(never)]
@@ -919,6 +922,14 @@ impl<T: Real> Problem<T> for PoseProblem<'_, T> {
             }
         }
         Ok(())
+    }
+    fn measurements(&self, sink: &mut dyn FnMut(T, T)) -> bool {
+        for o in self.obs {
+            for a in (0..2).filter(|&a| o.used[a]) {
+                sink(o.y[a], T::one());
+            }
+        }
+        true
     }
     fn param_name(&self, i: usize, w: &mut dyn fmt::Write) -> fmt::Result {
         w.write_str(NAMES[i])
