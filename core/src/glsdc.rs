@@ -452,10 +452,72 @@ where
 /// The gradient and the sums `sum w r^2`, `sum r^2` of a chord evaluation.
 type ChordEval<T, D> = (OVector<T, D>, T, T);
 
-/// A chord evaluation at `x`: the residuals there and the gradient `g = sum (w J_i) r_i`
-/// from the weighted rows `kept` (`rows` of them, see [`accumulate`]) of an earlier
-/// linearisation. `None` when the model visits a different number of rows at `x` (the kept
-/// rows no longer line up).
+/// The sums of a chord evaluation, row by row: the gradient `g = sum (w J_i) r_i` from the
+/// weighted rows `kept` of an earlier linearisation (see [`accumulate`]), `sum w r^2` and
+/// `sum r^2`, and the rows seen.
+struct ChordSums<'k, T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    kept: &'k [T],
+    rows: usize,
+    g: OVector<T, D>,
+    wss: T,
+    ss: T,
+    row: usize,
+}
+
+impl<'k, T: Real, D: Dim> ChordSums<'k, T, D>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    fn new(d: D, kept: &'k [T], rows: usize) -> Self {
+        ChordSums {
+            kept,
+            rows,
+            g: OVector::<T, D>::zeros_generic(d, U1),
+            wss: T::zero(),
+            ss: T::zero(),
+            row: 0,
+        }
+    }
+
+    /// The kept row about to be added (empty past the kept ones).
+    fn next_kept(&self) -> &'k [T] {
+        let nn = self.g.len();
+        match self.row < self.rows {
+            true => &self.kept[self.row * (nn + 1)..(self.row + 1) * (nn + 1)],
+            false => &[],
+        }
+    }
+
+    /// The next row's residual `r` and weight `w`.
+    fn add(&mut self, r: T, w: T) {
+        let kept = self.next_kept();
+        for (gb, &jb) in self.g.iter_mut().zip(kept) {
+            *gb += jb * r;
+        }
+        self.row += 1;
+        let rr = r * r;
+        self.wss += if w == T::one() { rr } else { w * rr };
+        self.ss += rr;
+    }
+
+    /// The evaluation, if finite; `Ok(None)` when the rows did not line up with the kept.
+    fn done(self) -> Result<Option<ChordEval<T, D>>, ModelError> {
+        if self.row != self.rows {
+            return Ok(None);
+        }
+        if !(self.wss.is_finite() && self.g.iter().all(|v| v.is_finite())) {
+            return Err(ModelError::NonFinite);
+        }
+        Ok(Some((self.g, self.wss, self.ss)))
+    }
+}
+
+/// A chord evaluation at `x`: the residuals there and the gradient from the kept rows
+/// (`rows` of them) of an earlier linearisation ([`ChordSums`]). `None` when the model
+/// visits a different number of rows at `x` (the kept rows no longer line up).
 fn chord_at<T: Real, P: Problem<T>>(
     prob: &P,
     x: &OVector<T, P::D>,
@@ -465,37 +527,16 @@ fn chord_at<T: Real, P: Problem<T>>(
 where
     DefaultAllocator: Allocator<P::D>,
 {
-    let d = prob.dim();
-    let nn = d.value();
-    let mut g = OVector::<T, P::D>::zeros_generic(d, U1);
-    let mut wss = T::zero();
-    let mut ss = T::zero();
-    let mut row = 0;
-    prob.rows(x, false, &mut |r, w, _| {
-        if row < rows {
-            for (gb, &jb) in g.iter_mut().zip(&kept[row * (nn + 1)..]) {
-                *gb += jb * r;
-            }
-        }
-        row += 1;
-        let rr = r * r;
-        wss += if w == T::one() { rr } else { w * rr };
-        ss += rr;
-    })?;
-    if row != rows {
-        return Ok(None);
-    }
-    if !(wss.is_finite() && g.iter().all(|v| v.is_finite())) {
-        return Err(ModelError::NonFinite);
-    }
-    Ok(Some((g, wss, ss)))
+    let mut sums = ChordSums::new(prob.dim(), kept, rows);
+    prob.rows(x, false, &mut |r, w, _| sums.add(r, w))?;
+    sums.done()
 }
 
 /// The start of a solve from a carried linearisation whose kept rows hold the predicted
 /// model values `h_i` at the carried solution (see [`predict`]): the residuals there,
 /// `y_i - h_i` with this problem's measurements, and the gradient from the kept rows, with
 /// no model evaluation. `None` when the problem does not give its measurements or they do
-/// not line up with the kept rows.
+/// not line up with the kept rows (or are not finite).
 fn predicted_start<T: Real, P: Problem<T>>(
     prob: &P,
     kept: &[T],
@@ -504,27 +545,16 @@ fn predicted_start<T: Real, P: Problem<T>>(
 where
     DefaultAllocator: Allocator<P::D>,
 {
-    let d = prob.dim();
-    let nn = d.value();
-    let mut g = OVector::<T, P::D>::zeros_generic(d, U1);
-    let mut wss = T::zero();
-    let mut ss = T::zero();
-    let mut row = 0;
+    let nn = prob.dim().value();
+    let mut sums = ChordSums::new(prob.dim(), kept, rows);
     let told = prob.measurements(&mut |y, w| {
-        if row < rows {
-            let k = &kept[row * (nn + 1)..(row + 1) * (nn + 1)];
-            let r = y - k[nn];
-            for (gb, &jb) in g.iter_mut().zip(k) {
-                *gb += jb * r;
-            }
-            let rr = r * r;
-            wss += if w == T::one() { rr } else { w * rr };
-            ss += rr;
-        }
-        row += 1;
+        let h = sums.next_kept().get(nn).copied().unwrap_or(y);
+        sums.add(y - h, w);
     });
-    let finite = wss.is_finite() && g.iter().all(|v| v.is_finite());
-    (told && row == rows && finite).then_some((g, wss, ss))
+    match told {
+        true => sums.done().ok().flatten(),
+        false => None,
+    }
 }
 
 /// Turn the kept rows of the linearisation at `x_lin` (`w J_i`, `r_i`) into predictions for
