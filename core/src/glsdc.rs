@@ -987,7 +987,12 @@ where
     );
     if let Ok(sol) = &out {
         if l.kept == m {
-            l.predicted = predict(prob, &sol.x, &l.x, store, m).then(|| sol.x.clone());
+            // From the residuals the kept rows end in; a linearisation still carried from
+            // an earlier solve (a first step that ended it) holds that solve's predictions.
+            l.predicted = match l.predicted {
+                None => predict(prob, &sol.x, &l.x, store, m).then(|| sol.x.clone()),
+                Some(_) => None,
+            };
             *carry = Some(Carry(l));
         }
     }
