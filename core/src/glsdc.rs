@@ -1459,6 +1459,111 @@ mod tests {
         assert!(none.is_none());
     }
 
+    /// Four readings of `a` and four of `b`: exact fits in one step, in exact binary
+    /// arithmetic (the normal matrix is 4 I, its Jacobi scale 1/2), so a carried step can
+    /// reach zero cost.
+    struct Pairs {
+        y: [f64; 8],
+        jacobians: core::cell::Cell<usize>,
+        residual_passes: core::cell::Cell<usize>,
+    }
+    impl Pairs {
+        fn new(a: f64, b: f64) -> Self {
+            Pairs {
+                y: core::array::from_fn(|i| if i < 4 { a } else { b }),
+                jacobians: Default::default(),
+                residual_passes: Default::default(),
+            }
+        }
+    }
+    impl Problem<f64> for Pairs {
+        type D = U2;
+        fn dim(&self) -> U2 {
+            U2
+        }
+        fn n_rows(&self) -> usize {
+            8
+        }
+        fn rows(
+            &self,
+            x: &Vector2<f64>,
+            jac: bool,
+            sink: &mut dyn FnMut(f64, f64, &[f64]),
+        ) -> Result<(), ModelError> {
+            self.jacobians.set(self.jacobians.get() + usize::from(jac));
+            self.residual_passes
+                .set(self.residual_passes.get() + usize::from(!jac));
+            for (i, &y) in self.y.iter().enumerate() {
+                let k = usize::from(i >= 4);
+                let mut j = [0.0; 2];
+                j[k] = 1.0;
+                sink(y - x[k], 1.0, if jac { &j } else { &[] });
+            }
+            Ok(())
+        }
+        fn measurements(&self, sink: &mut dyn FnMut(f64, f64)) -> bool {
+            self.y.iter().for_each(|&y| sink(y, 1.0));
+            true
+        }
+    }
+
+    /// A step of the carried Jacobian that reaches zero cost stops the solve (the only stop
+    /// decided away from a fresh linearisation: nothing is left to gain). Its linearisation
+    /// is the carried one, whose kept rows already hold the earlier solve's predictions:
+    /// they must not be turned into predictions again. The solve after it then starts from
+    /// one residual pass and is exact in one step; predictions made from the stale rows
+    /// would start it wrong and cost further passes.
+    #[test]
+    fn zero_cost_on_a_carried_step_keeps_the_carry_sound() {
+        for jacobian_in_trial in [false, true] {
+            let settings = Settings {
+                jacobian_in_trial,
+                ..Settings::default()
+            };
+            let mut store = [0.0; 24];
+            let mut carry = None;
+            let case = format!("jacobian_in_trial {jacobian_in_trial}");
+            let mut run = |p: &Pairs, x0: Vector2<f64>| {
+                let s = solve_with(p, x0, &settings, &mut store, &mut carry).unwrap();
+                assert!(carry.is_some(), "{case}: carried on");
+                s
+            };
+            let p1 = Pairs::new(1.0, 2.0);
+            let s1 = run(&p1, Vector2::new(0.0, 0.0));
+            assert_eq!(s1.x, Vector2::new(1.0, 2.0), "{case}");
+            // From the carried answer: predicted residuals, one carried step to zero cost.
+            let p2 = Pairs::new(3.0, 5.0);
+            let s2 = run(&p2, s1.x);
+            assert_eq!(s2.x, Vector2::new(3.0, 5.0), "{case}");
+            assert_eq!(s2.stop, Stop::ZeroCost, "{case}");
+            assert_eq!(s2.iterations, 1, "{case}");
+            assert_eq!(
+                (p2.jacobians.get(), p2.residual_passes.get()),
+                (
+                    usize::from(jacobian_in_trial),
+                    usize::from(!jacobian_in_trial)
+                ),
+                "{case}: the trial is the only model pass"
+            );
+            let p3 = Pairs::new(4.0, 4.0);
+            let s3 = run(&p3, s2.x);
+            assert_eq!(s3.x, Vector2::new(4.0, 4.0), "{case}");
+            assert_eq!(s3.iterations, 1, "{case}");
+            // With the trial's fresh rows (jacobian_in_trial) the third solve starts from
+            // predictions again; else from one residual pass over the carried rows.
+            let expected = match jacobian_in_trial {
+                true => (1, 0),
+                false => (0, 2),
+            };
+            assert_eq!(
+                (p3.jacobians.get(), p3.residual_passes.get()),
+                expected,
+                "{case}: model passes of the third solve"
+            );
+            assert!(s3.sigma.iter().all(|s| *s == 0.0), "{case}: {:?}", s3.sigma);
+        }
+    }
+
     #[test]
     fn cholesky_helper_matches_nalgebra() {
         use nalgebra::{Matrix5, Vector5};
