@@ -654,10 +654,11 @@ impl<T: Real> PoseSolver<T> {
     // the caller's (the board's reply being built).
     #[inline(never)]
     fn solve_keyed(&mut self, obs: &[Obs<T>], key: Option<u64>) -> PoseSolution<T> {
-        let mut carry = self
-            .carry
-            .take()
-            .filter(|_| self.warm.is_some() && key == Some(self.carry_key));
+        // The carried linearisation serves only a warm start on the same beacons. It is
+        // handed to the solver in place (a copy would be another 400 bytes of stack).
+        if !(self.warm.is_some() && key == Some(self.carry_key)) {
+            self.carry = None;
+        }
         let fallback = self.warm.unwrap_or_else(SVector::zeros);
         let n = obs.len() as u8;
         let rows: usize = obs.iter().map(|o| o.rows()).sum();
@@ -701,10 +702,10 @@ impl<T: Real> PoseSolver<T> {
             boresight: self.boresight,
             obs,
         };
-        let result = glsdc::solve_with(&problem, x0, &settings, &mut self.rows, &mut carry);
-        if let (Some(c), Some(k)) = (carry, key) {
-            self.carry = Some(c);
-            self.carry_key = k;
+        let result = glsdc::solve_with(&problem, x0, &settings, &mut self.rows, &mut self.carry);
+        match key {
+            Some(k) => self.carry_key = k,
+            None => self.carry = None,
         }
         match result {
             Ok(sol) => {
