@@ -583,13 +583,16 @@ impl<T: Real> PoseSolver<T> {
     /// Match spots to beacons by ID (first spot of each ID). Coordinates at the 16-bit rails
     /// are marked unused; a spot with both there is skipped.
     pub fn match_spots(&self, spots: &[Spot]) -> Vec<Obs<T>, MAX_BEACONS> {
-        self.match_keyed(spots).0
+        let mut obs = Vec::new();
+        self.match_keyed(spots, &mut obs);
+        obs
     }
 
-    /// [`Self::match_spots`] and which coordinates of which beacons were used: bits `2i`
-    /// (X) and `2i + 1` (Y) for beacon `i` of the constellation.
-    fn match_keyed(&self, spots: &[Spot]) -> (Vec<Obs<T>, MAX_BEACONS>, u64) {
-        let mut obs = Vec::new();
+    /// [`Self::match_spots`] into `obs` (cleared first; filled in place, no copy of 480
+    /// bytes on the chip's stack), returning which coordinates of which beacons were used:
+    /// bits `2i` (X) and `2i + 1` (Y) for beacon `i` of the constellation.
+    fn match_keyed(&self, spots: &[Spot], obs: &mut Vec<Obs<T>, MAX_BEACONS>) -> u64 {
+        obs.clear();
         let mut key = 0u64;
         for (i, (id, r)) in self.beacons.iter().enumerate() {
             let spot = spots.iter().find(|s| s.id == *id);
@@ -607,7 +610,7 @@ impl<T: Real> PoseSolver<T> {
                 });
             }
         }
-        (obs, key)
+        key
     }
 
     /// The documented cold start: `q = 0` and `t` from the linear pinhole lines of sight.
@@ -636,7 +639,8 @@ impl<T: Real> PoseSolver<T> {
 
     /// Solve for the pose from one frame of spots.
     pub fn solve(&mut self, spots: &[Spot]) -> PoseSolution<T> {
-        let (obs, key) = self.match_keyed(spots);
+        let mut obs = Vec::new();
+        let key = self.match_keyed(spots, &mut obs);
         self.solve_keyed(&obs, Some(key))
     }
 
