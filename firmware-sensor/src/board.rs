@@ -87,7 +87,14 @@ pub struct Board<F: FlashPages> {
     refused: u32,
     last_host_us: u64,
     last_pose: Option<PoseStatus>,
+    /// Frames in a row whose sensitivity differs from the board's, modulo `RESEND_EVERY`
+    /// (see `on_frame`).
+    mismatched: u8,
 }
+
+/// While the detector's frames show another sensitivity than the board set, the settings
+/// are sent again on the first such frame and every this many after it.
+const RESEND_EVERY: u8 = 10;
 
 impl<F: FlashPages> Board<F> {
     /// Start the board: load the stored configuration (if any) from `flash`.
@@ -110,6 +117,7 @@ impl<F: FlashPages> Board<F> {
             refused: 0,
             last_host_us: 0,
             last_pose: None,
+            mismatched: 0,
         }
     }
 
@@ -334,6 +342,17 @@ impl<F: FlashPages> Board<F> {
     #[inline(never)]
     fn on_frame(&mut self, frame: &SpotFrame, io: &mut impl Io) {
         let t_us = io.now_us();
+        // A detector that booted after the board (or lost power) missed the start-up
+        // commands: its frames show another sensitivity. Send both settings again, at most
+        // every RESEND_EVERY frames while that lasts (acknowledgements are not awaited).
+        if frame.sensitivity != self.sensitivity {
+            if self.mismatched == 0 {
+                self.start(io);
+            }
+            self.mismatched = (self.mismatched + 1) % RESEND_EVERY;
+        } else {
+            self.mismatched = 0;
+        }
         let seq = self.reports;
         let body = match self.mode {
             Mode::Idle => return,
@@ -599,6 +618,52 @@ mod tests {
             }
             other => panic!("expected a pose, got {other:?}"),
         }
+    }
+
+    /// A detector that missed the start-up commands (it booted later) reports its own
+    /// sensitivity: the board sends both settings again, on the first such frame and every
+    /// tenth after it, and stops once the frames agree.
+    #[test]
+    fn settings_are_sent_again_while_the_detector_disagrees() {
+        let mut b = Board::new(RamFlash::default(), false);
+        let mut io = FakeIo::default();
+        b.start(&mut io);
+        let sent = |io: &mut FakeIo| -> Vec<NsCommand> {
+            let out = io
+                .ns
+                .chunks(7)
+                .map(|c| northstar::decode_command(c).expect("whole commands"))
+                .collect();
+            io.ns.clear();
+            out
+        };
+        let settings = vec![NsCommand::SetSensitivity(4), NsCommand::SetRate(10)];
+        assert_eq!(sent(&mut io), settings);
+        let frame = |sensitivity: u8| {
+            let f = SpotFrame {
+                seq: 0,
+                sensitivity,
+                spots: heapless::Vec::new(),
+            };
+            let mut bytes = [0u8; northstar::MAX_FRAME];
+            let n = northstar::encode_report(&f, &mut bytes);
+            bytes[..n].to_vec()
+        };
+        let mut resent = Vec::new();
+        for k in 0..25 {
+            b.on_ns_bytes(&frame(2), &mut io);
+            if !io.ns.is_empty() {
+                assert_eq!(sent(&mut io), settings, "frame {k}");
+                resent.push(k);
+            }
+        }
+        assert_eq!(resent, [0, 10, 20]);
+        // Agreement ends it; a later disagreement starts again at once.
+        b.on_ns_bytes(&frame(4), &mut io);
+        b.on_ns_bytes(&frame(4), &mut io);
+        assert!(io.ns.is_empty());
+        b.on_ns_bytes(&frame(3), &mut io);
+        assert_eq!(sent(&mut io), settings);
     }
 
     #[test]

@@ -38,7 +38,8 @@ const SYSCLK_HZ: u32 = 72_000_000;
 /// Receive queues between the USART interrupts and the main loop.
 const PC_QUEUE: usize = 512;
 const NS_QUEUE: usize = 512;
-/// Offsets (from the start of flash) of the two configuration pages.
+/// Offsets (from the start of flash) of the two configuration pages (build.rs links the
+/// image below them: keep its `CONFIG_PAGES` equal to the first).
 const PAGES: [u32; 2] = [62 * 1024, 63 * 1024];
 const FLASH_BASE: u32 = 0x0800_0000;
 
@@ -73,9 +74,11 @@ impl FlashPages for ChipFlash {
     }
 }
 
-/// Microseconds since boot from the DWT cycle counter, extended to 64 bits (the main loop
-/// polls it far more often than the 59 s wrap period). Only 32-bit divisions (the
-/// Cortex-M3 has them in hardware; a 64-bit division would pull in a libcall).
+/// Microseconds since boot from the DWT cycle counter, extended to 64 bits. The counter
+/// wraps every 59.65 s, so the main loop reads the clock on every pass (a silent link would
+/// otherwise leave it unread for longer, and each wrap would be lost). Only 32-bit
+/// divisions (the Cortex-M3 has them in hardware; a 64-bit division would pull in a
+/// libcall).
 struct Clock {
     last: u32,
     rem: u32,
@@ -136,6 +139,8 @@ fn main() -> ! {
         &mut flash.acr,
     );
     let mut watchdog = IndependentWatchdog::new(dp.IWDG);
+    // Halted by a debugger (a breakpoint), the chip is not reset under it.
+    watchdog.stop_on_debug(&dp.DBGMCU, true);
     watchdog.start(1000.millis());
 
     let mut gpioa = dp.GPIOA.split(&mut rcc);
@@ -143,7 +148,8 @@ fn main() -> ! {
     let (pc_tx, mut pc_rx) = dp
         .USART1
         .serial(
-            (pc_tx, gpioa.pa10),
+            // Pulled up: an unplugged link idles high instead of reading noise as bytes.
+            (pc_tx, gpioa.pa10.into_pull_up_input(&mut gpioa.crh)),
             Config::default().baudrate(115_200.bps()),
             &mut rcc,
         )
@@ -152,7 +158,7 @@ fn main() -> ! {
     let (ns_tx, mut ns_rx) = dp
         .USART2
         .serial(
-            (ns_tx, gpioa.pa3),
+            (ns_tx, gpioa.pa3.into_pull_up_input(&mut gpioa.crl)),
             Config::default().baudrate(NS_BAUD.bps()),
             &mut rcc,
         )
@@ -200,6 +206,8 @@ fn main() -> ! {
         let k = drain(&NS_BYTES, &mut ns);
         // The board's work (and its stack, measured in QEMU) is all below this call.
         board.poll(&pc[..n], &ns[..k], &mut io);
+        // At least once per pass, so that no 59.65 s wrap of the cycle counter is missed.
+        io.clock.now_us();
         let errors = RX_ERRORS.swap(0, Ordering::Relaxed);
         if errors != 0 {
             defmt::warn!("{} receive errors", errors);

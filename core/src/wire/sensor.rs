@@ -64,7 +64,9 @@ pub enum SensorRequest {
 pub struct SpotReport {
     /// Board report counter (all reports, spots and poses, share it; wraps).
     pub seq: u32,
-    /// Board time when the frame's last byte arrived, microseconds since reset.
+    /// Board time when the board decoded the frame, microseconds since reset: after its
+    /// last byte arrived, by at most one pass of the board's main loop (on the chip, up to
+    /// a pose solve and its report: tens of milliseconds; nothing is solved in stream mode).
     pub t_us: u64,
     /// The NorthStar's own frame counter.
     pub ns_seq: u8,
@@ -79,7 +81,8 @@ pub struct SpotReport {
 pub struct PoseReport {
     /// Board report counter (shared with [`SpotReport::seq`]).
     pub seq: u32,
-    /// Board time of the NorthStar frame, microseconds since reset.
+    /// Board time when the board decoded the NorthStar frame (as [`SpotReport::t_us`]),
+    /// microseconds since reset; the solve began then.
     pub t_us: u64,
     /// The NorthStar's frame counter.
     pub ns_seq: u8,
