@@ -39,13 +39,19 @@ use cta_firmware_beacon::board::{Board, Outputs};
 
 /// Core clock, Hz (8 MHz crystal x 9).
 const SYSCLK_HZ: u32 = 72_000_000;
-/// Receive queue between the USART interrupt and the main loop.
+/// Receive queue between the USART interrupt and the main loop: bytes, and [`RX_FAULT`]
+/// where the USART reported an error, so that the board drops the partial frame at the
+/// point of the error (not after the bytes that followed it, which begin the next frame).
 const RX_QUEUE: usize = 512;
+const RX_FAULT: u16 = 0x100;
+/// Queued bytes handled per main-loop pass (at most one reply is sent per pass too).
+const RX_PER_PASS: usize = 64;
 
 static MODULATOR: Mutex<RefCell<Modulator>> = Mutex::new(RefCell::new(Modulator::EMPTY));
 static RX: Mutex<RefCell<Option<Rx<pac::USART1>>>> = Mutex::new(RefCell::new(None));
-static RX_BYTES: Mutex<RefCell<Deque<u8, RX_QUEUE>>> = Mutex::new(RefCell::new(Deque::new()));
-/// Receive errors (USART errors and queue overflows) not yet reported to the board.
+static RX_BYTES: Mutex<RefCell<Deque<u16, RX_QUEUE>>> = Mutex::new(RefCell::new(Deque::new()));
+/// Bytes lost to a full queue (or an error marker that did not fit), not yet reported to
+/// the board.
 static RX_ERRORS: AtomicU32 = AtomicU32::new(0);
 
 /// GPIO ports A..G (port index of [`cta_core::schedule::Pin`]), padded to 8 entries so
@@ -278,12 +284,24 @@ fn main() -> ! {
     let mut last_ticks = ticks();
     loop {
         let now_ms = clock.now_ms();
-        while let Some(byte) = critical_section::with(|cs| RX_BYTES.borrow_ref_mut(cs).pop_front())
-        {
+        // At most RX_PER_PASS bytes and one reply per pass, so that the deadman, the
+        // watchdog and the error count keep their turn however fast requests arrive (a
+        // host that does not wait for replies keeps the queue from emptying, and each
+        // reply takes milliseconds to send).
+        for _ in 0..RX_PER_PASS {
+            let Some(item) = critical_section::with(|cs| RX_BYTES.borrow_ref_mut(cs).pop_front())
+            else {
+                break;
+            };
+            let Ok(byte) = u8::try_from(item) else {
+                board.uart_error();
+                continue;
+            };
             if let Some(frame) = board.feed(byte, now_ms, &mut out, &mut tx_buf) {
                 for &b in frame {
                     let _ = nb::block!(tx.write_u8(b));
                 }
+                break;
             }
         }
         for _ in 0..RX_ERRORS.swap(0, Ordering::Relaxed) {
@@ -326,13 +344,15 @@ fn USART1() {
         for _ in 0..4 {
             match rx.read() {
                 Ok(b) => {
-                    if q.push_back(b).is_err() {
+                    if q.push_back(u16::from(b)).is_err() {
                         RX_ERRORS.fetch_add(1, Ordering::Relaxed);
                     }
                 }
                 Err(nb::Error::WouldBlock) => break,
                 Err(nb::Error::Other(_)) => {
-                    RX_ERRORS.fetch_add(1, Ordering::Relaxed);
+                    if q.push_back(RX_FAULT).is_err() {
+                        RX_ERRORS.fetch_add(1, Ordering::Relaxed);
+                    }
                 }
             }
         }
