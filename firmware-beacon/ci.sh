@@ -2,7 +2,8 @@
 # CI for the beacon board (called by the root .ci/run as `bash firmware-beacon/ci.sh`):
 #  1. build the firmware for thumbv7m-none-eabi in its own cargo invocation;
 #  2. count the instructions of the modulator tick under QEMU (Cortex-M3) with all 100
-#     LEDs modulated, and print the interrupt load at 72 MHz; fail above 25 %;
+#     LEDs modulated, and print the interrupt load at 72 MHz; fail above 25 %; check the
+#     tick cost model the board uses to refuse overloads against the counts (three cases);
 #  3. run the QEMU board program (the board's own code, as the chip's main calls it,
 #     through every request) and measure its peak stack by painting;
 #  4. print flash and RAM use and fail if over the root memory.x budget.
@@ -57,6 +58,28 @@ echo "$mean $max $tick_hz" | awk '{
 }'
 tick_stack=$(echo "$out" | sed -n 's/^STACK tick_peak_bytes=\([0-9]*\).*/\1/p')
 [ -n "$tick_stack" ] || { echo "ci.sh: QEMU tick run printed no stack figure" >&2; exit 1; }
+
+# The board refuses settings whose tick cost, by the model of cta_core::schedule::tick_cost,
+# is over its budget: the model must not be below the measured cost. Checked on the case
+# above, on the accepted mixture nearest the budget (10 LEDs at all 20 frequencies, 90 at
+# one) and on the case where the model is tightest (every LED at the same two frequencies).
+echo "== firmware-beacon: tick cost model against QEMU"
+check_model() {
+  local out=$1 case_line model_mean measured
+  case_line=$(echo "$out" | grep '^TICK case=')
+  model_mean=$(echo "$case_line" | sed 's/.*model_mean=\([0-9]*\).*/\1/')
+  measured=$(echo "$out" | grep '^beacon_tick: segments=' | sed 's/.*mean=\([0-9.]*\).*/\1/')
+  [ -n "$model_mean" ] && [ -n "$measured" ] || { echo "ci.sh: no tick model figures" >&2; exit 1; }
+  echo "$case_line $measured" | awk '{
+    split($2, c, "="); split($3, m, "=");
+    printf "tick model, %-8s: %d instructions per tick, measured %.1f: %s\n", c[2], m[2], $NF, ($NF <= m[2] ? "ok" : "MODEL BELOW MEASURED")
+    if ($NF > m[2]) exit 1
+  }' || { echo "ci.sh: the tick cost model is below the measured cost" >&2; exit 1; }
+}
+check_model "$out"
+for case in mixed10 same100; do
+  check_model "$(BEACON_TICK_CASE=$case CARGO_TARGET_DIR="$target_dir/qemu" bash tests/qemu/run.sh beacon_tick)"
+done
 
 echo "== firmware-beacon: board session under QEMU (the board's code below main)"
 out=$(CARGO_TARGET_DIR="$target_dir/qemu" bash tests/qemu/run.sh beacon_board)

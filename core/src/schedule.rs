@@ -464,6 +464,96 @@ impl Modulator {
     }
 }
 
+/// What drives the cost of the tick interrupt, per tick on average, in Q16 (1 << 16 = one
+/// per tick), for a table and an LED assignment (see [`tick_cost`]): `[edges, legs,
+/// combo_ticks, combo_visits, combo_writes]`:
+///
+/// * `edges`: frequency edges (`sum 2 f / TICK_HZ` over the table: every wave runs, lit or
+///   not);
+/// * `legs`: port toggles (each edge of `f` toggles one port per port holding LEDs at `f`
+///   alone);
+/// * `combo_ticks`: ticks with an edge of a frequency some multi-frequency LED uses (at
+///   most 1; the sum of their rates bounds it);
+/// * `combo_visits`: multi-frequency LEDs looked at (all of them on such a tick);
+/// * `combo_writes`: `BSRR` writes for them (each on a tick with an edge of one of its
+///   frequencies).
+///
+/// The tick probabilities are bounded by the sums of the rates (union bounds), so the
+/// features over-count ticks on which several edges coincide: the model errs high.
+pub fn tick_features(
+    table_mhz: &[u32],
+    modes: &[LedMode; LED_COUNT],
+    pins: &[Pin; LED_COUNT],
+) -> [u64; 5] {
+    const ONE: u64 = 1 << 16;
+    let n = table_mhz.len().min(MAX_FREQS);
+    // Edges per tick of entry f, Q16: 2 f / TICK_HZ with f in millihertz (divided once per
+    // entry: a 64-bit division is a library call on the chip).
+    let mut rates = [0u64; MAX_FREQS];
+    for (r, &mhz) in rates.iter_mut().zip(table_mhz) {
+        *r = 2 * u64::from(mhz) * ONE / (1000 * u64::from(TICK_HZ));
+    }
+    let rate = |f: usize| rates[f];
+    // Sum of the rates of the entries in a set, by its bits.
+    let rates_of = |mut set: u32| {
+        let mut sum = 0;
+        while set != 0 {
+            sum += rates[set.trailing_zeros() as usize];
+            set &= set - 1;
+        }
+        sum
+    };
+    let valid = if n >= 32 { u32::MAX } else { (1u32 << n) - 1 };
+    let mut ports = [0u8; MAX_FREQS];
+    let mut combos = 0u64;
+    let mut combo_freqs = 0u32;
+    let mut writes = 0u64;
+    for (mode, pin) in modes.iter().zip(pins) {
+        let LedMode::Modulated(set) = *mode else {
+            continue;
+        };
+        let freqs = set.0 & valid;
+        if freqs.is_power_of_two() {
+            ports[freqs.trailing_zeros() as usize] |= 1 << (pin.port as usize % PORTS);
+        } else if freqs != 0 {
+            combos += 1;
+            combo_freqs |= freqs;
+            // One write on a tick with an edge of any of its frequencies.
+            writes += rates_of(freqs).min(ONE);
+        }
+    }
+    let edges = (0..n).map(rate).sum();
+    let legs = (0..n)
+        .map(|f| rate(f) * u64::from(ports[f].count_ones()))
+        .sum();
+    let combo_ticks = rates_of(combo_freqs).min(ONE);
+    [edges, legs, combo_ticks, combo_ticks * combos, writes]
+}
+
+/// Instructions of the tick interrupt on a tick with nothing due (measured: 28).
+pub const TICK_COST_BASE: u64 = 28;
+/// Tenths of an instruction per unit of each of [`tick_features`]: fitted to the
+/// Cortex-M3 counts of `tests/qemu/src/bin/beacon_tick.rs` over its cases (about 38 per
+/// edge, 9 per port toggle, 6 per multi-frequency LED looked at and per write) and
+/// rounded up, so that the model is not below any case (`firmware-beacon/ci.sh` checks
+/// two of them on every run).
+pub const TICK_COST_PER_TENTH: [u64; 5] = [400, 100, 50, 70, 65];
+
+/// Mean instructions per tick of the firmware's tick interrupt (exception entry and exit
+/// not included) for a table and an LED assignment: the model of [`TICK_COST_BASE`] and
+/// [`TICK_COST_PER_TENTH`] over [`tick_features`]. The beacon board refuses assignments
+/// and tables above its budget ([`TICK_BUDGET`]).
+pub fn tick_cost(table_mhz: &[u32], modes: &[LedMode; LED_COUNT], pins: &[Pin; LED_COUNT]) -> u32 {
+    let x = tick_features(table_mhz, modes, pins);
+    let sum: u64 = x.iter().zip(TICK_COST_PER_TENTH).map(|(x, c)| x * c).sum();
+    (TICK_COST_BASE + sum.div_ceil(10 << 16)) as u32
+}
+
+/// Most instructions per tick, on average, the beacon board accepts ([`tick_cost`]): half
+/// the 576 cycles between ticks, so that the main loop keeps the other half even if flash
+/// wait states make an instruction cost more than a cycle.
+pub const TICK_BUDGET: u32 = 288;
+
 /// Frequency and jitter measured from the simulated tick stream (host side).
 #[cfg(feature = "alloc")]
 pub mod measure {

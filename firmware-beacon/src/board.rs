@@ -14,7 +14,9 @@
 
 use core::mem::MaybeUninit;
 
-use cta_core::schedule::{half_period_q24, NORTHSTAR_TABLE_MHZ, TICK_HZ};
+use cta_core::schedule::{
+    half_period_q24, tick_cost, BEACON_PINS, NORTHSTAR_TABLE_MHZ, TICK_BUDGET, TICK_HZ,
+};
 use cta_core::wire::beacon::{
     BeaconError, BeaconRequest, BeaconResponse, BeaconStatus, LedMode, LedSetting, Limits,
     DEADMAN_MAX_MS, DEADMAN_MIN_MS, LED_COUNT, MAX_FREQS,
@@ -190,8 +192,10 @@ impl Board {
                         }));
                     }
                 }
+                let off = [LedMode::Off; LED_COUNT];
+                overload(&t, &off)?;
                 self.table = t;
-                self.modes = [LedMode::Off; LED_COUNT];
+                self.modes = off;
                 out.set_table(&self.table);
                 out.set_modes(&self.modes);
                 Ok(Response::Ack)
@@ -254,6 +258,7 @@ impl Board {
                 cap: self.limits.max_lit,
             }));
         }
+        overload(&self.table, &next)?;
         self.modes = next;
         out.set_modes(&self.modes);
         Ok(Response::Ack)
@@ -292,11 +297,26 @@ impl Board {
     }
 }
 
+/// Refuse a table and LED assignment whose tick interrupt would exceed its budget: at 125
+/// kHz the interrupt has 576 cycles per tick, and a main loop starved of them stops feeding
+/// the watchdog (the board resets) while ticks are lost (every wave runs slow). The cost is
+/// the conservative model of [`tick_cost`], fitted to the interrupt's instruction counts.
+fn overload(table: &[u32], modes: &[LedMode; LED_COUNT]) -> Result<(), ErrorReply<BeaconError>> {
+    let instructions = tick_cost(table, modes, &BEACON_PINS);
+    if instructions > TICK_BUDGET {
+        return Err(ErrorReply::Board(BeaconError::TickOverload {
+            instructions,
+            budget: TICK_BUDGET,
+        }));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use cta_core::schedule::{Modulator, BEACON_PINS};
-    use cta_core::wire::beacon::FreqSet;
+    use cta_core::schedule::Modulator;
+    use cta_core::wire::beacon::{FreqSet, FREQ_MAX_MHZ, FREQ_MIN_MHZ};
     use cta_core::wire::{FrameFault, SEQ_NONE};
     use std::vec::Vec;
 
@@ -438,6 +458,59 @@ mod tests {
         assert_eq!(m.levels(), [0; 7]);
     }
 
+    /// Settings the tick interrupt could not keep up with are refused whole (nothing
+    /// changes), with the estimate and the budget; every LED at one NorthStar frequency is
+    /// well inside it, and so is a fast table with nothing lit.
+    #[test]
+    fn tick_overload_is_refused() {
+        let (mut b, mut m) = setup();
+        let lim = Request::Board(BeaconRequest::SetLimits(Limits {
+            max_lit: 100,
+            deadman_ms: 10_000,
+        }));
+        b.handle(lim, 0, &mut m).unwrap();
+        let all = |mode: &dyn Fn(u8) -> LedMode| {
+            let mut v = heapless::Vec::new();
+            for led in 0..100 {
+                v.push(LedSetting {
+                    led,
+                    mode: mode(led),
+                })
+                .unwrap();
+            }
+            Request::Board(BeaconRequest::SetMany(v))
+        };
+        let singles = |led: u8| LedMode::Modulated(FreqSet::single(led % 20));
+        assert_eq!(b.handle(all(&singles), 0, &mut m), Ok(Response::Ack));
+        let before = *b.modes();
+        // Every LED at two frequencies: the combination list is walked on most ticks.
+        let pairs = |led: u8| LedMode::Modulated(FreqSet(1 << (led % 20) | 1 << ((led + 7) % 20)));
+        match refused(b.handle(all(&pairs), 0, &mut m)) {
+            BeaconError::TickOverload {
+                instructions,
+                budget,
+            } => {
+                assert_eq!(budget, TICK_BUDGET);
+                assert!(instructions > 2 * budget, "{instructions}");
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(*b.modes(), before, "a refused request changes nothing");
+        // Ten LEDs at two frequencies among the rest at one are fine.
+        let some = |led: u8| if led < 10 { pairs(led) } else { singles(led) };
+        assert_eq!(b.handle(all(&some), 0, &mut m), Ok(Response::Ack));
+        // 32 frequencies near 12.5 kHz: accepted with nothing lit, not with every LED on one.
+        let fast = (0..32).map(|i| FREQ_MAX_MHZ - 10_000 * i).collect();
+        let table = Request::Board(BeaconRequest::SetTable(fast));
+        assert_eq!(b.handle(table, 0, &mut m), Ok(Response::Ack));
+        let fast_singles = |led: u8| LedMode::Modulated(FreqSet::single(led % 32));
+        assert!(matches!(
+            refused(b.handle(all(&fast_singles), 0, &mut m)),
+            BeaconError::TickOverload { .. }
+        ));
+        assert_eq!(b.lit(), 0);
+    }
+
     #[test]
     fn lit_cap_is_enforced_atomically() {
         let (mut b, mut m) = setup();
@@ -555,11 +628,16 @@ mod tests {
             deadman_ms: 10_000,
         }));
         b.handle(lim, 0, &mut m).unwrap();
+        // The longest table (32 slow entries, within the tick budget) and every LED at its
+        // last entry: the largest encodings of a table and of an LED mode (bit 31).
+        let table = (0..32).map(|i| FREQ_MIN_MHZ + 1000 * i).collect();
+        b.handle(Request::Board(BeaconRequest::SetTable(table)), 0, &mut m)
+            .unwrap();
         let mut v = heapless::Vec::new();
         for led in 0..100 {
             v.push(LedSetting {
                 led,
-                mode: LedMode::Modulated(FreqSet(u32::MAX >> 12)),
+                mode: LedMode::Modulated(FreqSet::single(31)),
             })
             .unwrap();
         }

@@ -210,6 +210,15 @@ pub enum BeaconError {
         /// The timeout asked for, ms.
         ms: u32,
     },
+    /// The table and LED settings would cost the modulator's tick interrupt more than its
+    /// budget (the model of [`crate::schedule::tick_cost`]): too many LEDs at several
+    /// frequencies, or a table of many fast frequencies.
+    TickOverload {
+        /// Estimated mean instructions per tick.
+        instructions: u32,
+        /// The budget ([`crate::schedule::TICK_BUDGET`]).
+        budget: u32,
+    },
 }
 
 impl fmt::Display for BeaconError {
@@ -247,6 +256,16 @@ impl fmt::Display for BeaconError {
             BeaconError::DeadmanOutOfRange { ms } => write!(
                 f,
                 "dead-man timeout {ms} ms is outside {DEADMAN_MIN_MS}..={DEADMAN_MAX_MS} ms"
+            ),
+            BeaconError::TickOverload {
+                instructions,
+                budget,
+            } => write!(
+                f,
+                "the modulator's tick interrupt would take about {instructions} instructions per \
+                 tick, over its budget of {budget} (half the 576 cycles between ticks): light \
+                 fewer LEDs at several frequencies at once, or use fewer or slower table \
+                 frequencies"
             ),
         }
     }

@@ -5,7 +5,8 @@
 //! written; the registers are stand-ins in RAM), built at the firmware's opt-level. The
 //! session reaches every request: identify, heartbeat, status, the frequency table and
 //! the LED modes read back, limits raised to all 100 LEDs, all 100 set at once with two
-//! frequencies each (the largest request and the modulator's deepest reconfiguration),
+//! frequencies each (the largest request; refused by the tick cost model), all 100 set at
+//! once, ten of them with two frequencies (the deepest reconfiguration the board accepts),
 //! one LED, a refusal, a new table, all off, garbage, and the dead-man timeout.
 //!
 //! The request frames are encoded before the stack is painted and fed byte by byte from
@@ -110,14 +111,25 @@ fn session(bytes: &mut [u8; WIRE]) -> usize {
             deadman_ms: 10_000,
         })),
     );
-    // All 100 LEDs, two frequencies each (combinations: the deepest reconfiguration).
+    // All 100 LEDs, two frequencies each (combinations: the deepest reconfiguration), is
+    // more than the tick interrupt can keep up with: refused (seq 13). Ten of them at two
+    // and the others at one are accepted (seq 6).
+    let pair = |led: u8| LedMode::Modulated(FreqSet((1 << (led % 20)) | (1 << ((led + 7) % 20))));
     let mut all = heapless::Vec::new();
+    let mut mixed = heapless::Vec::new();
     for led in 0..LED_COUNT as u8 {
-        let (a, b) = (led % 20, (led + 7) % 20);
-        let mode = LedMode::Modulated(FreqSet((1 << a) | (1 << b)));
-        let _ = all.push(LedSetting { led, mode });
+        let _ = all.push(LedSetting {
+            led,
+            mode: pair(led),
+        });
+        let mode = match led < 10 {
+            true => pair(led),
+            false => LedMode::Modulated(FreqSet::single(led % 20)),
+        };
+        let _ = mixed.push(LedSetting { led, mode });
     }
-    w.push(6, board(BeaconRequest::SetMany(all)));
+    w.push(13, board(BeaconRequest::SetMany(all)));
+    w.push(6, board(BeaconRequest::SetMany(mixed)));
     w.push(7, board(BeaconRequest::GetLeds));
     w.push(
         8,
@@ -211,8 +223,9 @@ fn main() -> ! {
     if lit_after_set_many != LED_COUNT as u8 {
         fail("SetMany did not light all 100 LEDs")
     }
-    // Refused: the cap below the lit count (seq 8); garbage: two bad frames.
-    if errors != 3 || frames != 14 {
+    // Refused: the tick overload (seq 13), the cap below the lit count (seq 8); garbage:
+    // two bad frames.
+    if errors != 4 || frames != 15 {
         hprintln!("frames {} errors {}", frames, errors);
         fail("unexpected replies")
     }
