@@ -1227,22 +1227,34 @@ mod tests {
         y: &'a [f64],
         /// Gives its measurements ([`Problem::measurements`]).
         tells: bool,
-        jacobians: core::cell::Cell<usize>,
-        residual_passes: core::cell::Cell<usize>,
+        passes: Passes,
     }
+
+    /// Model passes of a test problem: (with the Jacobian, without).
+    #[derive(Default)]
+    struct Passes(core::cell::Cell<(usize, usize)>);
+    impl Passes {
+        fn count(&self, jac: bool) {
+            let (j, r) = self.0.get();
+            self.0.set((j + usize::from(jac), r + usize::from(!jac)));
+        }
+        fn get(&self) -> (usize, usize) {
+            self.0.get()
+        }
+    }
+
     impl<'a> Exp<'a> {
         fn new(t: &'a [f64], y: &'a [f64]) -> Self {
             Exp {
                 t,
                 y,
                 tells: true,
-                jacobians: Default::default(),
-                residual_passes: Default::default(),
+                passes: Passes::default(),
             }
         }
         /// Model passes: (with the Jacobian, without).
         fn passes(&self) -> (usize, usize) {
-            (self.jacobians.get(), self.residual_passes.get())
+            self.passes.get()
         }
     }
     impl Problem<f64> for Exp<'_> {
@@ -1259,9 +1271,7 @@ mod tests {
             jac: bool,
             sink: &mut dyn FnMut(f64, f64, &[f64]),
         ) -> Result<(), ModelError> {
-            self.jacobians.set(self.jacobians.get() + usize::from(jac));
-            self.residual_passes
-                .set(self.residual_passes.get() + usize::from(!jac));
+            self.passes.count(jac);
             for (&t, &y) in self.t.iter().zip(self.y) {
                 let e = (x[1] * t).exp();
                 let f = x[0] * e;
@@ -1464,15 +1474,13 @@ mod tests {
     /// reach zero cost.
     struct Pairs {
         y: [f64; 8],
-        jacobians: core::cell::Cell<usize>,
-        residual_passes: core::cell::Cell<usize>,
+        passes: Passes,
     }
     impl Pairs {
         fn new(a: f64, b: f64) -> Self {
             Pairs {
                 y: core::array::from_fn(|i| if i < 4 { a } else { b }),
-                jacobians: Default::default(),
-                residual_passes: Default::default(),
+                passes: Passes::default(),
             }
         }
     }
@@ -1490,9 +1498,7 @@ mod tests {
             jac: bool,
             sink: &mut dyn FnMut(f64, f64, &[f64]),
         ) -> Result<(), ModelError> {
-            self.jacobians.set(self.jacobians.get() + usize::from(jac));
-            self.residual_passes
-                .set(self.residual_passes.get() + usize::from(!jac));
+            self.passes.count(jac);
             for (i, &y) in self.y.iter().enumerate() {
                 let k = usize::from(i >= 4);
                 let mut j = [0.0; 2];
@@ -1538,7 +1544,7 @@ mod tests {
             assert_eq!(s2.stop, Stop::ZeroCost, "{case}");
             assert_eq!(s2.iterations, 1, "{case}");
             assert_eq!(
-                (p2.jacobians.get(), p2.residual_passes.get()),
+                p2.passes.get(),
                 (
                     usize::from(jacobian_in_trial),
                     usize::from(!jacobian_in_trial)
@@ -1556,7 +1562,7 @@ mod tests {
                 false => (0, 2),
             };
             assert_eq!(
-                (p3.jacobians.get(), p3.residual_passes.get()),
+                p3.passes.get(),
                 expected,
                 "{case}: model passes of the third solve"
             );

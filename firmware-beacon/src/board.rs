@@ -331,6 +331,27 @@ mod tests {
         Request::Board(BeaconRequest::Set(LedSetting { led, mode }))
     }
 
+    /// Every LED at once, LED `led` in `mode(led)`.
+    fn all_leds(mode: &dyn Fn(u8) -> LedMode) -> heapless::Vec<LedSetting, LED_COUNT> {
+        (0..LED_COUNT as u8)
+            .map(|led| LedSetting {
+                led,
+                mode: mode(led),
+            })
+            .collect()
+    }
+
+    /// A board that may light all 100 LEDs.
+    fn setup_uncapped() -> (Board, Modulator) {
+        let (mut b, mut m) = setup();
+        let lim = Request::Board(BeaconRequest::SetLimits(Limits {
+            max_lit: 100,
+            deadman_ms: 10_000,
+        }));
+        b.handle(lim, 0, &mut m).unwrap();
+        (b, m)
+    }
+
     fn refused(r: BeaconReply) -> BeaconError {
         match r {
             Err(ErrorReply::Board(e)) => e,
@@ -463,23 +484,9 @@ mod tests {
     /// well inside it, and so is a fast table with nothing lit.
     #[test]
     fn tick_overload_is_refused() {
-        let (mut b, mut m) = setup();
-        let lim = Request::Board(BeaconRequest::SetLimits(Limits {
-            max_lit: 100,
-            deadman_ms: 10_000,
-        }));
-        b.handle(lim, 0, &mut m).unwrap();
-        let all = |mode: &dyn Fn(u8) -> LedMode| {
-            let mut v = heapless::Vec::new();
-            for led in 0..100 {
-                v.push(LedSetting {
-                    led,
-                    mode: mode(led),
-                })
-                .unwrap();
-            }
-            Request::Board(BeaconRequest::SetMany(v))
-        };
+        let (mut b, mut m) = setup_uncapped();
+        let all =
+            |mode: &dyn Fn(u8) -> LedMode| Request::Board(BeaconRequest::SetMany(all_leds(mode)));
         let singles = |led: u8| LedMode::Modulated(FreqSet::single(led % 20));
         assert_eq!(b.handle(all(&singles), 0, &mut m), Ok(Response::Ack));
         let before = *b.modes();
@@ -622,25 +629,13 @@ mod tests {
 
     #[test]
     fn every_reply_fits_a_frame() {
-        let (mut b, mut m) = setup();
-        let lim = Request::Board(BeaconRequest::SetLimits(Limits {
-            max_lit: 100,
-            deadman_ms: 10_000,
-        }));
-        b.handle(lim, 0, &mut m).unwrap();
+        let (mut b, mut m) = setup_uncapped();
         // The longest table (32 slow entries, within the tick budget) and every LED at its
         // last entry: the largest encodings of a table and of an LED mode (bit 31).
         let table = (0..32).map(|i| FREQ_MIN_MHZ + 1000 * i).collect();
         b.handle(Request::Board(BeaconRequest::SetTable(table)), 0, &mut m)
             .unwrap();
-        let mut v = heapless::Vec::new();
-        for led in 0..100 {
-            v.push(LedSetting {
-                led,
-                mode: LedMode::Modulated(FreqSet::single(31)),
-            })
-            .unwrap();
-        }
+        let v = all_leds(&|_| LedMode::Modulated(FreqSet::single(31)));
         b.handle(Request::Board(BeaconRequest::SetMany(v.clone())), 0, &mut m)
             .unwrap();
         let mut buf = [0u8; MAX_FRAME];
