@@ -429,6 +429,18 @@ impl Modulator {
         }
     }
 
+    /// One tick without driving any pin: the firmware catches up, inside the critical
+    /// section of a reconfiguration, the ticks its timer raised while the interrupt was
+    /// masked ([`lost_ticks`]), then drives every port to [`Modulator::all_bsrr`].
+    pub fn tick_silently(&mut self) {
+        struct NoPins;
+        impl Gpio for NoPins {
+            fn toggle(&mut self, _port: usize, _mask: u16) {}
+            fn write(&mut self, _port: usize, _bsrr: u32) {}
+        }
+        self.tick(&mut NoPins);
+    }
+
     /// The edges due on tick `slot` (mask `due`).
     #[inline(never)]
     fn advance(&mut self, slot: u8, due: u32, gpio: &mut impl Gpio) {
@@ -462,6 +474,17 @@ impl Modulator {
             }
         }
     }
+}
+
+/// Ticks a periodic timer raised while its interrupt was masked that the one interrupt
+/// left pending will not make up: the timer counts `period` cycles per tick; at the start of
+/// the masked stretch its counter stood at `count_at_entry` (cycles since its last update)
+/// and an update was already pending or not; the stretch has lasted `elapsed` cycles. Every
+/// update raises the same flag, so however many occur, one interrupt follows the unmasking.
+pub fn lost_ticks(pending_at_entry: bool, count_at_entry: u32, elapsed: u32, period: u32) -> u32 {
+    let updates = (u64::from(count_at_entry) + u64::from(elapsed)) / u64::from(period.max(1));
+    let raised = u64::from(pending_at_entry) + updates;
+    raised.saturating_sub(1).min(u64::from(u32::MAX)) as u32
 }
 
 /// What drives the cost of the tick interrupt, per tick on average, in Q16 (1 << 16 = one
@@ -727,6 +750,56 @@ pub mod measure {
             jitter_rms_us: libm::sqrt(ss / nf) * us_per_tick,
             edges: n,
         })
+    }
+}
+
+#[cfg(test)]
+mod catch_up_tests {
+    use super::*;
+    use crate::wire::beacon::FreqSet;
+
+    #[test]
+    fn lost_ticks_counts_the_updates_beyond_the_pending_one() {
+        // Nothing pending, shorter than the rest of the period: nothing raised.
+        assert_eq!(lost_ticks(false, 100, 400, 576), 0);
+        // One update: it stays pending, nothing lost.
+        assert_eq!(lost_ticks(false, 100, 476, 576), 0);
+        // Two updates: one lost; with one already pending, two lost.
+        assert_eq!(lost_ticks(false, 100, 476 + 576, 576), 1);
+        assert_eq!(lost_ticks(true, 100, 476 + 576, 576), 2);
+        // A pending update alone is made up by its interrupt.
+        assert_eq!(lost_ticks(true, 0, 0, 576), 0);
+        // 9,000 cycles from mid-period: (288 + 9000) / 576 = 16 updates, 15 lost.
+        assert_eq!(lost_ticks(false, 288, 9000, 576), 15);
+    }
+
+    /// Catching up silently leaves the waves where ticking all along would have, so that
+    /// every LED keeps its phase across a reconfiguration.
+    #[test]
+    fn silent_ticks_keep_the_phase() {
+        let modes: [LedMode; LED_COUNT] = core::array::from_fn(|i| match i % 3 {
+            0 => LedMode::Modulated(FreqSet::single((i % 20) as u8)),
+            1 => LedMode::Modulated(FreqSet(1 << (i % 20) | 1 << ((i + 7) % 20))),
+            _ => LedMode::Off,
+        });
+        let new = || {
+            let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+            m.configure(&modes);
+            m
+        };
+        let (mut a, mut b) = (new(), new());
+        let mut pins = Levels(a.levels());
+        for _ in 0..1000 {
+            a.tick(&mut pins);
+            b.tick(&mut Levels([0; PORTS]));
+        }
+        for k in 0..40 {
+            a.tick(&mut pins);
+            b.tick_silently();
+            assert_eq!(a.now(), b.now());
+            assert_eq!(a.levels(), b.levels(), "tick {k}");
+        }
+        assert_eq!(pins.0, b.levels());
     }
 }
 

@@ -32,7 +32,9 @@ use stm32f1xx_hal::{
     watchdog::IndependentWatchdog,
 };
 
-use cta_core::schedule::{Gpio, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS, TICK_HZ};
+use cta_core::schedule::{
+    lost_ticks, Gpio, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS, TICK_HZ,
+};
 use cta_core::wire::beacon::{LedMode, LED_COUNT};
 use cta_core::wire::MAX_FRAME;
 use cta_firmware_beacon::board::{Board, Outputs};
@@ -153,11 +155,35 @@ fn configure_led_pins() {
 /// The modulator in its static, with every port rewritten after a change.
 struct ChipOutputs;
 
+/// Cycles per tick: TIM2 counts the 72 MHz timer clock (APB1 / 2, doubled) up to 575.
+const TICK_CYCLES: u32 = SYSCLK_HZ / TICK_HZ;
+/// Most ticks caught up after one reconfiguration (a reconfiguration takes at most ~16).
+const MAX_CATCH_UP: u32 = 64;
+
 impl ChipOutputs {
+    /// Change the modulator with the tick interrupt masked (the critical section masks
+    /// every interrupt), then catch up the ticks the timer raised meanwhile beyond the one
+    /// left pending ([`cta_core::schedule::lost_ticks`]: from the timer's counter and
+    /// pending flag at the start and the cycles since), so that every wave keeps its phase,
+    /// and drive every port to the levels.
     fn with(&mut self, f: impl FnOnce(&mut Modulator)) {
         critical_section::with(|cs| {
+            // SAFETY: reads of TIM2's counter and status (the tick interrupt is masked).
+            let tim = unsafe { &*pac::TIM2::ptr() };
+            let start = cortex_m::peripheral::DWT::cycle_count();
+            let count = tim.cnt().read().bits() & 0xffff;
+            let pending = tim.sr().read().uif().bit_is_set();
             let mut m = MODULATOR.borrow_ref_mut(cs);
             f(&mut m);
+            let mut caught = 0;
+            while caught < MAX_CATCH_UP {
+                let elapsed = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(start);
+                if caught >= lost_ticks(pending, count, elapsed, TICK_CYCLES) {
+                    break;
+                }
+                m.tick_silently();
+                caught += 1;
+            }
             for (p, w) in m.all_bsrr().iter().enumerate() {
                 // SAFETY: BSRR write of LED pins only.
                 unsafe { bsrr(p).write_volatile(*w) };

@@ -30,7 +30,7 @@ use core::mem::MaybeUninit;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use critical_section::Mutex;
-use cta_core::schedule::{Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS};
+use cta_core::schedule::{lost_ticks, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS};
 use cta_core::wire::beacon::{
     BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting, Limits, LED_COUNT,
 };
@@ -51,11 +51,22 @@ static mut BSRR: [u32; PORTS] = [0; PORTS];
 /// change.
 struct HarnessOutputs;
 
+/// Cycles a reconfiguration is taken to last for the catch-up (QEMU has no STM32 timer
+/// and no cycle counter): about the longest measured, so that the chip's most catch-up
+/// ticks (15) are counted too.
+const RECONFIGURE_CYCLES: u32 = 9000;
+
 impl HarnessOutputs {
     fn with(&mut self, f: impl FnOnce(&mut Modulator)) {
         critical_section::with(|cs| {
             let mut m = MODULATOR.borrow_ref_mut(cs);
             f(&mut m);
+            // The chip's catch-up of the ticks lost meanwhile, from mid-period.
+            let mut caught = 0;
+            while caught < 64 && caught < lost_ticks(false, 288, RECONFIGURE_CYCLES, 576) {
+                m.tick_silently();
+                caught += 1;
+            }
             for (p, w) in m.all_bsrr().iter().enumerate() {
                 // SAFETY: single-threaded program; volatile stores to RAM stand-ins.
                 unsafe {
