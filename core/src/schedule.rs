@@ -559,7 +559,7 @@ pub const TICK_COST_BASE: u64 = 28;
 /// Cortex-M3 counts of `tests/qemu/src/bin/beacon_tick.rs` over its cases (about 38 per
 /// edge, 9 per port toggle, 6 per multi-frequency LED looked at and per write) and
 /// rounded up, so that the model is not below any case (`firmware-beacon/ci.sh` checks
-/// two of them on every run).
+/// three of them on every run).
 pub const TICK_COST_PER_TENTH: [u64; 5] = [400, 100, 50, 70, 65];
 
 /// Mean instructions per tick of the firmware's tick interrupt (exception entry and exit
