@@ -27,6 +27,11 @@ pub const TX_FRAME: usize = 512;
 /// the protocol's [`MAX_FRAME`]: RAM is the board's tightest budget.
 pub const RX_FRAME: usize = 512;
 
+/// Size of the chip's PC-link transmit queue (a `heapless::spsc::Queue`, which holds one
+/// byte less): the widest reply, the configuration read-back (344 bytes framed), fits with
+/// a pose report beside it (a test checks every reply's widest encoding fits).
+pub const TX_QUEUE: usize = 384;
+
 /// Save a configuration to flash from borrowed parts; returns the new generation.
 /// `(calibration, constellation)` serialises exactly as [`Stored`] (postcard writes a
 /// struct as the tuple of its fields), without a copy of the whole configuration on the
@@ -48,6 +53,21 @@ pub trait Io {
     fn send_pc(&mut self, bytes: &[u8]) -> bool;
     /// Send bytes to the NorthStar.
     fn send_ns(&mut self, bytes: &[u8]);
+}
+
+/// Queue a whole frame for an interrupt-driven transmitter, or nothing: `false` (the caller
+/// counts it as dropped) when the queue lacks room for all of it. Only the consumer (the
+/// interrupt) removes bytes, so the room checked here can only grow before the bytes are in.
+pub fn queue_whole(tx: &mut heapless::spsc::Producer<'_, u8>, frame: &[u8]) -> bool {
+    if tx.capacity() - tx.len() < frame.len() {
+        return false;
+    }
+    for &b in frame {
+        if tx.enqueue(b).is_err() {
+            return false;
+        }
+    }
+    true
 }
 
 /// What is kept in flash.
@@ -431,6 +451,97 @@ mod tests {
         }
     }
 
+    #[test]
+    fn the_largest_replies_fit_the_transmit_queue() {
+        // Every reply at its widest encoding: the configuration read-back (a full
+        // constellation and a near-field calibration), a stream report with every spot at
+        // its extremes, a status with every counter saturated.
+        let mut con = cta_core::pose::four_array_constellation();
+        for b in con.beacons.iter_mut() {
+            b.r = [-1.0e30, 1.0e-30, f32::MAX];
+        }
+        let mut cal = Calibration::table3();
+        cal.near_field = Some(cta_core::pose::NearField::nominal());
+        let config = SensorResponse::Config(SensorConfig {
+            generation: u32::MAX,
+            calibration: Some(cal),
+            constellation: Some(con),
+        });
+        let mut spots = heapless::Vec::new();
+        while spots
+            .push(Spot {
+                id: u8::MAX,
+                x: i16::MIN,
+                y: i16::MIN,
+                magnitude: u16::MAX,
+            })
+            .is_ok()
+        {}
+        let stream = SensorResponse::Spots(SpotReport {
+            seq: u32::MAX,
+            t_us: u64::MAX,
+            ns_seq: u8::MAX,
+            sensitivity: u8::MAX,
+            spots,
+        });
+        let m = u32::MAX;
+        let status = SensorResponse::Status(SensorStatus {
+            uptime_ms: u64::MAX,
+            mode: Mode::Pose(ModelKind::NearField),
+            sensitivity: u8::MAX,
+            rate_hz: u8::MAX,
+            calibrated: true,
+            constellation: true,
+            config_generation: m,
+            pc: cta_core::wire::DecoderStats {
+                ok: m,
+                oversized: m,
+                encoding: m,
+                truncated: m,
+                crc: m,
+                malformed: m,
+                version: m,
+            },
+            northstar: NorthStarStats {
+                frames: m,
+                crc_errors: m,
+                discarded: m,
+            },
+            reports: m,
+            dropped: m,
+            refused: m,
+            since_host_ms: m,
+            last_pose: Some(PoseStatus::IllConditioned),
+        });
+        let mut buf = [0u8; TX_FRAME];
+        for reply in [config, stream, status] {
+            let f = encode_frame(
+                Header::new(u16::MAX),
+                &Ok::<_, ErrorReply<SensorError>>(Response::Board(reply)),
+                &mut buf,
+            )
+            .unwrap();
+            assert!(f.len() < TX_QUEUE, "{} bytes", f.len());
+        }
+    }
+
+    #[test]
+    fn frames_are_queued_whole_or_not_at_all() {
+        let mut q = heapless::spsc::Queue::<u8, 8>::new();
+        let (mut tx, mut rx) = q.split();
+        assert!(queue_whole(&mut tx, &[1, 2, 3, 4, 5]));
+        // Two bytes of room left: a three-byte frame is refused and leaves nothing behind.
+        assert!(!queue_whole(&mut tx, &[6, 7, 8]));
+        assert!(queue_whole(&mut tx, &[6, 7]));
+        assert!(!queue_whole(&mut tx, &[9]));
+        // The interrupt sends two bytes: exactly two bytes of room again.
+        assert_eq!((rx.dequeue(), rx.dequeue()), (Some(1), Some(2)));
+        assert!(!queue_whole(&mut tx, &[9, 10, 11]));
+        assert!(queue_whole(&mut tx, &[9, 10]));
+        let sent: Vec<u8> = core::iter::from_fn(|| rx.dequeue()).collect();
+        assert_eq!(sent, [3, 4, 5, 6, 7, 9, 10]);
+    }
+
     type Frame = (Header, SensorReply);
 
     #[derive(Default)]
@@ -637,7 +748,7 @@ mod tests {
             io.ns.clear();
             out
         };
-        let settings = vec![NsCommand::SetSensitivity(4), NsCommand::SetRate(10)];
+        let settings = std::vec![NsCommand::SetSensitivity(4), NsCommand::SetRate(10)];
         assert_eq!(sent(&mut io), settings);
         let frame = |sensitivity: u8| {
             let f = SpotFrame {

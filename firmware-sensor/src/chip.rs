@@ -6,6 +6,10 @@
 //! * Both receive interrupts push bytes into bounded queues; the main loop feeds them to
 //!   the board (a pose solve takes tens of milliseconds, during which bytes keep arriving
 //!   into the queues instead of overrunning the USARTs).
+//! * Frames to the PC go whole into a transmit queue ([`TX_QUEUE`] bytes) that the USART1
+//!   interrupt empties, so a report (about 90 bytes, 8 ms at 115200 baud) is sent while
+//!   the next frame is solved; a frame the queue has no room for is dropped and counted
+//!   (`dropped` in the status). The few bytes of NorthStar commands are sent blocking.
 //! * Flash pages 62 and 63 (the last 2 KiB of the 64 KiB) hold the A/B configuration
 //!   records ([`crate::storage`]); the firmware itself is budgeted to 48 KiB.
 //! * Independent watchdog (~1 s), fed by the main loop.
@@ -18,6 +22,7 @@ use cortex_m::peripheral::NVIC;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use critical_section::Mutex;
 use defmt_rtt as _;
+use heapless::spsc::{Consumer, Producer, Queue};
 use heapless::Deque;
 use panic_probe as _;
 use stm32f1xx_hal::{
@@ -29,7 +34,7 @@ use stm32f1xx_hal::{
     watchdog::IndependentWatchdog,
 };
 
-use cta_firmware_sensor::board::{Board, Io};
+use cta_firmware_sensor::board::{queue_whole, Board, Io, TX_QUEUE};
 use cta_firmware_sensor::northstar::NS_BAUD;
 use cta_firmware_sensor::storage::{FlashPages, StorageError, MAX_RECORD};
 
@@ -47,6 +52,9 @@ static PC_RX: Mutex<RefCell<Option<Rx<pac::USART1>>>> = Mutex::new(RefCell::new(
 static NS_RX: Mutex<RefCell<Option<Rx<pac::USART2>>>> = Mutex::new(RefCell::new(None));
 static PC_BYTES: Mutex<RefCell<Deque<u8, PC_QUEUE>>> = Mutex::new(RefCell::new(Deque::new()));
 static NS_BYTES: Mutex<RefCell<Deque<u8, NS_QUEUE>>> = Mutex::new(RefCell::new(Deque::new()));
+/// The PC-link transmitter and the consuming end of its queue, for the USART1 interrupt.
+type PcTx = (Tx<pac::USART1>, Consumer<'static, u8>);
+static PC_TX: Mutex<RefCell<Option<PcTx>>> = Mutex::new(RefCell::new(None));
 /// Receive errors (USART errors and queue overflows), for the debug log.
 static RX_ERRORS: AtomicU32 = AtomicU32::new(0);
 
@@ -102,7 +110,8 @@ impl Clock {
 }
 
 struct ChipIo {
-    pc: Tx<pac::USART1>,
+    /// The producing end of the PC-link transmit queue.
+    pc: Producer<'static, u8>,
     ns: Tx<pac::USART2>,
     clock: Clock,
 }
@@ -112,11 +121,15 @@ impl Io for ChipIo {
         self.clock.now_us()
     }
     fn send_pc(&mut self, bytes: &[u8]) -> bool {
-        for &b in bytes {
-            if nb::block!(self.pc.write_u8(b)).is_err() {
-                return false;
-            }
+        if !queue_whole(&mut self.pc, bytes) {
+            return false;
         }
+        // Wake the transmitter (the interrupt stops listening when the queue runs dry).
+        critical_section::with(|cs| {
+            if let Some((tx, _)) = PC_TX.borrow_ref_mut(cs).as_mut() {
+                tx.listen();
+            }
+        });
         true
     }
     fn send_ns(&mut self, bytes: &[u8]) {
@@ -165,15 +178,20 @@ fn main() -> ! {
         .split();
     pc_rx.listen();
     ns_rx.listen();
+    static mut PC_TX_QUEUE: Queue<u8, TX_QUEUE> = Queue::new();
+    // SAFETY: main runs once and is the only user of PC_TX_QUEUE: the queue is split here,
+    // once, into its producer (main's) and its consumer (the interrupt's).
+    let (pc_queue, pc_sender) = unsafe { (*core::ptr::addr_of_mut!(PC_TX_QUEUE)).split() };
     critical_section::with(|cs| {
         PC_RX.borrow(cs).replace(Some(pc_rx));
         NS_RX.borrow(cs).replace(Some(ns_rx));
+        PC_TX.borrow(cs).replace(Some((pc_tx, pc_sender)));
     });
 
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();
     let mut io = ChipIo {
-        pc: pc_tx,
+        pc: pc_queue,
         ns: ns_tx,
         clock: Clock {
             last: cortex_m::peripheral::DWT::cycle_count(),
@@ -258,9 +276,32 @@ where
     });
 }
 
+/// Move queued bytes into the PC USART while it can take them; stop listening for "transmit
+/// register empty" once the queue is dry (`send_pc` listens again after queueing a frame).
+fn transmit() {
+    critical_section::with(|cs| {
+        let mut tx = PC_TX.borrow_ref_mut(cs);
+        let Some((tx, queue)) = tx.as_mut() else {
+            return;
+        };
+        while tx.is_tx_empty() {
+            match queue.dequeue() {
+                Some(b) => {
+                    let _ = tx.write_u8(b);
+                }
+                None => {
+                    tx.unlisten();
+                    break;
+                }
+            }
+        }
+    });
+}
+
 #[interrupt]
 fn USART1() {
     receive(&PC_RX, &PC_BYTES);
+    transmit();
 }
 
 #[interrupt]

@@ -66,7 +66,7 @@ pub struct SpotReport {
     pub seq: u32,
     /// Board time when the board decoded the frame, microseconds since reset: after its
     /// last byte arrived, by at most one pass of the board's main loop (on the chip, up to
-    /// a pose solve and its report: tens of milliseconds; nothing is solved in stream mode).
+    /// a pose solve: tens of milliseconds; nothing is solved in stream mode).
     pub t_us: u64,
     /// The NorthStar's own frame counter.
     pub ns_seq: u8,
