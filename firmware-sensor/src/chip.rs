@@ -139,11 +139,28 @@ impl Io for ChipIo {
     }
 }
 
+/// Polls of `HSERDY` before the crystal is given up on: at the 8 MHz the chip runs at from
+/// reset, about 0.2 s (a crystal starts in a few milliseconds).
+const HSE_POLLS: u32 = 200_000;
+
+/// Start the 8 MHz crystal (HSE) and wait for it, for at most [`HSE_POLLS`] reads. The HAL's
+/// `freeze` waits for it without a limit, silently; this names the fault first.
+fn crystal_starts(rcc: &pac::RCC) -> bool {
+    rcc.cr().modify(|_, w| w.hseon().set_bit());
+    (0..HSE_POLLS).any(|_| rcc.cr().read().hserdy().bit_is_set())
+}
+
 #[entry]
 fn main() -> ! {
     let dp = pac::Peripherals::take().unwrap();
     let mut cp = cortex_m::Peripherals::take().unwrap();
 
+    if !crystal_starts(&dp.RCC) {
+        // Retry from reset: a crystal that is slow to start (cold) gets another chance, and
+        // a probe shows this line each time.
+        defmt::error!("the 8 MHz crystal (HSE) did not start within ~0.2 s: check it and its load capacitors; resetting to retry");
+        cortex_m::peripheral::SCB::sys_reset();
+    }
     let mut flash = dp.FLASH.constrain();
     let mut rcc = dp.RCC.freeze(
         rcc::Config::hse(8.MHz())
