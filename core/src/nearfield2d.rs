@@ -159,13 +159,23 @@ impl<T: Real> Model2d<T> {
     }
 
     /// The outermost distance (D) at which `|delta theta|` of `effect` falls to `noise`
-    /// radians: beyond it the effect is below the noise. `None` if the effect never exceeds
-    /// the noise between `r_min` D and 1e7 D.
+    /// radians: beyond it the effect is below the noise. `None` if there is no crossing
+    /// between `r_min` D and [`CROSSING_MAX_D`] ([`Self::crossing`] says which side).
     pub fn crossing_distance(&self, effect: Effect, theta: T, noise: T, r_min: T) -> Option<T> {
+        match self.crossing(effect, theta, noise, r_min) {
+            Crossing::At(r) => Some(r),
+            Crossing::BelowNoise | Crossing::AboveNoise => None,
+        }
+    }
+
+    /// Where `|delta theta|` of `effect` falls to `noise` radians, searched from
+    /// [`CROSSING_MAX_D`] inwards to `r_min` D: the outermost crossing, or which side of the
+    /// noise the effect stays on over the whole span.
+    pub fn crossing(&self, effect: Effect, theta: T, noise: T, r_min: T) -> Crossing<T> {
         let f = |r: T| self.error(effect, theta, r).abs() - noise;
-        let mut hi = T::lit(1e7);
+        let mut hi = T::lit(CROSSING_MAX_D);
         if f(hi) > T::zero() {
-            return None;
+            return Crossing::AboveNoise;
         }
         // Walk inwards geometrically to bracket the outermost crossing.
         let step = T::lit(1.1);
@@ -174,7 +184,7 @@ impl<T: Real> Model2d<T> {
             hi = lo;
             lo /= step;
             if lo < r_min {
-                return None;
+                return Crossing::BelowNoise;
             }
         }
         for _ in 0..200 {
@@ -188,8 +198,23 @@ impl<T: Real> Model2d<T> {
                 break;
             }
         }
-        Some((lo + hi) / T::lit(2.0))
+        Crossing::At((lo + hi) / T::lit(2.0))
     }
+}
+
+/// Outer end (D) of the span [`Model2d::crossing`] searches.
+pub const CROSSING_MAX_D: f64 = 1e7;
+
+/// Outcome of [`Model2d::crossing`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Crossing<T> {
+    /// The effect falls below the noise beyond this distance, D.
+    At(T),
+    /// The effect is below the noise over the whole span searched.
+    BelowNoise,
+    /// The effect is still above the noise at [`CROSSING_MAX_D`] (a noise level far below
+    /// the effect's far-field tail, which falls as 1/R).
+    AboveNoise,
 }
 
 /// Convenience: errors in degrees.
@@ -200,6 +225,30 @@ pub fn error_deg<T: Real>(m: &Model2d<T>, effect: Effect, theta_deg: T, r: T) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tiny_noise_is_above_noise_not_below_it() {
+        let m = Model2d {
+            alpha: rad(30.0),
+            half_sep: 0.5,
+            pattern: Pattern::vsml3710(),
+        };
+        let th = rad(18.0);
+        // 1e-7 deg: the 1/R tail is still above it at 1e7 D.
+        assert_eq!(
+            m.crossing(Effect::Proximity, th, rad(1e-7), 0.6),
+            Crossing::AboveNoise
+        );
+        // 90 deg: nothing ever exceeds it.
+        assert_eq!(
+            m.crossing(Effect::Proximity, th, rad(90.0), 0.6),
+            Crossing::BelowNoise
+        );
+        assert!(matches!(
+            m.crossing(Effect::Proximity, th, rad(0.1), 0.6),
+            Crossing::At(r) if r > 1.0 && r < 1e3
+        ));
+    }
 
     fn within(a: f64, b: f64, rel: f64) -> bool {
         (a - b).abs() <= rel * b.abs()

@@ -7,7 +7,7 @@ use crate::plot::{write_svg, Panel, Series};
 use crate::simulate::{describe_pattern, parse_grid, SimConfig, Truth};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
-use cta_core::nearfield2d::{Effect as NfEffect, Model2d};
+use cta_core::nearfield2d::{Crossing, Effect as NfEffect, Model2d, CROSSING_MAX_D};
 use cta_core::pattern::{Pattern, QUARTIC_VALID_DEG};
 use cta_core::real::rad;
 use cta_core::uncertainty::{self, Item};
@@ -80,6 +80,13 @@ pub struct NearfieldArgs {
     pub json: bool,
 }
 
+fn check_diameter(d: f64) -> Result<()> {
+    if !(d > 0.0 && d.is_finite()) {
+        bail!("--diameter-in {d}: the sensor diameter must be > 0 in (NorthStar: 0.35)");
+    }
+    Ok(())
+}
+
 /// Run `cta nearfield`.
 pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
     if !(a.alpha > 0.0 && a.alpha < 90.0) {
@@ -91,6 +98,7 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
     if !(a.half_angle > 0.0 && a.half_angle < 90.0) {
         bail!("--half-angle must be in (0, 90) deg");
     }
+    check_diameter(a.diameter_in)?;
     let thetas = parse_list(&a.theta).context("--theta")?;
     let max_theta = 90.0 - a.alpha;
     if let Some(t) = thetas.iter().find(|t| !(**t > 0.0 && **t < max_theta)) {
@@ -109,13 +117,28 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
         ));
     }
     let noise = rad(a.noise_deg);
+    // `crossing_D` holds the distance or null; `crossing_kind` says what a null means.
     let mut crossing = serde_json::Map::new();
+    let mut crossing_kind = serde_json::Map::new();
     for e in NfEffect::ALL {
-        let v: Vec<Option<f64>> = thetas
+        let c: Vec<Crossing<f64>> = thetas
             .iter()
-            .map(|t| model.crossing_distance(e, rad(*t), noise, 0.6))
+            .map(|t| model.crossing(e, rad(*t), noise, 0.6))
             .collect();
-        crossing.insert(e.name().into(), json!(v));
+        let at = |c: &Crossing<f64>| match c {
+            Crossing::At(r) => Some(*r),
+            _ => None,
+        };
+        let kind = |c: &Crossing<f64>| match c {
+            Crossing::At(_) => "crossing",
+            Crossing::BelowNoise => "below_noise",
+            Crossing::AboveNoise => "above_noise_to_1e7_D",
+        };
+        crossing.insert(e.name().into(), json!(c.iter().map(at).collect::<Vec<_>>()));
+        crossing_kind.insert(
+            e.name().into(),
+            json!(c.iter().map(kind).collect::<Vec<_>>()),
+        );
     }
     let mut coeff = serde_json::Map::new();
     for e in [NfEffect::Proximity, NfEffect::Intensity, NfEffect::Pattern] {
@@ -172,6 +195,7 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
             "profile": describe_pattern(&model.pattern),
             "theta_deg": thetas,
             "crossing_D": crossing,
+            "crossing_kind": crossing_kind,
             "coeff_deg_D": coeff,
             "diameter_in": a.diameter_in,
             "sign": "all errors make the beacon appear farther off boresight (convex pairing)",
@@ -193,9 +217,16 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
         "theta", "proximity", "intensity", "pattern", "combined"
     );
     for (i, t) in thetas.iter().enumerate() {
-        let cell = |e: NfEffect| match crossing[e.name()][i].as_f64() {
-            Some(v) => format!("{v:.1} [{:.1}]", v * a.diameter_in),
-            None => "below noise".into(),
+        let cell = |e: NfEffect| match (
+            crossing[e.name()][i].as_f64(),
+            crossing_kind[e.name()][i].as_str(),
+        ) {
+            (Some(v), _) => format!("{v:.1} [{:.1}]", v * a.diameter_in),
+            (None, Some("below_noise")) => "below noise".into(),
+            _ => format!(
+                "> {CROSSING_MAX_D:.0e} [> {:.0e}]",
+                CROSSING_MAX_D * a.diameter_in
+            ),
         };
         println!(
             "{:>7} ° {:>18} {:>18} {:>18} {:>18}",
@@ -270,6 +301,31 @@ fn load_budget(path: &PathBuf) -> Result<Vec<(String, [f64; 6])>> {
     let b: BudgetFile = toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let mut out = Vec::new();
     for it in b.item {
+        if [
+            it.x, it.y, it.z, it.x_plus, it.x_minus, it.y_plus, it.y_minus, it.z_plus, it.z_minus,
+        ]
+        .iter()
+        .all(Option::is_none)
+        {
+            bail!(
+                "{}: item `{}` has no uncertainty: give mils as x, y, z (symmetric) or x_plus, x_minus, ...",
+                path.display(),
+                it.name
+            );
+        }
+        for (axis, sym, plus, minus) in [
+            ("x", it.x, it.x_plus, it.x_minus),
+            ("y", it.y, it.y_plus, it.y_minus),
+            ("z", it.z, it.z_plus, it.z_minus),
+        ] {
+            if sym.is_some() && (plus.is_some() || minus.is_some()) {
+                bail!(
+                    "{}: item `{}` gives both `{axis}` and `{axis}_plus`/`{axis}_minus`: give one (symmetric) or the sides",
+                    path.display(),
+                    it.name
+                );
+            }
+        }
         let pick = |sym: Option<f64>, side: Option<f64>| side.or(sym).unwrap_or(0.0);
         let v = [
             pick(it.x, it.x_plus),
@@ -279,11 +335,19 @@ fn load_budget(path: &PathBuf) -> Result<Vec<(String, [f64; 6])>> {
             pick(it.z, it.z_plus),
             pick(it.z, it.z_minus),
         ];
-        if let Some(bad) = v.iter().find(|m| !(m.is_finite() && **m >= 0.0)) {
+        if let Some(bad) = v
+            .iter()
+            .find(|m| !(m.is_finite() && **m >= 0.0 && **m <= MAX_BUDGET_MILS))
+        {
             bail!(
-                "{}: item `{}`: uncertainty {bad} mils must be >= 0",
+                "{}: item `{}`: uncertainty {} mils must be in 0..={MAX_BUDGET_MILS} (1,000 in)",
                 path.display(),
-                it.name
+                it.name,
+                if bad.abs() < 1e7 {
+                    format!("{bad}")
+                } else {
+                    format!("{bad:e}")
+                }
             );
         }
         out.push((it.name, v));
@@ -291,11 +355,22 @@ fn load_budget(path: &PathBuf) -> Result<Vec<(String, [f64; 6])>> {
     if out.is_empty() {
         bail!("{}: no [[item]] in the budget", path.display());
     }
+    if out.iter().all(|(_, v)| v.iter().all(|m| *m == 0.0)) {
+        bail!(
+            "{}: every uncertainty in the budget is 0: there is no apparatus uncertainty to compare",
+            path.display()
+        );
+    }
     Ok(out)
 }
 
+/// Largest uncertainty of a budget item, mils: 1,000 in, far beyond any apparatus (the
+/// root-sum-square of larger values can overflow to infinity).
+const MAX_BUDGET_MILS: f64 = 1e6;
+
 /// Run `cta uncertainty`.
 pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
+    check_diameter(a.diameter_in)?;
     let owned: Vec<(String, [f64; 6])> = match &a.budget {
         Some(p) => load_budget(p)?,
         None => uncertainty::TABLE2

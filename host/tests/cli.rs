@@ -106,6 +106,41 @@ fn nearfield_and_uncertainty_json() {
         !o.status.success() && err.contains("line 3") && err.contains("unknown field `xx`"),
         "{err}"
     );
+    // Budgets that would print nonsense (inf or 0 ratios, merged sides) are refused by name.
+    for (text, needle) in [
+        ("[[item]]\nname = \"a\"\n", "item `a` has no uncertainty"),
+        (
+            "[[item]]\nname = \"a\"\nx = 1e308\n",
+            "1e308 mils must be in 0..=1000000",
+        ),
+        (
+            "[[item]]\nname = \"a\"\nx = 0\n",
+            "every uncertainty in the budget is 0",
+        ),
+        (
+            "[[item]]\nname = \"a\"\nx = 1\nx_plus = 2\n",
+            "gives both `x` and `x_plus`/`x_minus`",
+        ),
+    ] {
+        std::fs::write(&b, text).unwrap();
+        fails_with(&cta(&["uncertainty", "--budget", s(&b)]), needle);
+    }
+    fails_with(
+        &cta(&["uncertainty", "--diameter-in=-1"]),
+        "the sensor diameter must be > 0",
+    );
+    // A noise far below the effects' 1/R tails: above the noise out to 1e7 D, not "below".
+    let n = json(&cta(&["nearfield", "--noise-deg", "1e-7", "--json"]));
+    assert_eq!(n["crossing_kind"]["proximity"][0], "above_noise_to_1e7_D");
+    assert!(n["crossing_D"]["proximity"][0].is_null());
+    let n = json(&cta(&["nearfield", "--noise-deg", "80", "--json"]));
+    assert_eq!(n["crossing_kind"]["combined"][0], "below_noise");
+    let o = cta(&["nearfield", "--noise-deg", "1e-7"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("> 1e7") && !out.contains("below noise"),
+        "{out}"
+    );
 }
 
 #[test]
