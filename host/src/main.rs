@@ -63,6 +63,14 @@ enum Cmd {
 }
 
 fn main() {
+    // Like other command-line tools, end quietly when the reader of our output goes away
+    // (`cta fit data.csv | head -1`) instead of panicking in `println!`. Everything a
+    // command writes to files is written before it prints, or is resumable (sweeps).
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE, before any other thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let r = match &cli.cmd {
         Cmd::Nearfield(a) => commands::nearfield(a),

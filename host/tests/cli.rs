@@ -234,3 +234,26 @@ fn demo_runs_end_to_end() {
     let again = cta(&["demo", "--out", s(&out)]);
     assert!(!again.status.success() && String::from_utf8_lossy(&again.stderr).contains("--force"));
 }
+
+#[test]
+#[cfg(unix)]
+fn a_closed_output_pipe_ends_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    // The reader is gone before cta writes its first line: like `cta nearfield | head -0`.
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let o = Command::new(env!("CARGO_BIN_EXE_cta"))
+        .arg("nearfield")
+        .stdout(writer)
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .expect("run cta");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(
+        o.status.signal(),
+        Some(libc::SIGPIPE),
+        "{:?} {err}",
+        o.status
+    );
+}
