@@ -484,8 +484,12 @@ pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
 #[derive(Debug, Args)]
 pub struct SimulateArgs {
     /// Output measurement file (CSV, see MEASUREMENTS.md); the truth goes to FILE.truth.json.
+    /// An earlier `cta simulate` output is replaced; any other existing file only with --force.
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace --out even if it is not an earlier simulation (e.g. a sweep's data.csv).
+    #[arg(long)]
+    pub force: bool,
     /// Plate separations in inches: a list `20,25`, a range `2..30` (1 in steps) or `2..30:2`.
     #[arg(long, default_value = "2..30")]
     pub separations: String,
@@ -577,28 +581,23 @@ pub fn sim_config(a: &SimulateArgs) -> Result<SimConfig> {
 /// Run `cta simulate`.
 pub fn simulate(a: &SimulateArgs) -> Result<()> {
     let cfg = sim_config(a)?;
+    check_simulate_out(&a.out, a.force)?;
     let (ds, truth) = cfg.run();
-    let tmp = a.out.with_extension("csv.partial");
-    {
-        let f = std::fs::File::create(&tmp).with_context(|| format!("{}", tmp.display()))?;
-        let mut w = std::io::BufWriter::new(f);
-        let comments = vec![
-            format!(
-                "{} ; truth in {}",
-                truth.generator,
-                Truth::path_for(&a.out).display()
-            ),
-            format!(
-                "physics {} ; beacon {} ; effects [{}]",
-                truth.physics,
-                truth.pattern,
-                truth.effects.join(" ")
-            ),
-        ];
-        ds.write(&mut w, &comments)?;
-        w.flush()?;
+    if ds.samples.is_empty() {
+        bail!(
+            "no reports to write: all {} points are outside the detector's field of view (separations {}; effects [{}]); nothing written to {}",
+            truth.skipped_points,
+            fmt_list(&cfg.separations),
+            truth.effects.join(" "),
+            a.out.display()
+        );
     }
-    std::fs::rename(&tmp, &a.out).with_context(|| format!("{}", a.out.display()))?;
+    let tmp = a.out.with_extension("csv.partial");
+    let written = write_simulation(&tmp, &a.out, &ds, &truth);
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written?;
     let tp = Truth::path_for(&a.out);
     std::fs::write(&tp, serde_json::to_string_pretty(&truth)?)
         .with_context(|| format!("{}", tp.display()))?;
@@ -615,6 +614,60 @@ pub fn simulate(a: &SimulateArgs) -> Result<()> {
     Ok(())
 }
 
+/// `--out` may replace an earlier simulation (its first line names `cta ... simulate`);
+/// anything else (a sweep's data, a measurement file from a rig) only with `--force`.
+fn check_simulate_out(out: &Path, force: bool) -> Result<()> {
+    use std::io::BufRead;
+    if out.is_dir() {
+        bail!(
+            "--out {}: is a folder; give a file name (e.g. {}/sim.csv)",
+            out.display(),
+            out.display()
+        );
+    }
+    if force || !out.exists() {
+        return Ok(());
+    }
+    let mut first = String::new();
+    std::fs::File::open(out)
+        .map(std::io::BufReader::new)
+        .and_then(|mut r| r.read_line(&mut first))
+        .with_context(|| format!("{}", out.display()))?;
+    if first.starts_with("# cta ") && first.contains(" simulate ") {
+        return Ok(());
+    }
+    bail!(
+        "--out {}: exists and is not an earlier `cta simulate` output (first line: `{}`): pass --force to replace it",
+        out.display(),
+        first.trim().chars().take(80).collect::<String>()
+    )
+}
+
+/// Write the data to `tmp`, then move it to `out`.
+fn write_simulation(tmp: &Path, out: &Path, ds: &Dataset, truth: &Truth) -> Result<()> {
+    {
+        let f = std::fs::File::create(tmp).with_context(|| format!("{}", tmp.display()))?;
+        let mut w = std::io::BufWriter::new(f);
+        let comments = vec![
+            format!(
+                "{} ; truth in {}",
+                truth.generator,
+                Truth::path_for(out).display()
+            ),
+            format!(
+                "physics {} ; beacon {} ; effects [{}]",
+                truth.physics,
+                truth.pattern,
+                truth.effects.join(" ")
+            ),
+        ];
+        ds.write(&mut w, &comments)
+            .with_context(|| format!("{}", tmp.display()))?;
+        w.flush().with_context(|| format!("{}", tmp.display()))?;
+    }
+    std::fs::rename(tmp, out).with_context(|| format!("{}", out.display()))
+}
+
 // ---------------------------------------------------------------------------------------
 // fit
 
@@ -629,9 +682,13 @@ pub struct FitArgs {
     /// Weighting: `none` (W = I, every report) or `repeat` (point means, 1/variance).
     #[arg(long, value_enum, default_value_t = Weights::None)]
     pub weights: Weights,
-    /// Save the fit (parameters, covariance) as JSON for `cta evaluate`.
+    /// Save the fit (parameters, covariance) as JSON for `cta evaluate`. An earlier saved
+    /// fit is replaced; any other existing file only with --force.
     #[arg(long)]
     pub save: Option<PathBuf>,
+    /// Let --save replace a file that is not an earlier saved fit.
+    #[arg(long)]
+    pub force: bool,
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -649,8 +706,42 @@ pub fn load(file: &Path, separations: Option<&str>) -> Result<Dataset> {
     }
 }
 
+/// `--save` may replace an earlier saved fit; never the measurement file, and anything else
+/// only with `--force`.
+fn check_fit_save(save: &Path, data: &Path, force: bool) -> Result<()> {
+    if save.is_dir() {
+        bail!(
+            "--save {}: is a folder; give a file name (e.g. fit.json)",
+            save.display()
+        );
+    }
+    if !save.exists() {
+        return Ok(());
+    }
+    let same = match (save.canonicalize(), data.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        bail!(
+            "--save {}: is the measurement file being fitted",
+            save.display()
+        );
+    }
+    if force || FitReport::load(save).is_ok() {
+        return Ok(());
+    }
+    bail!(
+        "--save {}: exists and is not an earlier saved fit: pass --force to replace it",
+        save.display()
+    )
+}
+
 /// Run `cta fit`.
 pub fn fit_cmd(a: &FitArgs) -> Result<()> {
+    if let Some(p) = &a.save {
+        check_fit_save(p, &a.file, a.force)?;
+    }
     let ds = load(&a.file, a.separations.as_deref())?;
     let rep = fit::fit(&ds, a.weights).map_err(|e| anyhow!(e))?;
     if let Some(p) = &a.save {

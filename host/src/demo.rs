@@ -11,10 +11,11 @@ use std::path::PathBuf;
 /// analysis that names the hidden effect, ending in an HTML report.
 #[derive(Debug, Args)]
 pub struct DemoArgs {
-    /// Output folder (created; must not exist unless --force).
+    /// Output folder (created; must not exist unless --force, which replaces an earlier
+    /// demo's folder and refuses one that holds anything else).
     #[arg(long, default_value = "cta-demo")]
     pub out: PathBuf,
-    /// Replace an existing output folder.
+    /// Replace an earlier demo's output folder.
     #[arg(long)]
     pub force: bool,
     /// The hidden effect injected into the simulated data (NAME=VALUE).
@@ -44,13 +45,53 @@ fn parse_args<A: clap::Args>(args: &[&str]) -> Result<A> {
     Ok(<Wrap<A> as clap::Parser>::try_parse_from(argv)?.inner)
 }
 
+/// What the demo writes into its folder: `--force` deletes a folder holding only these.
+const DEMO_ENTRIES: [&str; 7] = [
+    "nearfield.svg",
+    "uncertainty.svg",
+    "plan.toml",
+    "run",
+    "fit.json",
+    "figure57.svg",
+    "report",
+];
+
+/// Delete an earlier demo's folder; refuse a folder holding anything the demo does not write.
+fn remove_earlier_demo(out: &std::path::Path) -> Result<()> {
+    if !out.is_dir() {
+        bail!("--out {}: exists and is not a folder", out.display());
+    }
+    let mut foreign = Vec::new();
+    for e in std::fs::read_dir(out).with_context(|| format!("{}", out.display()))? {
+        let name = e
+            .with_context(|| format!("{}", out.display()))?
+            .file_name()
+            .to_string_lossy()
+            .into_owned();
+        if !DEMO_ENTRIES.contains(&name.as_str()) {
+            foreign.push(name);
+        }
+    }
+    if !foreign.is_empty() {
+        foreign.sort();
+        bail!(
+            "--out {}: holds files the demo did not write ({}): not deleting it; choose another --out",
+            out.display(),
+            foreign.join(", ")
+        );
+    }
+    std::fs::remove_dir_all(out).with_context(|| format!("{}", out.display()))
+}
+
 /// Run `cta demo`.
 pub fn run(a: &DemoArgs) -> Result<()> {
+    // Refuse a bad effect before anything is deleted or written.
+    crate::effects::Effect::parse(&a.effect).map_err(|e| anyhow::anyhow!("--effect: {e}"))?;
     if a.out.exists() {
         if !a.force {
             bail!("{} exists; pass --force to replace it", a.out.display());
         }
-        std::fs::remove_dir_all(&a.out).with_context(|| format!("{}", a.out.display()))?;
+        remove_earlier_demo(&a.out)?;
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}", a.out.display()))?;
     let p = |f: &str| a.out.join(f);
@@ -104,6 +145,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         separations: Some("20..30:2".into()),
         weights: Weights::Repeat,
         save: Some(fit.clone()),
+        force: false,
         json: false,
     })?;
     println!("\n== 5. Figure 57: error in angle of that calibration at every separation");

@@ -296,8 +296,37 @@ pub fn render_svg(title: &str, panels: &[Panel], cols: usize) -> Result<String, 
 
 /// Render panels to an SVG file.
 pub fn write_svg(path: &Path, title: &str, panels: &[Panel], cols: usize) -> anyhow::Result<()> {
+    refuse_to_replace_non_svg(path)?;
     let svg = render_svg(title, panels, cols)
         .map_err(|e| anyhow::anyhow!("{}: plotting failed: {e}", path.display()))?;
     std::fs::write(path, svg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(())
+}
+
+/// A plot may replace an earlier plot, never another kind of file (`--plot data.csv` by
+/// mistake would otherwise destroy the measurements).
+pub fn refuse_to_replace_non_svg(path: &Path) -> anyhow::Result<()> {
+    use std::io::Read;
+    if !path.exists() {
+        return Ok(());
+    }
+    if path.is_dir() {
+        anyhow::bail!(
+            "{}: is a folder; give a file name for the plot",
+            path.display()
+        );
+    }
+    let mut head = [0u8; 256];
+    let n = std::fs::File::open(path)
+        .and_then(|mut f| f.read(&mut head))
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let text = String::from_utf8_lossy(&head[..n]);
+    let t = text.trim_start();
+    if !(t.starts_with("<svg") || (t.starts_with("<?xml") && text.contains("<svg"))) {
+        anyhow::bail!(
+            "{}: exists and is not an SVG plot: not replacing it (choose another name, or remove the file)",
+            path.display()
+        );
+    }
     Ok(())
 }

@@ -257,3 +257,91 @@ fn a_closed_output_pipe_ends_quietly() {
         o.status
     );
 }
+
+#[test]
+fn outputs_never_replace_other_kinds_of_file() {
+    let d = tmpdir("replace");
+    let data = d.join("data.csv");
+    let text =
+        "# cta 0.1.0 sweep: plan `x`\nseparation_in,beacon_x_in,beacon_y_in,beacon_z_in,x,y\n";
+    std::fs::write(&data, text).unwrap();
+    let keep = |what: &str| {
+        assert_eq!(std::fs::read_to_string(&data).unwrap(), text, "{what}");
+    };
+    // simulate --out: an earlier simulation is replaced, anything else only with --force.
+    fails_with(
+        &cta(&["simulate", "--out", s(&data), "--separations", "20"]),
+        "is not an earlier `cta simulate` output",
+    );
+    keep("simulate");
+    let sim = d.join("sim.csv");
+    for _ in 0..2 {
+        let o = cta(&["simulate", "--out", s(&sim), "--separations", "20,25"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    // fit --save: never the measurement file; an earlier fit is replaced.
+    fails_with(
+        &cta(&["fit", s(&sim), "--save", s(&sim)]),
+        "is the measurement file being fitted",
+    );
+    fails_with(
+        &cta(&["fit", s(&sim), "--save", s(&data)]),
+        "is not an earlier saved fit",
+    );
+    keep("fit");
+    let fit = d.join("fit.json");
+    for _ in 0..2 {
+        let o = cta(&["fit", s(&sim), "--save", s(&fit)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    // --plot: an earlier plot is replaced, never another file.
+    fails_with(
+        &cta(&["evaluate", s(&fit), s(&sim), "--plot", s(&data)]),
+        "is not an SVG plot",
+    );
+    fails_with(
+        &cta(&["nearfield", "--plot", s(&data)]),
+        "is not an SVG plot",
+    );
+    keep("plot");
+    let svg = d.join("f.svg");
+    for _ in 0..2 {
+        let o = cta(&["evaluate", s(&fit), s(&sim), "--plot", s(&svg)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    // A simulation that would write nothing is an error, and leaves nothing behind.
+    let none = d.join("none.csv");
+    fails_with(
+        &cta(&[
+            "simulate",
+            "--out",
+            s(&none),
+            "--separations",
+            "2",
+            "--d",
+            "1000,0,0.062",
+        ]),
+        "no reports to write",
+    );
+    assert!(!none.exists() && !d.join("none.csv.partial").exists());
+}
+
+#[test]
+fn demo_force_replaces_only_an_earlier_demo() {
+    let d = tmpdir("demo-force");
+    let out = d.join("notes");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("notebook.txt"), "precious").unwrap();
+    fails_with(
+        &cta(&["demo", "--out", s(&out), "--force"]),
+        "holds files the demo did not write (notebook.txt)",
+    );
+    assert!(out.join("notebook.txt").exists());
+    // A bad effect is refused by its own flag's name, before anything is written.
+    let fresh = d.join("fresh");
+    fails_with(
+        &cta(&["demo", "--out", s(&fresh), "--effect", "bogus"]),
+        "--effect",
+    );
+    assert!(!fresh.exists());
+}
