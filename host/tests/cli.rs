@@ -126,6 +126,10 @@ fn nearfield_and_uncertainty_json() {
         fails_with(&cta(&["uncertainty", "--budget", s(&b)]), needle);
     }
     fails_with(
+        &cta(&["analyze", "any.csv", "--max-effects", "0"]),
+        "--max-effects 0: no effect could be named",
+    );
+    fails_with(
         &cta(&["uncertainty", "--diameter-in=-1"]),
         "the sensor diameter must be > 0",
     );

@@ -325,6 +325,11 @@ impl AnalyzeArgs {
         if self.folds < 2 {
             return Err(format!("--folds {}: need at least 2", self.folds));
         }
+        if self.max_effects == 0 {
+            return Err(
+                "--max-effects 0: no effect could be named; give at least 1 (default 5)".into(),
+            );
+        }
         Ok(Options {
             from: self.from,
             folds: self.folds,
