@@ -149,8 +149,10 @@ impl Operator for SimOperator<'_> {
     ) -> Result<SeparationEntry> {
         Ok(self.0.move_plate(p.sep_idx, p.separation, p.quadrant))
     }
-    fn quadrant(&mut self, _q: usize) -> Result<String> {
-        // move_plate already placed the array in the point's quadrant.
+    fn quadrant(&mut self, q: usize) -> Result<String> {
+        // Called on every change of quadrant; move_plate only runs when the separation
+        // changes (the first quadrant of each separation).
+        self.0.mount_quadrant(q);
         Ok("simulated plate".into())
     }
     fn power(&mut self, level: u8) -> Result<String> {

@@ -731,6 +731,11 @@ impl SimCta {
         separation_entry(sep_idx, nominal, corners, "simulated plate".into())
     }
 
+    /// Mount the simulated array in `quadrant` of the plate (quad layout).
+    pub fn mount_quadrant(&self, quadrant: usize) {
+        self.world.state().quadrant = quadrant;
+    }
+
     /// Flip the simulated power switches.
     pub fn set_power(&self, level: u8) {
         self.world.state().power = level;
