@@ -17,11 +17,16 @@ use std::path::Path;
 
 use cta_core::emulator::grid_position;
 use cta_core::schedule::NORTHSTAR_TABLE_MHZ;
-use cta_core::wire::beacon::LED_COUNT;
+use cta_core::wire::beacon::{DEADMAN_DEFAULT_MS, LED_COUNT};
 use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
 use crate::measurement::parse_separations;
+
+/// Longest `[timing] heartbeat_ms` accepted: half the beacon board's dead-man timeout
+/// ([`DEADMAN_DEFAULT_MS`], 10 s; the sweep never changes it), so a heartbeat that is late by a
+/// slow request or a settle step still arrives before the board turns the LED off mid-point.
+pub const MAX_HEARTBEAT_MS: u64 = DEADMAN_DEFAULT_MS as u64 / 2;
 
 /// How the beacon array is mounted on the plate.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -476,6 +481,17 @@ impl Plan {
             ));
         }
         let heartbeat_ms = opt(&key("heartbeat_ms"), &t.heartbeat_ms, 2000, 50, 60_000)? as u64;
+        if heartbeat_ms > MAX_HEARTBEAT_MS {
+            return Err(err(
+                &key("heartbeat_ms"),
+                t.heartbeat_ms.as_ref().map(|s| s.span()).unwrap_or(0..0),
+                format!(
+                    "{heartbeat_ms} ms is too long: the beacon board's dead-man timer turns the \
+                     LEDs off after {DEADMAN_DEFAULT_MS} ms without a heartbeat; heartbeat at \
+                     most every {MAX_HEARTBEAT_MS} ms (half of it)"
+                ),
+            ));
+        }
         let secs = |k: &str, v: &Option<Spanned<f64>>, d: f64, lo: f64, hi: f64| match v {
             None => Ok(d),
             Some(s) => {
@@ -635,6 +651,36 @@ settle_ms = 0
         assert_eq!(e.line, Some(11));
         let e = Plan::parse("p.toml", &SHORT.replace("[20, 25]", "\"30..2\"")).unwrap_err();
         assert_eq!(e.key.as_deref(), Some("separations_in"));
+    }
+
+    #[test]
+    fn heartbeat_must_beat_the_beacon_dead_man_timer() {
+        let with = |ms: u64| {
+            Plan::parse(
+                "p.toml",
+                &format!("{SHORT}[timing]\nretries = 3\nheartbeat_ms = {ms}\n"),
+            )
+        };
+        assert_eq!(with(MAX_HEARTBEAT_MS).unwrap().heartbeat_ms, 5000);
+        for ms in [MAX_HEARTBEAT_MS + 1, 10_000, 60_000] {
+            let e = with(ms).unwrap_err();
+            assert_eq!(
+                (e.line, e.key.as_deref()),
+                (Some(12), Some("timing.heartbeat_ms")),
+                "{e}"
+            );
+            let s = e.to_string();
+            assert!(
+                s.starts_with("p.toml:12: key `timing.heartbeat_ms`: "),
+                "{s}"
+            );
+            assert!(s.contains("dead-man") && s.contains("10000 ms"), "{s}");
+        }
+        // The shipped plans are valid.
+        for p in ["chvi.toml", "demo.toml", "short.toml"] {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("plans").join(p);
+            Plan::load(&path).unwrap();
+        }
     }
 
     #[test]
