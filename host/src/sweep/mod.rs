@@ -130,13 +130,44 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     });
     let s = sweep(args)?;
     print_summary(&s);
-    if let Ending::GaveUp(what) = &s.ending {
-        bail!(
+    match &s.ending {
+        Ending::Complete => Ok(()),
+        Ending::GaveUp(what) => bail!(
             "a board stayed unreachable ({what}); the run is saved: continue with `cta sweep --resume {}`",
             s.dir.display()
-        );
+        ),
+        // Not a success: `cta sweep ... && cta fit ...` must not go on with partial data.
+        Ending::Interrupted => Err(Interrupted {
+            dir: s.dir.clone(),
+            next_point: s.next_point,
+            points: s.points,
+        }
+        .into()),
     }
-    Ok(())
+}
+
+/// The error [`run`] returns when Ctrl-C stopped the sweep: the run is saved and resumable but
+/// incomplete, so the command must not exit with success. The binary exits with
+/// [`Interrupted::EXIT_CODE`] when it finds this error (`e.downcast_ref::<Interrupted>()`),
+/// otherwise with its generic error status.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error(
+    "interrupted (Ctrl-C) at point {next_point} of {points}; the run is saved: continue with \
+     `cta sweep --resume {}`",
+    .dir.display()
+)]
+pub struct Interrupted {
+    /// The run directory.
+    pub dir: PathBuf,
+    /// Next point to measure.
+    pub next_point: usize,
+    /// Points in the plan.
+    pub points: usize,
+}
+
+impl Interrupted {
+    /// Exit status for an interrupted sweep: 128 + SIGINT, the shell's convention.
+    pub const EXIT_CODE: i32 = 130;
 }
 
 fn print_summary(s: &Summary) {

@@ -1,0 +1,111 @@
+//! `cta sweep` stopped by Ctrl-C (a real SIGINT) fails: the run is saved and resumable, but the
+//! command must not report success, or `cta sweep ... && cta fit ...` would go on with partial
+//! data.
+//!
+//! The interrupted process is this test binary re-executed with `CTA_SWEEP_INT_CHILD` set,
+//! running only `child_run`, which calls `sweep::run` (the `cta sweep` command: Ctrl-C handler,
+//! summary, result) and exits the way the binary does.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use cta_host::sweep::{self, Interrupted, SweepArgs};
+
+/// Slow enough (the simulated sensor at 50 Hz, two samples per point) that the run is still
+/// going when the signal comes; it is interrupted after a few points.
+const PLAN: &str = r#"
+name = "interrupt test"
+separations_in = "10..30"
+beacons = "all"
+samples = 2
+settle_ms = 0
+rate_hz = 50
+"#;
+
+/// Runs `cta sweep --plan PLAN --out OUT` as the binary would (only in the re-executed child).
+#[test]
+fn child_run() {
+    let Ok(spec) = std::env::var("CTA_SWEEP_INT_CHILD") else {
+        return;
+    };
+    let (out, plan) = spec.split_once('|').unwrap();
+    let a = SweepArgs {
+        plan: Some(PathBuf::from(plan)),
+        out: Some(PathBuf::from(out)),
+        quiet: true,
+        no_sync: true,
+        sim_realtime: true,
+        ..Default::default()
+    };
+    // What host/src/main.rs does with the command's result.
+    match sweep::run(&a) {
+        Ok(()) => std::process::exit(0),
+        Err(e) => {
+            eprintln!("cta: error: {e:#}");
+            let code = e
+                .downcast_ref::<Interrupted>()
+                .map_or(1, |_| Interrupted::EXIT_CODE);
+            std::process::exit(code);
+        }
+    }
+}
+
+fn journal(dir: &Path) -> String {
+    std::fs::read_to_string(dir.join("journal.jsonl")).unwrap_or_default()
+}
+
+#[test]
+fn ctrl_c_exits_non_zero_with_the_resume_hint() {
+    let d = std::env::temp_dir().join(format!("cta-sweep-int-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    let plan = d.join("plan.toml");
+    std::fs::write(&plan, PLAN).unwrap();
+    let run = d.join("run");
+    let mut child = Command::new(std::env::current_exe().unwrap())
+        .args(["child_run", "--exact", "--nocapture", "--test-threads=1"])
+        .env(
+            "CTA_SWEEP_INT_CHILD",
+            format!("{}|{}", run.display(), plan.display()),
+        )
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while journal(&run).matches("\"event\":\"point\"").count() < 3 {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "the sweep never started"
+        );
+        assert!(child.try_wait().unwrap().is_none(), "the sweep ended early");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let ok = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        out.status.code(),
+        Some(Interrupted::EXIT_CODE),
+        "stdout: {stdout}\nstderr: {stderr}"
+    );
+    // The summary and the error both say how to continue.
+    assert!(stdout.contains("interrupted at point"), "{stdout}");
+    let hint = format!("cta sweep --resume {}", run.display());
+    assert!(stdout.contains(&hint), "{stdout}");
+    assert!(
+        stderr.contains("cta: error: interrupted (Ctrl-C) at point") && stderr.contains(&hint),
+        "{stderr}"
+    );
+    // The run stopped cleanly (journalled) and is resumable.
+    assert!(journal(&run).contains("\"reason\":\"interrupted (Ctrl-C)\""));
+    let m = std::fs::read_to_string(run.join("manifest.json")).unwrap();
+    assert!(m.contains("\"state\": \"stopped\""), "{m}");
+    let _ = std::fs::remove_dir_all(&d);
+}
