@@ -10,6 +10,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use cta_host::measurement::Dataset;
+use cta_host::sweep::store::RunDir;
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
 
 const PLAN: &str = r#"
@@ -112,6 +113,14 @@ fn killed_and_resumed_equals_uninterrupted() {
     a.sim_seed = None;
     a.sim_effect.clear();
     a.resume = Some(run.clone());
+    // While another session holds the run, a resume is refused (no interleaved journal).
+    let held = RunDir::open(&run, false).unwrap();
+    let e = format!("{:#}", sweep::sweep(&a).unwrap_err());
+    assert!(
+        e.contains("sweep.lock") && e.contains(&format!("pid {}", std::process::id())),
+        "{e}"
+    );
+    drop(held);
     let resumed = sweep::sweep(&a).unwrap();
     assert_eq!(resumed.ending, Ending::Complete);
     assert!(resumed.stats.ok + resumed.stats.no_signal + resumed.stats.partial < full.points);
@@ -139,6 +148,9 @@ fn killed_and_resumed_equals_uninterrupted() {
     }
     let journal = std::fs::read_to_string(run.join("journal.jsonl")).unwrap();
     assert_eq!(journal.matches("\"event\":\"session\"").count(), 3);
+    // The killed child's resume took over the lock the first killed process left, and said so
+    // (the last resume found it released by the session that held it above).
+    assert_eq!(journal.matches("took over sweep.lock from pid").count(), 1);
     let _ = std::fs::remove_dir_all(&d);
 }
 

@@ -333,6 +333,9 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         Ok(s) => s,
         Err((out, src, header)) => RunDir::create(&out, &src, &header, args.force, sync)?,
     };
+    for note in &store.notes {
+        eprintln!("cta: note: {}: {note}", store.dir.display());
+    }
     let from = store.next_point();
     let n = store.sessions() + 1;
     store.log(Event::Session {
@@ -343,6 +346,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         boards: json!({ "beacon": identity_json(&bid, &beacon_path), "sensor": identity_json(&sid, &sensor_path) }),
         sim: sim_settings.as_ref().map(|s| serde_json::to_value(s).unwrap_or_default()),
         from_point: from,
+        notes: store.notes.clone(),
     })?;
     if let Some(s) = &sim {
         let truth = s.truth();

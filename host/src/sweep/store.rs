@@ -7,7 +7,14 @@
 //! RUN_DIR/journal.jsonl  one JSON event per line: sessions, operator entries, points, faults
 //! RUN_DIR/manifest.json  the run's metadata, rewritten from the journal at every session
 //!                        start and stop, operator entry and fault
+//! RUN_DIR/sweep.lock     the pid of the `cta sweep` using the run (locked while it runs)
 //! ```
+//!
+//! One process at a time: a [`RunDir`] holds an exclusive `flock(2)` on `sweep.lock` (released
+//! by the kernel however the process ends), so a second `cta sweep` on the same directory is
+//! refused with the holder's pid instead of interleaving its journal lines with the first's. A
+//! pid left in the file by a process that was killed (nobody holds the lock) is taken over, and
+//! a note says so.
 //!
 //! Commit protocol for a point: its rows (or its "no signal" comment) are appended to
 //! `data.csv` and flushed to the operating system; its `point` event, carrying the file length
@@ -21,7 +28,8 @@
 //! continues with the next point. No duplicate, no gap.
 
 use std::fs::{File, OpenOptions};
-use std::io::{BufRead, BufReader, BufWriter, Seek, SeekFrom, Write};
+use std::io::{BufRead, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
+use std::os::unix::io::AsRawFd;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
@@ -78,6 +86,10 @@ pub enum Event {
         sim: Option<serde_json::Value>,
         /// First point of this session.
         from_point: usize,
+        /// What opening the run directory found and did (a dead holder's lock taken over,
+        /// uncommitted data discarded, ...).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        notes: Vec<String>,
     },
     /// The plate was moved (or its position confirmed on resume).
     Separation(SeparationEntry),
@@ -144,10 +156,71 @@ pub fn now() -> f64 {
         .unwrap_or(0.0)
 }
 
+/// An exclusive lock on a run directory: `flock(2)` on [`LOCK`], which holds the holder's pid.
+struct Lock {
+    file: File,
+}
+
+impl Lock {
+    /// Lock `dir` (which must exist), or say who holds it. Also returns the pid a previous
+    /// holder left in the file without holding the lock (it died: killed, crashed, power cut).
+    fn acquire(dir: &Path) -> Result<(Lock, Option<String>)> {
+        let path = dir.join(LOCK);
+        let mut file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)
+            .with_context(|| format!("{}: cannot open the lock file", path.display()))?;
+        // SAFETY: flock on a file descriptor we own; no memory is involved.
+        let r = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+        let mut holder = String::new();
+        let _ = file.read_to_string(&mut holder);
+        let holder = holder.trim().to_string();
+        if r != 0 {
+            let e = std::io::Error::last_os_error();
+            if e.kind() == std::io::ErrorKind::WouldBlock {
+                bail!(
+                    "{}: the run is in use by another `cta sweep` ({}); wait for it to end or stop \
+                     it first: two sessions on one run directory would corrupt its journal",
+                    path.display(),
+                    if holder.is_empty() {
+                        "pid unknown".to_string()
+                    } else {
+                        format!("pid {holder}")
+                    }
+                );
+            }
+            return Err(e).with_context(|| format!("{}: cannot lock", path.display()));
+        }
+        let mut lock = Lock { file };
+        lock.write(&format!("{}\n", std::process::id()))
+            .with_context(|| format!("{}: cannot write", path.display()))?;
+        Ok((lock, Some(holder).filter(|h| !h.is_empty())))
+    }
+
+    fn write(&mut self, s: &str) -> std::io::Result<()> {
+        self.file.set_len(0)?;
+        self.file.seek(SeekFrom::Start(0))?;
+        self.file.write_all(s.as_bytes())
+    }
+}
+
+impl Drop for Lock {
+    fn drop(&mut self) {
+        // Released: no pid left behind (the flock itself goes with the file descriptor).
+        let _ = self.write("");
+    }
+}
+
 /// An open run directory.
 pub struct RunDir {
     /// The directory.
     pub dir: PathBuf,
+    /// What opening it found and did that the operator should know (printed and journalled
+    /// with the session): a dead holder's lock taken over, uncommitted data discarded, ...
+    pub notes: Vec<String>,
     csv: BufWriter<File>,
     csv_len: u64,
     journal: File,
@@ -157,6 +230,7 @@ pub struct RunDir {
     /// Journal lines of points whose rows are not yet synced.
     pending: Vec<u8>,
     last_sync: std::time::Instant,
+    _lock: Lock,
 }
 
 /// Longest time between two syncs while points complete.
@@ -170,6 +244,15 @@ pub const DATA: &str = "data.csv";
 pub const JOURNAL: &str = "journal.jsonl";
 /// The manifest.
 pub const MANIFEST: &str = "manifest.json";
+/// The lock file: the pid of the process using the run, `flock`ed while it runs.
+pub const LOCK: &str = "sweep.lock";
+
+fn took_over(pid: String) -> String {
+    format!(
+        "took over {LOCK} from pid {pid}, which no longer holds it (killed or crashed without \
+         releasing it)"
+    )
+}
 
 impl RunDir {
     /// Start a new run in `dir` with the plan text `plan_src`. An existing non-empty `dir` is
@@ -182,16 +265,21 @@ impl RunDir {
         sync: bool,
     ) -> Result<RunDir> {
         RunDir::check_new(dir, force)?;
-        if dir.exists() {
-            for f in [PLAN, DATA, JOURNAL, MANIFEST, "data.truth.json"] {
-                let p = dir.join(f);
-                if p.exists() {
-                    std::fs::remove_file(&p)
-                        .with_context(|| format!("{}: cannot remove", p.display()))?;
-                }
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
+        // Locked before anything is removed: --force must not pull a run from under a live
+        // session.
+        let (lock, stale) = Lock::acquire(dir)?;
+        for f in [PLAN, DATA, JOURNAL, MANIFEST, "data.truth.json"] {
+            let p = dir.join(f);
+            if p.exists() {
+                std::fs::remove_file(&p)
+                    .with_context(|| format!("{}: cannot remove", p.display()))?;
             }
         }
-        RunDir::create_files(dir, plan_src, header, sync)
+        let mut run = RunDir::create_files(dir, plan_src, header, sync, lock)?;
+        run.notes.extend(stale.map(took_over));
+        Ok(run)
     }
 
     /// Refuse to start a new run in an existing, non-empty `dir` unless `force`.
@@ -213,9 +301,13 @@ impl RunDir {
         Ok(())
     }
 
-    fn create_files(dir: &Path, plan_src: &str, header: &[String], sync: bool) -> Result<RunDir> {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("{}: cannot create", dir.display()))?;
+    fn create_files(
+        dir: &Path,
+        plan_src: &str,
+        header: &[String],
+        sync: bool,
+        lock: Lock,
+    ) -> Result<RunDir> {
         std::fs::write(dir.join(PLAN), plan_src)
             .with_context(|| format!("{}: cannot write", dir.join(PLAN).display()))?;
         let mut csv = File::create(dir.join(DATA))
@@ -231,6 +323,7 @@ impl RunDir {
         let csv_len = head.len() as u64;
         Ok(RunDir {
             dir: dir.to_path_buf(),
+            notes: Vec::new(),
             csv: BufWriter::with_capacity(1 << 16, csv),
             csv_len,
             journal,
@@ -238,6 +331,7 @@ impl RunDir {
             sync,
             pending: Vec::new(),
             last_sync: std::time::Instant::now(),
+            _lock: lock,
         })
     }
 
@@ -252,6 +346,8 @@ impl RunDir {
                 dir.display()
             );
         }
+        let (lock, stale) = Lock::acquire(dir)?;
+        let notes: Vec<String> = stale.map(took_over).into_iter().collect();
         let mut events = Vec::new();
         let mut good_len = 0u64;
         {
@@ -305,6 +401,7 @@ impl RunDir {
         csv.sync_all()?;
         Ok(RunDir {
             dir: dir.to_path_buf(),
+            notes,
             csv: BufWriter::with_capacity(1 << 16, csv),
             csv_len: end,
             journal,
@@ -312,6 +409,7 @@ impl RunDir {
             sync,
             pending: Vec::new(),
             last_sync: std::time::Instant::now(),
+            _lock: lock,
         })
     }
 
@@ -443,5 +541,58 @@ fn csv_header_len(path: &Path) -> Result<u64> {
         if !line.starts_with('#') && !line.trim().is_empty() {
             return Ok(len);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tmp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("cta-store-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    fn new_run(d: &Path) -> RunDir {
+        RunDir::create(d, "samples = 1\n", &["test".into()], false, false).unwrap()
+    }
+
+    #[test]
+    fn one_session_at_a_time_and_a_dead_holder_is_taken_over() {
+        let d = tmp("lock");
+        let a = new_run(&d);
+        let me = std::process::id().to_string();
+        assert_eq!(std::fs::read_to_string(d.join(LOCK)).unwrap().trim(), me);
+        // A second session (a second process, or a second open here: flock locks are per
+        // open file) is refused, naming the lock file and the holder.
+        for e in [
+            RunDir::open(&d, false).err().unwrap(),
+            RunDir::create(&d, "samples = 1\n", &[], true, false)
+                .err()
+                .unwrap(),
+        ] {
+            let e = format!("{e:#}");
+            assert!(e.contains(&d.join(LOCK).display().to_string()), "{e}");
+            assert!(e.contains(&format!("pid {me}")), "{e}");
+        }
+        assert!(d.join(DATA).exists(), "--force did not remove a live run");
+        // Released at the end of the session: the next one opens without a note.
+        drop(a);
+        assert_eq!(std::fs::read_to_string(d.join(LOCK)).unwrap(), "");
+        let b = RunDir::open(&d, false).unwrap();
+        assert!(b.notes.is_empty(), "{:?}", b.notes);
+        drop(b);
+        // A holder killed with SIGKILL leaves its pid but no lock: taken over, with a note.
+        std::fs::write(d.join(LOCK), "4000000\n").unwrap();
+        let c = RunDir::open(&d, false).unwrap();
+        assert!(
+            c.notes.iter().any(|n| n.contains("took over") && n.contains("4000000")),
+            "{:?}",
+            c.notes
+        );
+        assert_eq!(std::fs::read_to_string(d.join(LOCK)).unwrap().trim(), me);
+        drop(c);
+        let _ = std::fs::remove_dir_all(&d);
     }
 }
