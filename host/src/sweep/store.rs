@@ -373,20 +373,13 @@ impl RunDir {
                 good_len += n as u64;
             }
         }
-        let journal = OpenOptions::new().write(true).open(&jp)?;
-        journal.set_len(good_len)?;
-        let mut journal = journal;
-        journal.seek(SeekFrom::End(0))?;
         // The CSV ends where the last committed point ended (or after the header).
         let header_len = csv_header_len(&dp)?;
-        let end = events
-            .iter()
-            .rev()
-            .find_map(|e| match e {
-                Event::Point { csv_end, .. } => Some(*csv_end),
-                _ => None,
-            })
-            .unwrap_or(header_len);
+        let last_point = events.iter().rev().find_map(|e| match e {
+            Event::Point { csv_end, .. } => Some(*csv_end),
+            _ => None,
+        });
+        let end = last_point.unwrap_or(header_len);
         let mut csv = OpenOptions::new().write(true).open(&dp)?;
         let len = csv.metadata()?.len();
         if len < end {
@@ -396,6 +389,40 @@ impl RunDir {
                 dp.display()
             );
         }
+        if last_point.is_none() {
+            // Nothing committed: rows past the header can only be a first session's uncommitted
+            // leftovers, which come after its `session` line. An empty journal with rows, or a
+            // manifest counting committed points, means the journal was emptied or replaced:
+            // resuming would start again at point 0 and cut every measurement.
+            let rows = data_rows(&dp, header_len)?;
+            if rows > 0 && events.is_empty() {
+                bail!(
+                    "{} is empty but {} holds {rows} data rows: the journal was emptied or \
+                     replaced, and resuming would delete every measurement; not resuming \
+                     (restore the journal, or start a new run with --out)",
+                    jp.display(),
+                    dp.display()
+                );
+            }
+            let mp = dir.join(MANIFEST);
+            let done = std::fs::read_to_string(&mp)
+                .ok()
+                .and_then(|m| serde_json::from_str::<serde_json::Value>(&m).ok())
+                .and_then(|m| m["points"]["done"].as_u64())
+                .unwrap_or(0);
+            if done > 0 {
+                bail!(
+                    "{} records no committed point, but {} says {done} were done: the journal was \
+                     emptied or replaced, and resuming would delete every measurement; not \
+                     resuming (restore the journal, or start a new run with --out)",
+                    jp.display(),
+                    mp.display()
+                );
+            }
+        }
+        let mut journal = OpenOptions::new().write(true).open(&jp)?;
+        journal.set_len(good_len)?;
+        journal.seek(SeekFrom::End(0))?;
         csv.set_len(end)?;
         csv.seek(SeekFrom::End(0))?;
         csv.sync_all()?;
@@ -525,6 +552,28 @@ impl Drop for RunDir {
     }
 }
 
+/// Number of data rows (lines other than comments and blank lines) in `path` from byte `from`.
+fn data_rows(path: &Path, from: u64) -> Result<u64> {
+    let mut f = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    f.seek(SeekFrom::Start(from))
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let mut r = BufReader::new(f);
+    let mut line = Vec::new();
+    let mut rows = 0;
+    loop {
+        line.clear();
+        let n = r
+            .read_until(b'\n', &mut line)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        if n == 0 {
+            return Ok(rows);
+        }
+        if !line.starts_with(b"#") && !line.trim_ascii().is_empty() {
+            rows += 1;
+        }
+    }
+}
+
 /// Length of the comment and header lines at the top of a measurement file.
 fn csv_header_len(path: &Path) -> Result<u64> {
     let f = File::open(path)?;
@@ -587,7 +636,9 @@ mod tests {
         std::fs::write(d.join(LOCK), "4000000\n").unwrap();
         let c = RunDir::open(&d, false).unwrap();
         assert!(
-            c.notes.iter().any(|n| n.contains("took over") && n.contains("4000000")),
+            c.notes
+                .iter()
+                .any(|n| n.contains("took over") && n.contains("4000000")),
             "{:?}",
             c.notes
         );
