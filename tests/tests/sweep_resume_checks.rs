@@ -83,3 +83,102 @@ fn an_emptied_journal_is_refused_not_a_restart_that_wipes_the_data() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// The journal cut back to its first `points` point lines, as if the session had been killed
+/// with the data of the later points written but their journal lines not.
+fn crash_after(run: &Path, points: usize) -> u64 {
+    let j = read(&run.join("journal.jsonl"));
+    let mut kept = String::new();
+    let mut n = 0;
+    let mut end = 0;
+    for l in j.lines() {
+        if l.contains("\"event\":\"point\"") {
+            if n == points {
+                break;
+            }
+            n += 1;
+            let k = l.find("\"csv_end\":").unwrap() + 10;
+            end = l[k..].split([',', '}']).next().unwrap().parse().unwrap();
+        }
+        kept.push_str(l);
+        kept.push('\n');
+    }
+    std::fs::write(run.join("journal.jsonl"), kept).unwrap();
+    end
+}
+
+#[test]
+fn an_edited_data_file_is_refused_not_cut_mid_row() {
+    let (d, run) = complete_run("edited");
+    let end = crash_after(&run, 20) as usize;
+    let data = read(&run.join("data.csv"));
+    // A note inserted at the top: every committed byte moves; cutting at the journalled
+    // length would splice a row in the middle of the file.
+    std::fs::write(run.join("data.csv"), format!("# note\n{data}")).unwrap();
+    let e = resume(&run).unwrap_err();
+    assert!(
+        e.contains(&run.join("data.csv").display().to_string())
+            && e.contains("not what was written")
+            && e.contains("Not resuming"),
+        "{e}"
+    );
+    // A value changed in the middle: found, with the last point that still matches.
+    let k = end / 2 + data[end / 2..].find(|c: char| c.is_ascii_digit()).unwrap();
+    let mut edited = data.clone().into_bytes();
+    edited[k] = if edited[k] == b'7' { b'8' } else { b'7' };
+    std::fs::write(run.join("data.csv"), &edited).unwrap();
+    let e = resume(&run).unwrap_err();
+    assert!(e.contains("it matches up to point"), "{e}");
+    assert_eq!(
+        std::fs::read(run.join("data.csv")).unwrap(),
+        edited,
+        "not touched"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn uncommitted_leftovers_are_discarded_and_said() {
+    let (d, run) = complete_run("leftovers");
+    let full = read(&run.join("data.csv"));
+    // Killed after point 19's journal line, with the rows of points 20.. already written.
+    let end = crash_after(&run, 20);
+    let leftover = &full[end as usize..];
+    let rows = leftover.lines().filter(|l| !l.starts_with('#')).count();
+    assert!(rows > 0);
+    // ... and killed in the middle of the next journal line.
+    let torn = "{\"event\":\"point\",\"i\":20,\"sta";
+    let mut j = std::fs::OpenOptions::new()
+        .append(true)
+        .open(run.join("journal.jsonl"))
+        .unwrap();
+    std::io::Write::write_all(&mut j, torn.as_bytes()).unwrap();
+    drop(j);
+    let s = resume(&run).unwrap();
+    assert_eq!(s.ending, Ending::Complete);
+    let j = read(&run.join("journal.jsonl"));
+    let note = format!(
+        "data.csv: discarded {} bytes ({rows} data rows, 0 comment lines) past the last \
+         committed point, 19: not committed",
+        leftover.len()
+    );
+    assert!(j.contains(&note), "{note}\n{j}");
+    assert!(
+        j.contains("journal.jsonl: dropped its torn last line (28 bytes)"),
+        "{j}"
+    );
+    // The points were measured again: the file is the uninterrupted run's.
+    assert_eq!(read(&run.join("data.csv")), full);
+    // Rows appended after the end of a complete run: cut, and said.
+    std::fs::write(run.join("data.csv"), format!("{full}5,1,2,3\n")).unwrap();
+    resume(&run).unwrap();
+    let j = read(&run.join("journal.jsonl"));
+    assert!(
+        j.contains(
+            "discarded 8 bytes (1 data row, 0 comment lines) past the last committed point, 29"
+        ),
+        "{j}"
+    );
+    assert_eq!(read(&run.join("data.csv")), full);
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -123,6 +123,10 @@ pub enum Event {
         attempts: u32,
         /// Length of data.csv after its rows.
         csv_end: u64,
+        /// FNV-1a 64 (16 hex digits) of data.csv's first `csv_end` bytes: a resume checks the
+        /// committed data are still what was written. Absent in journals of older versions.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        csv_hash: Option<String>,
     },
     /// Something went wrong, and what was done about it.
     Fault {
@@ -154,6 +158,27 @@ pub fn now() -> f64 {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_secs_f64())
         .unwrap_or(0.0)
+}
+
+/// FNV-1a, 64 bits: a running hash of data.csv as it is written (no cryptographic claim: it
+/// catches edits and replacements, not an adversary).
+#[derive(Debug, Clone, Copy)]
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Fnv {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+
+    fn update(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+
+    fn hex(&self) -> String {
+        format!("{:016x}", self.0)
+    }
 }
 
 /// An exclusive lock on a run directory: `flock(2)` on [`LOCK`], which holds the holder's pid.
@@ -223,6 +248,8 @@ pub struct RunDir {
     pub notes: Vec<String>,
     csv: BufWriter<File>,
     csv_len: u64,
+    /// Hash of data.csv's first `csv_len` bytes.
+    csv_hash: Fnv,
     journal: File,
     /// Every event so far (this and previous sessions).
     pub events: Vec<Event>,
@@ -321,11 +348,14 @@ impl RunDir {
         csv.sync_all()?;
         let journal = File::create(dir.join(JOURNAL))?;
         let csv_len = head.len() as u64;
+        let mut csv_hash = Fnv::new();
+        csv_hash.update(head.as_bytes());
         Ok(RunDir {
             dir: dir.to_path_buf(),
             notes: Vec::new(),
             csv: BufWriter::with_capacity(1 << 16, csv),
             csv_len,
+            csv_hash,
             journal,
             events: Vec::new(),
             sync,
@@ -347,26 +377,32 @@ impl RunDir {
             );
         }
         let (lock, stale) = Lock::acquire(dir)?;
-        let notes: Vec<String> = stale.map(took_over).into_iter().collect();
+        let mut notes: Vec<String> = stale.map(took_over).into_iter().collect();
         let mut events = Vec::new();
         let mut good_len = 0u64;
         {
-            let f = File::open(&jp)?;
+            let f = File::open(&jp).with_context(|| format!("{}: cannot open", jp.display()))?;
             let mut r = BufReader::new(f);
-            let mut line = String::new();
+            let mut line = Vec::new();
             let mut lineno = 0;
             loop {
                 line.clear();
-                let n = r.read_line(&mut line)?;
+                let n = r
+                    .read_until(b'\n', &mut line)
+                    .with_context(|| format!("{}: cannot read", jp.display()))?;
                 if n == 0 {
                     break;
                 }
                 lineno += 1;
-                if !line.ends_with('\n') {
+                if !line.ends_with(b"\n") {
                     // Torn last line (the process died mid-write): dropped.
+                    notes.push(format!(
+                        "{JOURNAL}: dropped its torn last line ({n} bytes), which the previous \
+                         session was writing when it stopped"
+                    ));
                     break;
                 }
-                match serde_json::from_str::<Event>(line.trim_end()) {
+                match serde_json::from_slice::<Event>(line.trim_ascii_end()) {
                     Ok(e) => events.push(e),
                     Err(e) => bail!("{}:{lineno}: unreadable journal entry: {e}", jp.display()),
                 }
@@ -376,10 +412,10 @@ impl RunDir {
         // The CSV ends where the last committed point ended (or after the header).
         let header_len = csv_header_len(&dp)?;
         let last_point = events.iter().rev().find_map(|e| match e {
-            Event::Point { csv_end, .. } => Some(*csv_end),
+            Event::Point { i, csv_end, .. } => Some((*i, *csv_end)),
             _ => None,
         });
-        let end = last_point.unwrap_or(header_len);
+        let end = last_point.map_or(header_len, |(_, e)| e);
         let mut csv = OpenOptions::new().write(true).open(&dp)?;
         let len = csv.metadata()?.len();
         if len < end {
@@ -394,7 +430,7 @@ impl RunDir {
             // leftovers, which come after its `session` line. An empty journal with rows, or a
             // manifest counting committed points, means the journal was emptied or replaced:
             // resuming would start again at point 0 and cut every measurement.
-            let rows = data_rows(&dp, header_len)?;
+            let (rows, _) = data_lines(&dp, header_len)?;
             if rows > 0 && events.is_empty() {
                 bail!(
                     "{} is empty but {} holds {rows} data rows: the journal was emptied or \
@@ -420,6 +456,30 @@ impl RunDir {
                 );
             }
         }
+        // The committed data must be what was written: a file edited within them (a line
+        // inserted, a value changed) would otherwise be cut at the journalled length in the
+        // middle of a row, silently.
+        let csv_hash = verify_committed(&dp, &events, end)?;
+        if len > end {
+            // Rows of points whose journal line never made it (the session stopped between
+            // the two), or anything appended since: cut, and said.
+            let (rows, comments) = data_lines(&dp, end)?;
+            let plural =
+                |n: u64, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
+            notes.push(format!(
+                "{DATA}: discarded {} ({}, {}) past {}: not committed in the journal (written by \
+                 the previous session before it stopped, or added since); measuring resumes at \
+                 point {}",
+                plural(len - end, "byte"),
+                plural(rows, "data row"),
+                plural(comments, "comment line"),
+                match last_point {
+                    Some((i, _)) => format!("the last committed point, {i}"),
+                    None => "the header (no committed point)".into(),
+                },
+                last_point.map_or(0, |(i, _)| i + 1)
+            ));
+        }
         let mut journal = OpenOptions::new().write(true).open(&jp)?;
         journal.set_len(good_len)?;
         journal.seek(SeekFrom::End(0))?;
@@ -431,6 +491,7 @@ impl RunDir {
             notes,
             csv: BufWriter::with_capacity(1 << 16, csv),
             csv_len: end,
+            csv_hash,
             journal,
             events,
             sync,
@@ -508,6 +569,7 @@ impl RunDir {
         self.csv.write_all(&buf)?;
         self.csv.flush()?;
         self.csv_len += buf.len() as u64;
+        self.csv_hash.update(&buf);
         let e = Event::Point {
             i,
             status,
@@ -516,6 +578,7 @@ impl RunDir {
             lost,
             attempts,
             csv_end: self.csv_len,
+            csv_hash: Some(self.csv_hash.hex()),
         };
         let mut line = serde_json::to_string(&e)?;
         line.push('\n');
@@ -552,23 +615,86 @@ impl Drop for RunDir {
     }
 }
 
-/// Number of data rows (lines other than comments and blank lines) in `path` from byte `from`.
-fn data_rows(path: &Path, from: u64) -> Result<u64> {
+/// Check `data.csv`'s committed bytes (up to `end`) against the prefix hashes journalled with
+/// the points; returns the hash of the first `end` bytes. Nothing is modified.
+fn verify_committed(path: &Path, events: &[Event], end: u64) -> Result<Fnv> {
+    let f = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    let mut r = BufReader::with_capacity(1 << 16, f);
+    let mut hash = Fnv::new();
+    let mut pos = 0u64;
+    let feed = |r: &mut BufReader<File>, hash: &mut Fnv, mut n: u64| -> Result<()> {
+        while n > 0 {
+            let buf = r
+                .fill_buf()
+                .with_context(|| format!("{}: cannot read", path.display()))?;
+            if buf.is_empty() {
+                bail!("{}: shorter than the journal says", path.display());
+            }
+            let k = buf.len().min(n as usize);
+            hash.update(&buf[..k]);
+            r.consume(k);
+            n -= k as u64;
+        }
+        Ok(())
+    };
+    let mut good: Option<(usize, u64)> = None;
+    for e in events {
+        let Event::Point {
+            i,
+            csv_end,
+            csv_hash: Some(h),
+            ..
+        } = e
+        else {
+            continue;
+        };
+        if *csv_end < pos || *csv_end > end {
+            bail!(
+                "{}: point {i} ends at byte {csv_end}, out of order with the other points: the \
+                 journal was edited; not resuming",
+                path.parent().unwrap_or(path).join(JOURNAL).display()
+            );
+        }
+        feed(&mut r, &mut hash, csv_end - pos)?;
+        pos = *csv_end;
+        if hash.hex() != *h {
+            bail!(
+                "{}: the committed data are not what was written: the file differs from the journal \
+                 within its first {csv_end} bytes (the rows up to point {i}; {}): it was edited or \
+                 replaced since. Not resuming, nothing was changed: restore {DATA} as it was \
+                 written, or start a new run with --out",
+                path.display(),
+                match good {
+                    Some((k, b)) => format!("it matches up to point {k}, byte {b}"),
+                    None => "already at the first committed point".into(),
+                }
+            );
+        }
+        good = Some((*i, *csv_end));
+    }
+    feed(&mut r, &mut hash, end - pos)?;
+    Ok(hash)
+}
+
+/// Data rows and comment lines (blank lines aside) in `path` from byte `from`.
+fn data_lines(path: &Path, from: u64) -> Result<(u64, u64)> {
     let mut f = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
     f.seek(SeekFrom::Start(from))
         .with_context(|| format!("{}: cannot read", path.display()))?;
     let mut r = BufReader::new(f);
     let mut line = Vec::new();
-    let mut rows = 0;
+    let (mut rows, mut comments) = (0, 0);
     loop {
         line.clear();
         let n = r
             .read_until(b'\n', &mut line)
             .with_context(|| format!("{}: cannot read", path.display()))?;
         if n == 0 {
-            return Ok(rows);
+            return Ok((rows, comments));
         }
-        if !line.starts_with(b"#") && !line.trim_ascii().is_empty() {
+        if line.starts_with(b"#") {
+            comments += 1;
+        } else if !line.trim_ascii().is_empty() {
             rows += 1;
         }
     }
