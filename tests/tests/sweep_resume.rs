@@ -10,6 +10,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use cta_host::measurement::Dataset;
+use cta_host::sweep::plan::Plan;
 use cta_host::sweep::store::RunDir;
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
 
@@ -114,7 +115,7 @@ fn killed_and_resumed_equals_uninterrupted() {
     a.sim_effect.clear();
     a.resume = Some(run.clone());
     // While another session holds the run, a resume is refused (no interleaved journal).
-    let held = RunDir::open(&run, false).unwrap();
+    let held = RunDir::open(&run, false, &Plan::load(&run.join("plan.toml")).unwrap()).unwrap();
     let e = format!("{:#}", sweep::sweep(&a).unwrap_err());
     assert!(
         e.contains("sweep.lock") && e.contains(&format!("pid {}", std::process::id())),

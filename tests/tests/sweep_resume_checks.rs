@@ -182,3 +182,53 @@ fn uncommitted_leftovers_are_discarded_and_said() {
     assert_eq!(read(&run.join("data.csv")), full);
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn a_changed_plan_is_refused_naming_the_keys() {
+    let (d, run) = complete_run("plan");
+    crash_after(&run, 20);
+    let plan = run.join("plan.toml");
+    for (from, to, key) in [
+        ("samples = 4", "samples = 6", "`samples`: 4 -> 6"),
+        (
+            "beacons = [0, 19, 45, 80, 99]",
+            "beacons = [0, 19, 45, 80]",
+            "`beacons`: [0, 19, 45, 80, 99] -> [0, 19, 45, 80]",
+        ),
+        (
+            "separations_in = [5, 15, 25]",
+            "separations_in = \"5..25:10\"",
+            "",
+        ),
+        (
+            "separations_in = [5, 15, 25]",
+            "separations_in = [5, 15, 30]",
+            "`separations_in`: [5.0, 15.0, 25.0] -> [5.0, 15.0, 30.0]",
+        ),
+        (
+            "no_signal_reports = 5",
+            "no_signal_reports = 7",
+            "`timing.no_signal_reports`: 5 -> 7",
+        ),
+    ] {
+        std::fs::write(&plan, PLAN.replace(from, to)).unwrap();
+        let data = read(&run.join("data.csv"));
+        let journal = read(&run.join("journal.jsonl"));
+        match resume(&run) {
+            Err(e) if !key.is_empty() => {
+                assert!(
+                    e.starts_with(&format!("{}: the plan was changed", plan.display()))
+                        && e.contains(key)
+                        && e.contains("not resuming"),
+                    "{e}"
+                );
+                assert_eq!(read(&run.join("data.csv")), data, "not touched");
+                assert_eq!(read(&run.join("journal.jsonl")), journal, "not touched");
+            }
+            // The same plan written differently: a resume.
+            Ok(s) if key.is_empty() => assert_eq!(s.ending, Ending::Complete),
+            r => panic!("{to}: {r:?}"),
+        }
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -217,9 +217,17 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
 
     // The run directory, the plan, and what simulates it.
     let (store, plan, sim_settings) = if let Some(dir) = &args.resume {
-        let store = RunDir::open(dir, sync)?;
         let plan_path = dir.join(store::PLAN);
+        if !plan_path.exists() && !dir.join(store::JOURNAL).exists() {
+            bail!(
+                "{}: not a sweep run directory (no {} or {}); start a run with --out",
+                dir.display(),
+                store::PLAN,
+                store::JOURNAL
+            );
+        }
         let plan = Plan::load(&plan_path)?;
+        let store = RunDir::open(dir, sync, &plan)?;
         if let Some(p) = &args.plan {
             let given = std::fs::read_to_string(p)
                 .with_context(|| format!("{}: cannot read", p.display()))?;
@@ -345,6 +353,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         command,
         boards: json!({ "beacon": identity_json(&bid, &beacon_path), "sensor": identity_json(&sid, &sensor_path) }),
         sim: sim_settings.as_ref().map(|s| serde_json::to_value(s).unwrap_or_default()),
+        plan: Some(serde_json::to_value(&plan)?),
         from_point: from,
         notes: store.notes.clone(),
     })?;

@@ -532,6 +532,84 @@ impl Plan {
         })
     }
 
+    /// What differs from `before`, one entry per plan key: `` `samples`: 6 -> 8 ``. Empty when
+    /// the plans are equal.
+    pub fn differences(&self, before: &Plan) -> Vec<String> {
+        fn show<T: fmt::Debug>(v: &T) -> String {
+            let s = format!("{v:?}");
+            if s.chars().count() > 60 {
+                format!("{}...", s.chars().take(57).collect::<String>())
+            } else {
+                s
+            }
+        }
+        fn layout(l: &Layout) -> String {
+            match l {
+                Layout::Single => "\"single\"".into(),
+                Layout::Quad { spacing } => format!("\"quad\" (quad_spacing_in {spacing})"),
+            }
+        }
+        let mut out = Vec::new();
+        let mut cmp = |key: &str, now: String, was: String| {
+            if now != was {
+                out.push(format!("`{key}`: {was} -> {now}"));
+            }
+        };
+        let (a, b) = (self, before);
+        cmp("name", show(&a.name), show(&b.name));
+        cmp("separations_in", show(&a.separations), show(&b.separations));
+        cmp("layout", layout(&a.layout), layout(&b.layout));
+        cmp("beacons", show(&a.beacons), show(&b.beacons));
+        cmp(
+            "frequencies_hz",
+            show(&a.frequencies_hz),
+            show(&b.frequencies_hz),
+        );
+        cmp("power_levels", show(&a.power_levels), show(&b.power_levels));
+        cmp(
+            "sensitivities",
+            show(&a.sensitivities),
+            show(&b.sensitivities),
+        );
+        cmp("samples", show(&a.samples), show(&b.samples));
+        cmp("settle_ms", show(&a.settle_ms), show(&b.settle_ms));
+        cmp("rate_hz", show(&a.rate_hz), show(&b.rate_hz));
+        let t = |k: &str| format!("timing.{k}");
+        cmp(
+            &t("request_timeout_ms"),
+            show(&a.request_timeout_ms),
+            show(&b.request_timeout_ms),
+        );
+        cmp(&t("retries"), show(&a.retries), show(&b.retries));
+        cmp(
+            &t("report_timeout_ms"),
+            show(&a.report_timeout_ms),
+            show(&b.report_timeout_ms),
+        );
+        cmp(
+            &t("no_signal_reports"),
+            show(&a.no_signal_reports),
+            show(&b.no_signal_reports),
+        );
+        cmp(
+            &t("max_reports"),
+            show(&a.max_reports),
+            show(&b.max_reports),
+        );
+        cmp(
+            &t("heartbeat_ms"),
+            show(&a.heartbeat_ms),
+            show(&b.heartbeat_ms),
+        );
+        cmp(
+            &t("backoff_max_s"),
+            show(&a.backoff_max_s),
+            show(&b.backoff_max_s),
+        );
+        cmp(&t("give_up_s"), show(&a.give_up_s), show(&b.give_up_s));
+        out
+    }
+
     /// Number of points.
     pub fn len(&self) -> usize {
         self.per_separation() * self.separations.len()

@@ -35,6 +35,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
+use super::plan::Plan;
 use crate::measurement::{write_row, Sample, OPTIONAL, REQUIRED};
 
 /// What became of a point.
@@ -84,6 +85,11 @@ pub enum Event {
         boards: serde_json::Value,
         /// Simulation settings (`None` for real boards).
         sim: Option<serde_json::Value>,
+        /// The plan in use (validated; [`Plan`]'s fields): a resume refuses a run whose
+        /// `plan.toml` no longer says the same as when the run started. Absent in journals of
+        /// older versions.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        plan: Option<serde_json::Value>,
         /// First point of this session.
         from_point: usize,
         /// What opening the run directory found and did (a dead holder's lock taken over,
@@ -365,9 +371,11 @@ impl RunDir {
         })
     }
 
-    /// Reopen `dir` to continue it: reads the journal (dropping a torn last line), cuts
-    /// `data.csv` back to the last committed point, and positions both files for appending.
-    pub fn open(dir: &Path, sync: bool) -> Result<RunDir> {
+    /// Reopen `dir` to continue it with `plan` (read from its `plan.toml`): reads the journal
+    /// (dropping a torn last line), checks the plan is the one the run started with and the
+    /// committed data are intact, cuts `data.csv` back to the last committed point, and
+    /// positions both files for appending. Nothing is modified when a check fails.
+    pub fn open(dir: &Path, sync: bool, plan: &Plan) -> Result<RunDir> {
         let jp = dir.join(JOURNAL);
         let dp = dir.join(DATA);
         if !jp.exists() || !dp.exists() {
@@ -408,6 +416,38 @@ impl RunDir {
                 }
                 good_len += n as u64;
             }
+        }
+        // The points are numbered by the plan: continuing with another one would leave points
+        // never measured (or measured under other settings) while the run says complete.
+        let started = events.iter().find_map(|e| match e {
+            Event::Session { plan: Some(p), .. } => Some(p),
+            _ => None,
+        });
+        match started {
+            Some(v) => {
+                let pp = dir.join(PLAN);
+                let was: Plan = serde_json::from_value(v.clone())
+                    .with_context(|| format!("{}: unreadable plan in a session", jp.display()))?;
+                // Through the same JSON text as the journalled one, so floats compare exactly.
+                let now: Plan = serde_json::from_str(&serde_json::to_string(plan)?)?;
+                let changed = now.differences(&was);
+                if !changed.is_empty() {
+                    bail!(
+                        "{}: the plan was changed since the run started (as recorded in {}): {}. A \
+                         resume continues the plan the run started with, whose point numbers the \
+                         data use; not resuming, nothing was changed: restore {PLAN}, or start a \
+                         new run with --out for the new plan",
+                        pp.display(),
+                        jp.display(),
+                        changed.join("; ")
+                    );
+                }
+            }
+            None if !events.is_empty() => notes.push(format!(
+                "{JOURNAL} records no plan (written by an older version): {PLAN} could not be \
+                 checked against the plan the run started with"
+            )),
+            None => {}
         }
         // The CSV ends where the last committed point ended (or after the header).
         let header_len = csv_header_len(&dp)?;
@@ -729,6 +769,10 @@ mod tests {
         d
     }
 
+    fn plan() -> Plan {
+        Plan::parse("plan.toml", "separations_in = [10]\nsamples = 1\n").unwrap()
+    }
+
     fn new_run(d: &Path) -> RunDir {
         RunDir::create(d, "samples = 1\n", &["test".into()], false, false).unwrap()
     }
@@ -742,7 +786,7 @@ mod tests {
         // A second session (a second process, or a second open here: flock locks are per
         // open file) is refused, naming the lock file and the holder.
         for e in [
-            RunDir::open(&d, false).err().unwrap(),
+            RunDir::open(&d, false, &plan()).err().unwrap(),
             RunDir::create(&d, "samples = 1\n", &[], true, false)
                 .err()
                 .unwrap(),
@@ -755,12 +799,12 @@ mod tests {
         // Released at the end of the session: the next one opens without a note.
         drop(a);
         assert_eq!(std::fs::read_to_string(d.join(LOCK)).unwrap(), "");
-        let b = RunDir::open(&d, false).unwrap();
+        let b = RunDir::open(&d, false, &plan()).unwrap();
         assert!(b.notes.is_empty(), "{:?}", b.notes);
         drop(b);
         // A holder killed with SIGKILL leaves its pid but no lock: taken over, with a note.
         std::fs::write(d.join(LOCK), "4000000\n").unwrap();
-        let c = RunDir::open(&d, false).unwrap();
+        let c = RunDir::open(&d, false, &plan()).unwrap();
         assert!(
             c.notes
                 .iter()
