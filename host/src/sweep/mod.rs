@@ -357,35 +357,45 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         from_point: from,
         notes: store.notes.clone(),
     })?;
-    if let Some(s) = &sim {
-        let truth = s.truth();
-        std::fs::write(
-            store.dir.join("data.truth.json"),
-            serde_json::to_string_pretty(&truth)?,
-        )?;
-    }
-    write_manifest(&store, &plan, "running")?;
-
+    // From here on, whatever fails (a full disk, a read-only file, a board refusing) is
+    // recorded as the session's stop, as far as the disk allows, before the error is returned.
     let bars = Bars::new(args.quiet);
-    let mut operator: Box<dyn Operator + '_> = match &sim {
-        Some(s) => Box::new(SimOperator(s)),
-        None if args.yes => Box::new(Scripted),
-        None => Box::new(Prompt {
-            bars: bars.multi.clone(),
-        }),
-    };
-    let result = engine.run(&mut store, operator.as_mut(), from, &bars);
+    let result = (|| -> Result<Ending> {
+        if let Some(s) = &sim {
+            let path = store.dir.join("data.truth.json");
+            std::fs::write(&path, serde_json::to_string_pretty(&s.truth())?)
+                .with_context(|| format!("{}: cannot write", path.display()))?;
+        }
+        write_manifest(&store, &plan, "running")?;
+        let mut operator: Box<dyn Operator + '_> = match &sim {
+            Some(s) => Box::new(SimOperator(s)),
+            None if args.yes => Box::new(Scripted),
+            None => Box::new(Prompt {
+                bars: bars.multi.clone(),
+            }),
+        };
+        engine.run(&mut store, operator.as_mut(), from, &bars)
+    })();
     bars.finish();
-    let next = store.next_point();
-    let (ending, err) = match result {
-        Ok(e) => (e, None),
-        Err(e) => (Ending::GaveUp(format!("{e:#}")), Some(e)),
+    let ending = match result {
+        Ok(ending) => ending,
+        Err(e) => {
+            let recorded = store.stop_after_failure(format!("error: {e:#}"));
+            if let Err(w) = recorded.and_then(|_| write_manifest(&store, &plan, "stopped")) {
+                eprintln!("cta: warning: the stop could not be recorded in full: {w:#}");
+            }
+            return Err(e.context(format!(
+                "sweep stopped at point {}; the run is saved: continue with `cta sweep --resume {}`",
+                store.next_point(),
+                store.dir.display()
+            )));
+        }
     };
-    let reason = match (&ending, &err) {
-        (Ending::Complete, _) => "complete".to_string(),
-        (Ending::Interrupted, _) => "interrupted (Ctrl-C)".to_string(),
-        (_, Some(e)) => format!("error: {e:#}"),
-        (Ending::GaveUp(w), None) => format!("gave up: {w}"),
+    let next = store.next_point();
+    let reason = match &ending {
+        Ending::Complete => "complete".to_string(),
+        Ending::Interrupted => "interrupted (Ctrl-C)".to_string(),
+        Ending::GaveUp(w) => format!("gave up: {w}"),
     };
     store.log(Event::Stop {
         at: now(),
@@ -401,12 +411,6 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             "stopped"
         },
     )?;
-    if let Some(e) = err {
-        return Err(e.context(format!(
-            "sweep stopped at point {next}; the run is saved: continue with `cta sweep --resume {}`",
-            store.dir.display()
-        )));
-    }
     Ok(Summary {
         dir: store.dir.clone(),
         ending,
@@ -485,9 +489,15 @@ fn write_manifest(store: &RunDir, plan: &Plan, state: &str) -> Result<()> {
             }
         }
     }
+    // Why the last session stopped (null while one runs).
+    let reason = match store.events.last() {
+        Some(Event::Stop { reason, .. }) => Some(reason.clone()),
+        _ => None,
+    };
     let v = json!({
         "software": format!("cta {}", env!("CARGO_PKG_VERSION")),
         "state": state,
+        "reason": reason,
         "updated": now(),
         "plan": plan,
         "points": { "total": plan.len(), "done": store.next_point(), "ok": ok, "no_signal": no_signal, "partial": partial },

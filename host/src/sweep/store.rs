@@ -257,11 +257,15 @@ pub struct RunDir {
     /// Hash of data.csv's first `csv_len` bytes.
     csv_hash: Fnv,
     journal: File,
+    /// Length of the journal's complete lines (a failed write is cut back to it).
+    journal_len: u64,
     /// Every event so far (this and previous sessions).
     pub events: Vec<Event>,
     sync: bool,
     /// Journal lines of points whose rows are not yet synced.
     pending: Vec<u8>,
+    /// Number of events in `pending` (the last ones of `events`).
+    pending_events: usize,
     last_sync: std::time::Instant,
     _lock: Lock,
 }
@@ -350,9 +354,12 @@ impl RunDir {
             head.push_str(&format!("# {h}\n"));
         }
         head.push_str(&format!("{},{}\n", REQUIRED.join(","), OPTIONAL.join(",")));
-        csv.write_all(head.as_bytes())?;
-        csv.sync_all()?;
-        let journal = File::create(dir.join(JOURNAL))?;
+        let dp = dir.join(DATA);
+        csv.write_all(head.as_bytes())
+            .and_then(|_| csv.sync_all())
+            .with_context(|| format!("{}: cannot write", dp.display()))?;
+        let journal = File::create(dir.join(JOURNAL))
+            .with_context(|| format!("{}: cannot create", dir.join(JOURNAL).display()))?;
         let csv_len = head.len() as u64;
         let mut csv_hash = Fnv::new();
         csv_hash.update(head.as_bytes());
@@ -363,9 +370,11 @@ impl RunDir {
             csv_len,
             csv_hash,
             journal,
+            journal_len: 0,
             events: Vec::new(),
             sync,
             pending: Vec::new(),
+            pending_events: 0,
             last_sync: std::time::Instant::now(),
             _lock: lock,
         })
@@ -456,8 +465,14 @@ impl RunDir {
             _ => None,
         });
         let end = last_point.map_or(header_len, |(_, e)| e);
-        let mut csv = OpenOptions::new().write(true).open(&dp)?;
-        let len = csv.metadata()?.len();
+        let mut csv = OpenOptions::new()
+            .write(true)
+            .open(&dp)
+            .with_context(|| format!("{}: cannot open for writing", dp.display()))?;
+        let len = csv
+            .metadata()
+            .with_context(|| format!("{}: cannot read", dp.display()))?
+            .len();
         if len < end {
             bail!(
                 "{}: {len} bytes, but the journal says {end} were committed: the data file was \
@@ -520,12 +535,18 @@ impl RunDir {
                 last_point.map_or(0, |(i, _)| i + 1)
             ));
         }
-        let mut journal = OpenOptions::new().write(true).open(&jp)?;
-        journal.set_len(good_len)?;
-        journal.seek(SeekFrom::End(0))?;
-        csv.set_len(end)?;
-        csv.seek(SeekFrom::End(0))?;
-        csv.sync_all()?;
+        let mut journal = OpenOptions::new()
+            .write(true)
+            .open(&jp)
+            .with_context(|| format!("{}: cannot open for writing", jp.display()))?;
+        journal
+            .set_len(good_len)
+            .and_then(|_| journal.seek(SeekFrom::End(0)))
+            .with_context(|| format!("{}: cannot cut back to {good_len} bytes", jp.display()))?;
+        csv.set_len(end)
+            .and_then(|_| csv.seek(SeekFrom::End(0)))
+            .and_then(|_| csv.sync_all())
+            .with_context(|| format!("{}: cannot cut back to {end} bytes", dp.display()))?;
         Ok(RunDir {
             dir: dir.to_path_buf(),
             notes,
@@ -533,9 +554,11 @@ impl RunDir {
             csv_len: end,
             csv_hash,
             journal,
+            journal_len: good_len,
             events,
             sync,
             pending: Vec::new(),
+            pending_events: 0,
             last_sync: std::time::Instant::now(),
             _lock: lock,
         })
@@ -566,25 +589,83 @@ impl RunDir {
         let mut line = serde_json::to_string(&e)?;
         line.push('\n');
         self.pending.extend_from_slice(line.as_bytes());
+        self.pending_events += 1;
         self.events.push(e);
         self.sync_now()
     }
 
     /// Sync `data.csv`, then write and sync the pending journal lines.
     pub fn sync_now(&mut self) -> Result<()> {
-        self.csv.flush()?;
+        let dp = self.dir.join(DATA);
+        self.csv
+            .flush()
+            .with_context(|| format!("{}: cannot write", dp.display()))?;
         if self.sync {
-            self.csv.get_ref().sync_data()?;
+            self.csv
+                .get_ref()
+                .sync_data()
+                .with_context(|| format!("{}: cannot sync", dp.display()))?;
         }
         if !self.pending.is_empty() {
-            self.journal.write_all(&self.pending)?;
-            self.pending.clear();
-            if self.sync {
-                self.journal.sync_data()?;
-            }
+            let pending = std::mem::take(&mut self.pending);
+            self.append_journal(&pending)?;
+            self.pending_events = 0;
         }
         self.last_sync = std::time::Instant::now();
         Ok(())
+    }
+
+    /// Write whole lines to the journal (synced when configured); on failure the journal is
+    /// cut back to its last complete line, so a later line cannot follow a torn one.
+    fn append_journal(&mut self, bytes: &[u8]) -> Result<()> {
+        let r = self.journal.write_all(bytes).and_then(|_| {
+            if self.sync {
+                self.journal.sync_data()
+            } else {
+                Ok(())
+            }
+        });
+        if let Err(e) = r {
+            let _ = self.journal.set_len(self.journal_len);
+            let _ = self.journal.seek(SeekFrom::Start(self.journal_len));
+            return Err(e)
+                .with_context(|| format!("{}: cannot write", self.dir.join(JOURNAL).display()));
+        }
+        self.journal_len += bytes.len() as u64;
+        Ok(())
+    }
+
+    /// Record that the session stopped on an error (`reason`), as far as the disk allows.
+    /// Points whose rows could not be written and synced stay uncommitted (they are measured
+    /// again on resume): their journal lines are dropped, the other pending events are kept.
+    pub fn stop_after_failure(&mut self, reason: String) -> Result<()> {
+        if self.sync_now().is_err() {
+            let start = self.events.len() - self.pending_events;
+            let unsynced = self.events.split_off(start);
+            self.pending.clear();
+            self.pending_events = 0;
+            for u in unsynced {
+                if !matches!(u, Event::Point { .. }) {
+                    let mut line = serde_json::to_string(&u)?;
+                    line.push('\n');
+                    self.pending.extend_from_slice(line.as_bytes());
+                    self.pending_events += 1;
+                    self.events.push(u);
+                }
+            }
+        }
+        let e = Event::Stop {
+            at: now(),
+            reason,
+            next_point: self.next_point(),
+        };
+        let mut line = serde_json::to_string(&e)?;
+        line.push('\n');
+        let mut bytes = std::mem::take(&mut self.pending);
+        bytes.extend_from_slice(line.as_bytes());
+        self.pending_events = 0;
+        self.events.push(e);
+        self.append_journal(&bytes)
     }
 
     /// Commit a point: its rows (or a `# no signal` comment), then its journal line.
@@ -606,8 +687,10 @@ impl RunDir {
         for r in rows {
             write_row(&mut buf, r)?;
         }
-        self.csv.write_all(&buf)?;
-        self.csv.flush()?;
+        self.csv
+            .write_all(&buf)
+            .and_then(|_| self.csv.flush())
+            .with_context(|| format!("{}: cannot write", self.dir.join(DATA).display()))?;
         self.csv_len += buf.len() as u64;
         self.csv_hash.update(&buf);
         let e = Event::Point {
@@ -623,6 +706,7 @@ impl RunDir {
         let mut line = serde_json::to_string(&e)?;
         line.push('\n');
         self.pending.extend_from_slice(line.as_bytes());
+        self.pending_events += 1;
         self.events.push(e);
         if !self.sync || self.last_sync.elapsed() >= SYNC_INTERVAL {
             self.sync_now()?;
@@ -633,14 +717,17 @@ impl RunDir {
     /// Write `manifest.json` (atomically: temp file + rename) from `value`.
     pub fn write_manifest(&self, value: &serde_json::Value) -> Result<()> {
         let tmp = self.dir.join(".manifest.json.tmp");
-        let mut f = File::create(&tmp)?;
-        f.write_all(serde_json::to_string_pretty(value)?.as_bytes())?;
-        f.write_all(b"\n")?;
-        if self.sync {
-            f.sync_all()?;
-        }
-        std::fs::rename(&tmp, self.dir.join(MANIFEST))?;
-        Ok(())
+        let mp = self.dir.join(MANIFEST);
+        (|| {
+            let mut f = File::create(&tmp)?;
+            f.write_all(serde_json::to_string_pretty(value)?.as_bytes())?;
+            f.write_all(b"\n")?;
+            if self.sync {
+                f.sync_all()?;
+            }
+            std::fs::rename(&tmp, &mp)
+        })()
+        .with_context(|| format!("{}: cannot write (through {})", mp.display(), tmp.display()))
     }
 
     /// Path of the measurement file.
@@ -742,13 +829,15 @@ fn data_lines(path: &Path, from: u64) -> Result<(u64, u64)> {
 
 /// Length of the comment and header lines at the top of a measurement file.
 fn csv_header_len(path: &Path) -> Result<u64> {
-    let f = File::open(path)?;
+    let f = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
     let mut r = BufReader::new(f);
     let mut len = 0u64;
     let mut line = String::new();
     loop {
         line.clear();
-        let n = r.read_line(&mut line)?;
+        let n = r
+            .read_line(&mut line)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
         if n == 0 {
             bail!("{}: no header line", path.display());
         }
