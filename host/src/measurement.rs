@@ -356,8 +356,14 @@ pub fn fmt_list(v: &[f64]) -> String {
         .join(", ")
 }
 
+/// The most separations a list or range may give (`cta simulate --separations`, a sweep
+/// plan's `separations_in`): the count is computed before anything is expanded, so a range
+/// like `1..1e12` or `2..30:0.0000001` is refused at once instead of filling the memory.
+pub const MAX_SEPARATIONS: usize = 10_000;
+
 /// Parse a separation list: `20,25`, `2..30` (step 1), `2..30:2` (step 2), or a mix
-/// `3,5,20..30:5`.
+/// `3,5,20..30:5`. Every end and step must be finite, and the whole list may give at most
+/// [`MAX_SEPARATIONS`] separations.
 pub fn parse_separations(s: &str) -> Result<Vec<f64>, String> {
     let mut out = Vec::new();
     for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
@@ -365,23 +371,45 @@ pub fn parse_separations(s: &str) -> Result<Vec<f64>, String> {
             let (b, step) = match rest.split_once(':') {
                 Some((b, st)) => (
                     b,
-                    st.parse::<f64>()
+                    st.trim()
+                        .parse::<f64>()
                         .map_err(|_| format!("bad step in `{part}`"))?,
                 ),
                 None => (rest, 1.0),
             };
             let a: f64 = a
+                .trim()
                 .parse()
                 .map_err(|_| format!("bad range start in `{part}`"))?;
             let b: f64 = b
+                .trim()
                 .parse()
                 .map_err(|_| format!("bad range end in `{part}`"))?;
+            if !(a.is_finite() && b.is_finite() && step.is_finite()) {
+                return Err(format!(
+                    "range `{part}`: the ends and the step must be finite numbers of inches"
+                ));
+            }
             if !(step > 0.0) || b < a {
                 return Err(format!(
                     "empty range `{part}` (use A..B with A <= B, step > 0)"
                 ));
             }
-            let n = ((b - a) / step + 1e-9).floor() as usize;
+            // Count first (in floating point: no overflow), expand only when it is small.
+            let count = ((b - a) / step + 1e-9).floor() + 1.0;
+            if count + out.len() as f64 > MAX_SEPARATIONS as f64 {
+                return Err(format!(
+                    "range `{part}` gives {count:.0} separations{}, more than the {MAX_SEPARATIONS} allowed \
+                     (use a larger step, e.g. `{a}..{b}:{}`)",
+                    if out.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" (after {} before it)", out.len())
+                    },
+                    suggest_step(a, b)
+                ));
+            }
+            let n = count as usize - 1;
             for k in 0..=n {
                 out.push(a + step * k as f64);
             }
@@ -390,15 +418,33 @@ pub fn parse_separations(s: &str) -> Result<Vec<f64>, String> {
                 part.parse::<f64>()
                     .map_err(|_| format!("`{part}` is not a separation in inches"))?,
             );
+            if out.len() > MAX_SEPARATIONS {
+                return Err(format!(
+                    "more than the {MAX_SEPARATIONS} separations allowed in `{s}`"
+                ));
+            }
         }
     }
     if out.is_empty() {
         return Err("no separations given".into());
     }
     if let Some(bad) = out.iter().find(|s| !(**s > 0.0 && s.is_finite())) {
-        return Err(format!("separation {bad} in must be positive"));
+        return Err(format!(
+            "separation {bad} in must be a positive, finite number of inches"
+        ));
     }
     Ok(out)
+}
+
+/// A step that keeps `a..b` within [`MAX_SEPARATIONS`] (a round number), for the message.
+fn suggest_step(a: f64, b: f64) -> f64 {
+    let need = (b - a) / (MAX_SEPARATIONS as f64 - 1.0);
+    let p = 10f64.powf(need.log10().ceil());
+    if p.is_finite() && p > 0.0 {
+        p
+    } else {
+        1.0
+    }
 }
 
 #[cfg(test)]
@@ -494,5 +540,33 @@ mod tests {
         assert!(parse_separations("a").is_err());
         assert!(parse_separations("-1").is_err());
         assert!(parse_separations("5..2").is_err());
+    }
+
+    #[test]
+    fn huge_or_unbounded_separation_ranges_are_refused_before_expanding() {
+        // These used to expand in full (7.6 GB for `1..1e12`) or loop forever.
+        for s in [
+            "1..1e12",
+            "2..30:0.0000001",
+            "2..inf",
+            "2..30:inf",
+            "nan..3",
+            "2..NaN",
+        ] {
+            let e = parse_separations(s).unwrap_err();
+            assert!(e.contains(s), "{s}: {e}");
+        }
+        let e = parse_separations("1..1e12").unwrap_err();
+        assert!(e.contains("more than the 10000 allowed"), "{e}");
+        let e = parse_separations("2..inf").unwrap_err();
+        assert!(e.contains("finite"), "{e}");
+        assert!(parse_separations("inf").is_err());
+        // The cap counts the whole list.
+        assert_eq!(
+            parse_separations("1..10000").unwrap().len(),
+            MAX_SEPARATIONS
+        );
+        assert!(parse_separations("1..10000,20000").is_err());
+        assert!(parse_separations("0.5,1..10000").is_err());
     }
 }
