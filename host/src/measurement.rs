@@ -66,6 +66,89 @@ pub struct Dataset {
     pub samples: Vec<Sample>,
 }
 
+/// The highest beacon id: `100 * array + LED`, LED 0-99 row-major on one 10 x 10 array,
+/// array 0-3 (the sweep's four-array `quad` layout; one array is 0-99).
+pub const MAX_BEACON_ID: u32 = 399;
+
+/// What a column may hold (MEASUREMENTS.md), checked on every row.
+#[derive(Debug, Clone, Copy)]
+enum Domain {
+    /// Any finite number.
+    Finite,
+    /// A finite number in `lo..=hi` (`lo_open`: `lo` itself excluded).
+    Range {
+        lo: f64,
+        lo_open: bool,
+        hi: f64,
+        text: &'static str,
+    },
+    /// An integer in `lo..=hi`.
+    Int {
+        lo: f64,
+        hi: f64,
+        text: &'static str,
+    },
+}
+
+fn domain(column: &str) -> Domain {
+    let above = |lo: f64, text| Domain::Range {
+        lo,
+        lo_open: true,
+        hi: f64::INFINITY,
+        text,
+    };
+    match column {
+        "separation_in" => above(0.0, "> 0 in"),
+        "x" | "y" => Domain::Range {
+            lo: -32768.0,
+            lo_open: false,
+            hi: 32767.0,
+            text: "-32768..32767 counts (signed 16-bit)",
+        },
+        "beacon" => Domain::Int {
+            lo: 0.0,
+            hi: MAX_BEACON_ID as f64,
+            text: "0..399 (100 x array + LED)",
+        },
+        "frequency_hz" => above(0.0, "> 0 Hz"),
+        "power" => Domain::Int {
+            lo: 1.0,
+            hi: 2.0,
+            text: "1..2 (1 = 1 kOhm, 2 = 360 Ohm)",
+        },
+        "sensitivity" => Domain::Int {
+            lo: 1.0,
+            hi: 4.0,
+            text: "1..4",
+        },
+        "sample" => Domain::Int {
+            lo: 0.0,
+            hi: u32::MAX as f64,
+            text: "0..4294967295",
+        },
+        "magnitude" => Domain::Range {
+            lo: 0.0,
+            lo_open: false,
+            hi: f64::INFINITY,
+            text: ">= 0",
+        },
+        _ => Domain::Finite,
+    }
+}
+
+/// Why a value was refused.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Reason {
+    /// Text, `NaN` or an infinity where a number belongs.
+    NotFinite,
+    /// Not an integer in the column's range (the range as text).
+    NotInteger(&'static str),
+    /// A number outside the column's documented range (the range as text).
+    OutOfRange(&'static str),
+    /// Bytes that are not UTF-8 (a Latin-1 or Windows-1252 file).
+    NotUtf8,
+}
+
 /// Why a measurement file was rejected. Every variant names the file, and the line and
 /// column where there is one.
 #[derive(Debug)]
@@ -75,8 +158,30 @@ pub enum ReadError {
     /// No header / no data rows.
     Empty(PathBuf),
     /// A required column is missing from the header.
-    MissingColumn(PathBuf, &'static str),
-    /// A value is not a finite number.
+    MissingColumn {
+        /// File.
+        path: PathBuf,
+        /// 1-based line of the header.
+        line: usize,
+        /// The missing column.
+        column: &'static str,
+        /// The header as found (fields joined by commas).
+        header: String,
+        /// The likely cause, when one is recognised (delimiter, case, a title line).
+        hint: Option<String>,
+    },
+    /// A known column appears more than once in the header.
+    DuplicateColumn {
+        /// File.
+        path: PathBuf,
+        /// 1-based line of the header.
+        line: usize,
+        /// The column.
+        column: &'static str,
+        /// The header as found.
+        header: String,
+    },
+    /// A value is refused.
     BadValue {
         /// File.
         path: PathBuf,
@@ -86,6 +191,8 @@ pub enum ReadError {
         column: String,
         /// The offending text.
         value: String,
+        /// Why.
+        reason: Reason,
     },
     /// A row has fewer fields than the header.
     ShortRow {
@@ -98,6 +205,28 @@ pub enum ReadError {
         /// Fields in the header.
         expected: usize,
     },
+    /// A row has more fields than the header (a decimal comma, an unquoted comma).
+    LongRow {
+        /// File.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// Fields found.
+        found: usize,
+        /// Fields in the header.
+        expected: usize,
+        /// 1-based line of the header.
+        header_line: usize,
+    },
+    /// A line that is not CSV (an unclosed quote).
+    Syntax {
+        /// File.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// What is wrong.
+        message: &'static str,
+    },
 }
 
 impl fmt::Display for ReadError {
@@ -109,22 +238,56 @@ impl fmt::Display for ReadError {
                 "{}: no measurements (empty file or header only)",
                 p.display()
             ),
-            ReadError::MissingColumn(p, c) => write!(
+            ReadError::MissingColumn {
+                path,
+                line,
+                column,
+                header,
+                hint,
+            } => {
+                write!(
+                    f,
+                    "{}:{line}: missing required column `{column}` (required: {}); the header line found is `{header}`",
+                    path.display(),
+                    REQUIRED.join(", ")
+                )?;
+                if let Some(h) = hint {
+                    write!(f, "; {h}")?;
+                }
+                Ok(())
+            }
+            ReadError::DuplicateColumn {
+                path,
+                line,
+                column,
+                header,
+            } => write!(
                 f,
-                "{}: missing required column `{c}` (required: {})",
-                p.display(),
-                REQUIRED.join(", ")
+                "{}:{line}: column `{column}` appears more than once in the header `{header}`",
+                path.display()
             ),
             ReadError::BadValue {
                 path,
                 line,
                 column,
                 value,
-            } => write!(
-                f,
-                "{}:{line}: column `{column}`: `{value}` is not a finite number",
-                path.display()
-            ),
+                reason,
+            } => {
+                write!(
+                    f,
+                    "{}:{line}: column `{column}`: `{value}` ",
+                    path.display()
+                )?;
+                match reason {
+                    Reason::NotFinite => write!(f, "is not a finite number"),
+                    Reason::NotInteger(r) => write!(f, "is not an integer in {r}"),
+                    Reason::OutOfRange(r) => write!(f, "is out of range (allowed: {r})"),
+                    Reason::NotUtf8 => write!(
+                        f,
+                        "is not UTF-8 text (the file must be UTF-8; was it saved as Latin-1 or Windows-1252?)"
+                    ),
+                }
+            }
             ReadError::ShortRow {
                 path,
                 line,
@@ -135,11 +298,119 @@ impl fmt::Display for ReadError {
                 "{}:{line}: {found} fields, the header has {expected}",
                 path.display()
             ),
+            ReadError::LongRow {
+                path,
+                line,
+                found,
+                expected,
+                header_line,
+            } => write!(
+                f,
+                "{}:{line}: {found} fields, the header (line {header_line}) has {expected}: \
+                 a decimal comma, or a comma in a value that is not quoted?",
+                path.display()
+            ),
+            ReadError::Syntax {
+                path,
+                line,
+                message,
+            } => write!(f, "{}:{line}: {message}", path.display()),
         }
     }
 }
 
 impl std::error::Error for ReadError {}
+
+/// A header for messages: the fields joined by commas, cut to a readable length.
+fn show_header(h: &[String]) -> String {
+    let s = h.join(",");
+    match s.char_indices().nth(160) {
+        Some((i, _)) => format!("{}...", &s[..i]),
+        None => s,
+    }
+}
+
+/// The likely reason a header lacks the required columns.
+fn header_hint(h: &[String]) -> Option<String> {
+    let known = |n: &str| REQUIRED.contains(&n) || OPTIONAL.contains(&n);
+    let joined = h.join(",");
+    if !h.iter().any(|n| known(n)) {
+        for (sep, name) in [(';', "semicolons"), ('\t', "tabs")] {
+            if joined.contains(sep) {
+                return Some(format!(
+                    "the fields look separated by {name}: CTA reads comma-separated files \
+                     (export with `,` between fields and `.` as the decimal mark)"
+                ));
+            }
+        }
+    }
+    if let Some(n) = h.iter().find(|n| !known(n) && known(&n.to_lowercase())) {
+        return Some(format!(
+            "column names are lower-case: `{n}` should be `{}`",
+            n.to_lowercase()
+        ));
+    }
+    if !h.iter().any(|n| known(n)) {
+        return Some(
+            "the first line that is neither blank nor a `#` comment is the header: \
+             start a title or note line with `#`"
+                .into(),
+        );
+    }
+    None
+}
+
+/// Split one line into fields: commas separate; a field may be quoted (`"a, b"`, `""` for
+/// a quote inside), and blanks around a field are dropped. A quoted field must end on its
+/// line. The fields go to `buf`, field `k` being `buf[ends[k-1]..ends[k]]`.
+fn split_line(line: &[u8], buf: &mut Vec<u8>, ends: &mut Vec<usize>) -> Result<(), &'static str> {
+    buf.clear();
+    ends.clear();
+    let mut i = 0;
+    loop {
+        while i < line.len() && (line[i] == b' ' || line[i] == b'\t') {
+            i += 1;
+        }
+        if i < line.len() && line[i] == b'"' {
+            i += 1;
+            loop {
+                match line[i..].iter().position(|&c| c == b'"') {
+                    None => return Err("a quoted field is not closed on its line"),
+                    Some(q) => {
+                        buf.extend_from_slice(&line[i..i + q]);
+                        i += q + 1;
+                        if line.get(i) == Some(&b'"') {
+                            buf.push(b'"');
+                            i += 1;
+                        } else {
+                            break;
+                        }
+                    }
+                }
+            }
+            while i < line.len() && (line[i] == b' ' || line[i] == b'\t') {
+                i += 1;
+            }
+            if i < line.len() && line[i] != b',' {
+                return Err("text after the closing quote of a field");
+            }
+        } else {
+            let end = line[i..]
+                .iter()
+                .position(|&c| c == b',')
+                .map_or(line.len(), |e| i + e);
+            buf.extend_from_slice(line[i..end].trim_ascii_end());
+            i = end;
+        }
+        ends.push(buf.len());
+        if i >= line.len() {
+            return Ok(());
+        }
+        i += 1; // the comma
+    }
+}
+
+const BOM: &[u8] = b"\xEF\xBB\xBF";
 
 impl Dataset {
     /// Read a measurement file.
@@ -151,89 +422,155 @@ impl Dataset {
     /// Read from any reader; `path` is used in messages.
     pub fn from_reader(path: &Path, r: impl Read) -> Result<Dataset, ReadError> {
         let p = path.to_path_buf();
-        let mut lines = BufReader::new(r).lines().enumerate();
-        // Header: the first line that is neither blank nor a comment.
-        let header: Vec<String> = loop {
-            match lines.next() {
-                None => return Err(ReadError::Empty(p)),
-                Some((_, l)) => {
-                    let l = l.map_err(|e| ReadError::Io(p.clone(), e))?;
-                    let t = l.trim();
-                    if t.is_empty() || t.starts_with('#') {
+        let mut br = BufReader::new(r);
+        let mut raw: Vec<u8> = Vec::new();
+        let mut buf: Vec<u8> = Vec::new();
+        let mut ends: Vec<usize> = Vec::new();
+        let mut line = 0usize;
+        // The next line that is neither blank nor a comment, split into `buf`/`ends`.
+        let mut next =
+            |buf: &mut Vec<u8>, ends: &mut Vec<usize>| -> Result<Option<usize>, ReadError> {
+                loop {
+                    raw.clear();
+                    let n = br
+                        .read_until(b'\n', &mut raw)
+                        .map_err(|e| ReadError::Io(p.clone(), e))?;
+                    if n == 0 {
+                        return Ok(None);
+                    }
+                    line += 1;
+                    let mut t: &[u8] = &raw;
+                    // A UTF-8 byte-order mark (as Excel writes) is not part of the first column.
+                    if line == 1 && t.starts_with(BOM) {
+                        t = &t[BOM.len()..];
+                    }
+                    let t = t.trim_ascii();
+                    if t.is_empty() || t.starts_with(b"#") {
                         continue;
                     }
-                    break t.split(',').map(|s| s.trim().to_string()).collect();
+                    split_line(t, buf, ends).map_err(|m| ReadError::Syntax {
+                        path: p.clone(),
+                        line,
+                        message: m,
+                    })?;
+                    return Ok(Some(line));
                 }
-            }
+            };
+        let field = |ends: &[usize], k: usize| -> std::ops::Range<usize> {
+            (if k == 0 { 0 } else { ends[k - 1] })..ends[k]
         };
+        // Header: the first line that is neither blank nor a comment.
+        let Some(header_line) = next(&mut buf, &mut ends)? else {
+            return Err(ReadError::Empty(p.clone()));
+        };
+        let header: Vec<String> = (0..ends.len())
+            .map(|k| String::from_utf8_lossy(&buf[field(&ends, k)]).into_owned())
+            .collect();
         let col = |name: &str| header.iter().position(|h| h == name);
+        for name in REQUIRED.iter().chain(OPTIONAL.iter()) {
+            if header.iter().filter(|h| h == name).count() > 1 {
+                return Err(ReadError::DuplicateColumn {
+                    path: p.clone(),
+                    line: header_line,
+                    column: name,
+                    header: show_header(&header),
+                });
+            }
+        }
         let mut req = [0usize; 6];
         for (k, name) in REQUIRED.iter().enumerate() {
-            req[k] = col(name).ok_or(ReadError::MissingColumn(p.clone(), name))?;
+            req[k] = col(name).ok_or_else(|| ReadError::MissingColumn {
+                path: p.clone(),
+                line: header_line,
+                column: name,
+                header: show_header(&header),
+                hint: header_hint(&header),
+            })?;
         }
         let opt: Vec<Option<usize>> = OPTIONAL.iter().map(|n| col(n)).collect();
         let mut samples = Vec::new();
-        for (i, l) in lines {
-            let line = i + 1;
-            let l = l.map_err(|e| ReadError::Io(p.clone(), e))?;
-            let t = l.trim();
-            if t.is_empty() || t.starts_with('#') {
-                continue;
-            }
-            let fields: Vec<&str> = t.split(',').map(str::trim).collect();
-            if fields.len() < header.len() {
+        while let Some(line) = next(&mut buf, &mut ends)? {
+            let nf = ends.len();
+            if nf < header.len() {
                 return Err(ReadError::ShortRow {
-                    path: p,
+                    path: p.clone(),
                     line,
-                    found: fields.len(),
+                    found: nf,
                     expected: header.len(),
                 });
             }
-            let num = |idx: usize| -> Result<f64, ReadError> {
-                let s = fields[idx];
-                match s.parse::<f64>() {
-                    Ok(v) if v.is_finite() => Ok(v),
-                    _ => Err(ReadError::BadValue {
-                        path: p.clone(),
-                        line,
-                        column: header[idx].clone(),
-                        value: s.to_string(),
-                    }),
+            if nf > header.len() {
+                return Err(ReadError::LongRow {
+                    path: p.clone(),
+                    line,
+                    found: nf,
+                    expected: header.len(),
+                    header_line,
+                });
+            }
+            let bad = |idx: usize, value: &str, reason: Reason| ReadError::BadValue {
+                path: p.clone(),
+                line,
+                column: header[idx].clone(),
+                value: value.to_string(),
+                reason,
+            };
+            // The checked value of field `idx` (None when empty), per its column's domain.
+            let value = |idx: usize| -> Result<Option<f64>, ReadError> {
+                let raw = &buf[field(&ends, idx)];
+                let s = std::str::from_utf8(raw)
+                    .map_err(|_| bad(idx, &String::from_utf8_lossy(raw), Reason::NotUtf8))?;
+                if s.is_empty() {
+                    return Ok(None);
                 }
+                let v = s.parse::<f64>().ok().filter(|v| v.is_finite());
+                match (domain(&header[idx]), v) {
+                    (Domain::Int { lo, hi, text }, v) => match v {
+                        Some(v) if v.fract() == 0.0 && v >= lo && v <= hi => Ok(Some(v)),
+                        _ => Err(bad(idx, s, Reason::NotInteger(text))),
+                    },
+                    (_, None) => Err(bad(idx, s, Reason::NotFinite)),
+                    (Domain::Finite, Some(v)) => Ok(Some(v)),
+                    (
+                        Domain::Range {
+                            lo,
+                            lo_open,
+                            hi,
+                            text,
+                        },
+                        Some(v),
+                    ) => {
+                        if v < lo || (lo_open && v == lo) || v > hi {
+                            Err(bad(idx, s, Reason::OutOfRange(text)))
+                        } else {
+                            Ok(Some(v))
+                        }
+                    }
+                }
+            };
+            let num = |idx: usize| -> Result<f64, ReadError> {
+                value(idx)?.ok_or_else(|| bad(idx, "", Reason::NotFinite))
             };
             let opt_num = |k: usize| -> Result<Option<f64>, ReadError> {
                 match opt[k] {
-                    Some(idx) if !fields[idx].is_empty() => num(idx).map(Some),
-                    _ => Ok(None),
-                }
-            };
-            let as_u32 = |v: Option<f64>, k: usize| -> Result<Option<u32>, ReadError> {
-                match v {
-                    Some(f) if f < 0.0 || f.fract() != 0.0 || f > u32::MAX as f64 => {
-                        Err(ReadError::BadValue {
-                            path: p.clone(),
-                            line,
-                            column: OPTIONAL[k].to_string(),
-                            value: fields[opt[k].unwrap()].to_string(),
-                        })
-                    }
-                    Some(f) => Ok(Some(f as u32)),
+                    Some(idx) => value(idx),
                     None => Ok(None),
                 }
             };
-            samples.push(Sample {
+            let s = Sample {
                 separation_in: num(req[0])?,
                 r: [num(req[1])?, num(req[2])?, num(req[3])?],
                 x: num(req[4])?,
                 y: num(req[5])?,
-                beacon: as_u32(opt_num(0)?, 0)?,
+                beacon: opt_num(0)?.map(|v| v as u32),
                 frequency_hz: opt_num(1)?,
                 power: opt_num(2)?,
                 sensitivity: opt_num(3)?,
-                sample: as_u32(opt_num(4)?, 4)?,
+                sample: opt_num(4)?.map(|v| v as u32),
                 magnitude: opt_num(5)?,
                 line,
-            });
+            };
+            samples.push(s);
         }
         if samples.is_empty() {
             return Err(ReadError::Empty(p));
@@ -492,6 +829,186 @@ mod tests {
             read("# only\nx,y,separation_in,beacon_x_in,beacon_y_in,beacon_z_in\n"),
             Err(ReadError::Empty(_))
         ));
+    }
+
+    const H: &str = "separation_in,beacon_x_in,beacon_y_in,beacon_z_in,x,y";
+
+    #[test]
+    fn line_numbers_count_comments_blanks_and_indented_comments() {
+        let d = read(&format!(
+            "# c\n\n{H}\n   \n  # indented, with, commas\n20,0,0,20,1,2\n"
+        ))
+        .unwrap();
+        assert_eq!(d.samples.len(), 1);
+        assert_eq!(d.samples[0].line, 6);
+        let e = read(&format!("# c\n\n{H}\n# x\n\n20,0,0,20,1,NaN\n")).unwrap_err();
+        assert!(e.to_string().starts_with("m.csv:6: column `y`"), "{e}");
+    }
+
+    #[test]
+    fn bom_and_quoted_header_names_are_accepted() {
+        let d = read(&format!("\u{feff}{H}\n20,0,0,20,1,2\n")).unwrap();
+        assert_eq!(d.samples[0].x, 1.0);
+        let d = read("\u{feff}\"separation_in\",\"beacon_x_in\", \"beacon_y_in\",beacon_z_in,\"x\",y\n20,0,0,20,\"1\",2\n").unwrap();
+        assert_eq!(d.samples[0].separation_in, 20.0);
+        assert_eq!(d.samples[0].x, 1.0);
+        // A quoted note with a comma in an unknown column is one field.
+        let d = read(&format!("{H},note\n20,0,0,20,1,2,\"a, b\"\n")).unwrap();
+        assert_eq!(d.samples.len(), 1);
+        let d = read(&format!("{H},note\n20,0,0,20,1,2,\"say \"\"hi\"\"\"\n")).unwrap();
+        assert_eq!(d.samples.len(), 1);
+        let e = read(&format!("{H},note\n20,0,0,20,1,2,\"open\n")).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "m.csv:2: a quoted field is not closed on its line"
+        );
+    }
+
+    #[test]
+    fn header_problems_show_the_header_and_the_likely_cause() {
+        let e = read("separation_in;beacon_x_in;beacon_y_in;beacon_z_in;x;y\n20;0;0;20;1;2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("m.csv:1: missing required column `separation_in`"),
+            "{e}"
+        );
+        assert!(
+            e.contains("`separation_in;beacon_x_in;beacon_y_in;beacon_z_in;x;y`"),
+            "{e}"
+        );
+        assert!(e.contains("semicolons"), "{e}");
+        let e = read(&H.replace(',', "\t")).unwrap_err().to_string();
+        assert!(e.contains("tabs"), "{e}");
+        let e = read(&format!("{}\n20,0,0,20,1,2\n", H.to_uppercase()))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`SEPARATION_IN` should be `separation_in`"),
+            "{e}"
+        );
+        let e = read(&format!("My CTA run, 2024\n{H}\n20,0,0,20,1,2\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("m.csv:1:") && e.contains("`My CTA run,2024`"),
+            "{e}"
+        );
+        assert!(e.contains("start a title or note line with `#`"), "{e}");
+    }
+
+    #[test]
+    fn duplicate_header_columns_and_long_rows_are_refused() {
+        let e = read(&format!("# c\n{H},x\n20,0,0,20,1,2,3\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(
+                "m.csv:2: column `x` appears more than once in the header `separation_in,"
+            ),
+            "{e}"
+        );
+        // Unknown columns may repeat (they are ignored).
+        assert!(read(&format!("{H},note,note\n20,0,0,20,1,2,a,b\n")).is_ok());
+        // A decimal comma in the magnitude: one field too many.
+        let e = read(&format!(
+            "{H},magnitude\n20,0,0,20,1,2,0.5\n20,0,0,20,1,2,0,0024\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("m.csv:3: 8 fields, the header (line 1) has 7"),
+            "{e}"
+        );
+        assert!(e.contains("decimal comma"), "{e}");
+    }
+
+    #[test]
+    fn documented_ranges_are_checked() {
+        let row = |extra_h: &str, extra: &str, sep: &str, x: &str| {
+            read(&format!("{H}{extra_h}\n{sep},0,0,20,{x},2{extra}\n"))
+        };
+        let err = |r: Result<Dataset, ReadError>| r.unwrap_err().to_string();
+        assert_eq!(
+            err(row("", "", "20", "99999")),
+            "m.csv:2: column `x`: `99999` is out of range (allowed: -32768..32767 counts (signed 16-bit))"
+        );
+        assert!(row("", "", "20", "-32768").is_ok());
+        assert!(row("", "", "20", "32767.4").is_err());
+        for sep in ["0", "-2"] {
+            assert!(
+                err(row("", "", sep, "1")).contains("column `separation_in`"),
+                "{sep}"
+            );
+        }
+        for (col, v, why) in [
+            ("sensitivity", "9", "is not an integer in 1..4"),
+            ("sensitivity", "2.5", "is not an integer in 1..4"),
+            (
+                "power",
+                "9",
+                "is not an integer in 1..2 (1 = 1 kOhm, 2 = 360 Ohm)",
+            ),
+            (
+                "power",
+                "0",
+                "is not an integer in 1..2 (1 = 1 kOhm, 2 = 360 Ohm)",
+            ),
+            ("frequency_hz", "-4050", "is out of range (allowed: > 0 Hz)"),
+            (
+                "beacon",
+                "500",
+                "is not an integer in 0..399 (100 x array + LED)",
+            ),
+            (
+                "beacon",
+                "-3",
+                "is not an integer in 0..399 (100 x array + LED)",
+            ),
+            (
+                "beacon",
+                "7.5",
+                "is not an integer in 0..399 (100 x array + LED)",
+            ),
+            (
+                "beacon",
+                "-32768",
+                "is not an integer in 0..399 (100 x array + LED)",
+            ),
+            (
+                "beacon",
+                "abc",
+                "is not an integer in 0..399 (100 x array + LED)",
+            ),
+            ("sample", "-1", "is not an integer in 0..4294967295"),
+            ("magnitude", "-0.5", "is out of range (allowed: >= 0)"),
+            ("magnitude", "NaN", "is not a finite number"),
+        ] {
+            let e = err(row(&format!(",{col}"), &format!(",{v}"), "20", "1"));
+            assert_eq!(e, format!("m.csv:2: column `{col}`: `{v}` {why}"));
+        }
+        // The documented "not recorded": an empty optional field.
+        let d = read(&format!("{H},beacon,frequency_hz,power,sensitivity,sample,magnitude\n20,0,0,20,1,2,,,,,,\n20,0,0,20,1,2,399,4050,2,4,7,0\n")).unwrap();
+        assert_eq!(d.samples[0].magnitude, None);
+        assert_eq!(d.samples[1].beacon, Some(399));
+        assert_eq!(d.samples[1].magnitude, Some(0.0));
+    }
+
+    #[test]
+    fn latin1_bytes_name_the_line_and_column() {
+        let mut f = format!("{H},note\n20,0,0,20,1,2,ok\n").into_bytes();
+        f.extend_from_slice(b"20,0,0,20,1\xb5,2,ok\n");
+        let e = Dataset::from_reader(Path::new("m.csv"), &f[..])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("m.csv:3: column `x`: `1\u{fffd}` is not UTF-8 text"),
+            "{e}"
+        );
+        // In an ignored column it is ignored, like the column.
+        let mut f = format!("{H},note\n").into_bytes();
+        f.extend_from_slice(b"20,0,0,20,1,2,M\xfcller\n");
+        assert!(Dataset::from_reader(Path::new("m.csv"), &f[..]).is_ok());
     }
 
     #[test]

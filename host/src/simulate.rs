@@ -277,7 +277,8 @@ pub fn describe_pattern(p: &Pattern<f64>) -> String {
     }
 }
 
-/// Parse a grid `10x10`.
+/// Parse a grid `10x10`: at most 400 beacons, so that every beacon id fits the measurement
+/// file's `beacon` column (0..399, MEASUREMENTS.md).
 pub fn parse_grid(s: &str) -> Result<(usize, usize), String> {
     let (a, b) = s
         .split_once(['x', 'X'])
@@ -290,8 +291,12 @@ pub fn parse_grid(s: &str) -> Result<(usize, usize), String> {
         .trim()
         .parse()
         .map_err(|_| format!("grid `{s}`: bad row count"))?;
-    if a == 0 || b == 0 || a * b > 10_000 {
-        return Err(format!("grid `{s}`: between 1x1 and 10,000 beacons"));
+    let max = crate::measurement::MAX_BEACON_ID as usize + 1;
+    if a == 0 || b == 0 || a.saturating_mul(b) > max {
+        return Err(format!(
+            "grid `{s}`: between 1x1 and {max} beacons (beacon ids 0..{}, e.g. 20x20)",
+            max - 1
+        ));
     }
     Ok((a, b))
 }
@@ -323,6 +328,15 @@ mod tests {
         let (b, _) = noisy.run();
         assert_eq!(a.samples, b.samples);
         assert!(a.samples.iter().all(|s| s.x.fract() == 0.0));
+    }
+
+    #[test]
+    fn grid_ids_fit_the_beacon_column() {
+        assert_eq!(parse_grid("20x20").unwrap(), (20, 20));
+        // 10,000 beacons used to be allowed; ids above 399 make files `cta` cannot read.
+        assert!(parse_grid("100x100").unwrap_err().contains("400 beacons"));
+        assert!(parse_grid("21x20").is_err());
+        assert!(parse_grid("0x5").is_err());
     }
 
     #[test]
