@@ -6,7 +6,7 @@
 //! `sample`, `magnitude`. Unknown columns are ignored; lines starting with `#` are comments.
 //! Beacon positions are in the N frame (inches); `x`, `y` are NorthStar counts.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fmt;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
@@ -218,6 +218,18 @@ pub enum ReadError {
         /// 1-based line of the header.
         header_line: usize,
     },
+    /// The same report twice: same separation, beacon position, beacon, frequency, power,
+    /// sensitivity and sample index.
+    DuplicateReport {
+        /// File.
+        path: PathBuf,
+        /// 1-based line of the repeat.
+        line: usize,
+        /// 1-based line of the first occurrence.
+        first: usize,
+        /// The repeated sample index.
+        sample: u32,
+    },
     /// A line that is not CSV (an unclosed quote).
     Syntax {
         /// File.
@@ -273,11 +285,7 @@ impl fmt::Display for ReadError {
                 value,
                 reason,
             } => {
-                write!(
-                    f,
-                    "{}:{line}: column `{column}`: `{value}` ",
-                    path.display()
-                )?;
+                write!(f, "{}:{line}: column `{column}`: `{value}` ", path.display())?;
                 match reason {
                     Reason::NotFinite => write!(f, "is not a finite number"),
                     Reason::NotInteger(r) => write!(f, "is not an integer in {r}"),
@@ -308,6 +316,17 @@ impl fmt::Display for ReadError {
                 f,
                 "{}:{line}: {found} fields, the header (line {header_line}) has {expected}: \
                  a decimal comma, or a comma in a value that is not quoted?",
+                path.display()
+            ),
+            ReadError::DuplicateReport {
+                path,
+                line,
+                first,
+                sample,
+            } => write!(
+                f,
+                "{}:{line}: repeats the report of line {first} (same separation, beacon position, beacon, \
+                 frequency, power, sensitivity and sample index {sample}): is (part of) the file in twice?",
                 path.display()
             ),
             ReadError::Syntax {
@@ -410,6 +429,11 @@ fn split_line(line: &[u8], buf: &mut Vec<u8>, ends: &mut Vec<usize>) -> Result<(
     }
 }
 
+/// Bit pattern of a number for keys (0 and -0 alike).
+fn key_bits(v: f64) -> u64 {
+    (v + 0.0).to_bits()
+}
+
 const BOM: &[u8] = b"\xEF\xBB\xBF";
 
 impl Dataset {
@@ -489,6 +513,8 @@ impl Dataset {
         }
         let opt: Vec<Option<usize>> = OPTIONAL.iter().map(|n| col(n)).collect();
         let mut samples = Vec::new();
+        // First line of each (separation, position, beacon, settings, sample index).
+        let mut seen: HashMap<[u64; 9], usize> = HashMap::new();
         while let Some(line) = next(&mut buf, &mut ends)? {
             let nf = ends.len();
             if nf < header.len() {
@@ -570,6 +596,29 @@ impl Dataset {
                 magnitude: opt_num(5)?,
                 line,
             };
+            if let Some(k) = s.sample {
+                let o = |v: Option<f64>| key_bits(v.unwrap_or(f64::NAN));
+                let key = [
+                    key_bits(s.separation_in),
+                    key_bits(s.r[0]),
+                    key_bits(s.r[1]),
+                    key_bits(s.r[2]),
+                    s.beacon.map_or(u64::MAX, u64::from),
+                    o(s.frequency_hz),
+                    o(s.power),
+                    o(s.sensitivity),
+                    u64::from(k),
+                ];
+                if let Some(&first) = seen.get(&key) {
+                    return Err(ReadError::DuplicateReport {
+                        path: p.clone(),
+                        line,
+                        first,
+                        sample: k,
+                    });
+                }
+                seen.insert(key, line);
+            }
             samples.push(s);
         }
         if samples.is_empty() {
@@ -1009,6 +1058,25 @@ mod tests {
         let mut f = format!("{H},note\n").into_bytes();
         f.extend_from_slice(b"20,0,0,20,1,2,M\xfcller\n");
         assert!(Dataset::from_reader(Path::new("m.csv"), &f[..]).is_ok());
+    }
+
+    #[test]
+    fn repeated_reports_are_refused_with_both_lines() {
+        let body = "20,0,0,20,1,2,3,0\n20,0,0,20,1,3,3,1\n";
+        let e = read(&format!("{H},beacon,sample\n{body}# again\n{body}"))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "m.csv:5: repeats the report of line 2 (same separation, beacon position, beacon, frequency, \
+             power, sensitivity and sample index 0): is (part of) the file in twice?"
+        );
+        // Another setting, another report; without sample indices rows are repeated samples.
+        assert!(read(&format!(
+            "{H},beacon,sample,power\n20,0,0,20,1,2,3,0,1\n20,0,0,20,1,2,3,0,2\n"
+        ))
+        .is_ok());
+        assert!(read(&format!("{H}\n20,0,0,20,1,2\n20,0,0,20,1,2\n")).is_ok());
     }
 
     #[test]
