@@ -124,10 +124,22 @@ impl Effect {
             }
             "beacon_tilt" => {
                 let v = nums(1, 2)?;
+                if !(v[0].abs() < 90.0) {
+                    return Err(format!(
+                        "effect `beacon_tilt`: the tilt T = {} deg must be under 90 deg in size \
+                         (at 90 deg the LEDs face sideways and light no cell)",
+                        v[0]
+                    ));
+                }
                 Effect::BeaconTilt(v[0], v.get(1).copied().unwrap_or(0.0))
             }
             "cell_gain" => {
                 let v = nums(1, 2)?;
+                if let Some(g) = v.iter().find(|g| !(**g > -1.0)) {
+                    return Err(format!(
+                        "effect `cell_gain`: {g} must be > -1 (the cell's gain is 1 + G, which must stay positive)"
+                    ));
+                }
                 Effect::CellGain(v[0], v.get(1).copied().unwrap_or(0.0))
             }
             "cell_bias" => {
@@ -136,6 +148,11 @@ impl Effect {
             }
             "face_angle" => {
                 let v = nums(1, 2)?;
+                if let Some(d) = v.iter().find(|d| !(**d > -30.0 && **d < 60.0)) {
+                    return Err(format!(
+                        "effect `face_angle`: {d} must be in (-30, 60) deg (the face angle 30 + D must be in (0, 90) deg)"
+                    ));
+                }
                 Effect::FaceAngle(v[0], v.get(1).copied().unwrap_or(0.0))
             }
             "saturation" => {
@@ -147,7 +164,15 @@ impl Effect {
             }
             "plate_offset" => Effect::PlateOffset(nonneg(name, nums(1, 1)?[0])?),
             "separation_error" => Effect::SeparationError(nonneg(name, nums(1, 1)?[0])?),
-            "crosstalk" => Effect::Crosstalk(nums(1, 1)?[0]),
+            "crosstalk" => {
+                let k = nums(1, 1)?[0];
+                if !(0.0..1.0).contains(&k) {
+                    return Err(format!(
+                        "effect `crosstalk`: K = {k} must be in [0, 1) (a cell picks up a fraction K of the other pair's signal)"
+                    ));
+                }
+                Effect::Crosstalk(k)
+            }
             other => {
                 return Err(format!(
                     "unknown effect `{other}`; known: {}, crosstalk (simulation only)",
@@ -279,5 +304,34 @@ mod tests {
             .unwrap_err()
             .contains("(0, 90)"));
         assert!(Effect::parse("saturation=-1").is_err());
+    }
+
+    #[test]
+    fn effect_parameters_outside_the_physics_are_refused() {
+        // These simulated nothing at all (every beacon outside the field of view).
+        for (s, why) in [
+            ("beacon_tilt=180", "under 90 deg"),
+            ("beacon_tilt=-90,45", "under 90 deg"),
+            ("crosstalk=-1", "[0, 1)"),
+            ("crosstalk=1", "[0, 1)"),
+            ("cell_gain=0,-1", "> -1"),
+            ("face_angle=60", "(-30, 60)"),
+            ("face_angle=0,-30", "(-30, 60)"),
+        ] {
+            let e = Effect::parse(s).unwrap_err();
+            let name = s.split('=').next().unwrap();
+            assert!(
+                e.contains(&format!("effect `{name}`")) && e.contains(why),
+                "{s}: {e}"
+            );
+        }
+        for s in [
+            "beacon_tilt=89,10",
+            "crosstalk=0",
+            "cell_gain=-0.5",
+            "face_angle=-29,59",
+        ] {
+            assert!(Effect::parse(s).is_ok(), "{s}");
+        }
     }
 }
