@@ -216,6 +216,31 @@ impl Effect {
     }
 }
 
+/// Refuse an effect named twice: only one value of each can be simulated, and the truth
+/// must say which.
+pub fn check_unique(effects: &[Effect]) -> Result<(), String> {
+    for (i, e) in effects.iter().enumerate() {
+        if let Some(first) = effects[..i].iter().find(|f| f.name() == e.name()) {
+            return Err(format!(
+                "effect `{}` given twice (`{first}` and `{e}`): give each effect once",
+                e.name()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Parse a list of `NAME=VALUE` effects (the repeatable `--effect`), refusing an effect
+/// named twice.
+pub fn parse_all<S: AsRef<str>>(specs: &[S]) -> Result<Vec<Effect>, String> {
+    let v = specs
+        .iter()
+        .map(|s| Effect::parse(s.as_ref()))
+        .collect::<Result<Vec<_>, _>>()?;
+    check_unique(&v)?;
+    Ok(v)
+}
+
 fn nonneg(name: &str, v: f64) -> Result<f64, String> {
     if v < 0.0 {
         Err(format!("effect `{name}`: SIGMA must be >= 0 in"))
@@ -333,5 +358,17 @@ mod tests {
         ] {
             assert!(Effect::parse(s).is_ok(), "{s}");
         }
+    }
+
+    #[test]
+    fn an_effect_named_twice_is_refused() {
+        let e = parse_all(&["cell_gain=0.1", "intensity", "cell_gain=0.2"]).unwrap_err();
+        assert!(e.contains("effect `cell_gain` given twice"), "{e}");
+        assert!(
+            e.contains("cell_gain=0.1,0") && e.contains("cell_gain=0.2,0"),
+            "{e}"
+        );
+        assert_eq!(parse_all(&["cell_gain=0.1", "intensity"]).unwrap().len(), 2);
+        assert!(check_unique(&[Effect::Intensity(true), Effect::Intensity(false)]).is_err());
     }
 }
