@@ -1,8 +1,8 @@
 //! Emulated CTA data (thesis Ch V "Emulate NorthStar sensor output"), with the effect
 //! vocabulary injectable, and the truth written to a sidecar manifest.
 
-use crate::effects::Effect;
-use crate::measurement::{Dataset, Sample};
+use crate::effects::{self, Effect};
+use crate::measurement::{Dataset, Sample, MAX_SEPARATIONS};
 use cta_core::emulator::{grid_position, saturate_i16, Effects, Emulator, Head, Pose};
 use cta_core::pattern::Pattern;
 use cta_core::real::deg;
@@ -12,6 +12,13 @@ use rand::{Rng, SeedableRng};
 use rand_distr::Normal;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+
+/// The most samples per point: the same cap as a sweep plan's `samples`.
+pub const MAX_SAMPLES: usize = 100_000;
+
+/// The most reports one simulation writes (separations x beacons x samples): about 1.4 GB
+/// in memory and 0.6 GB of CSV; ten times `cargo bench --bench analyze_1m`.
+pub const MAX_REPORTS: usize = 10_000_000;
 
 /// What to simulate.
 #[derive(Debug, Clone)]
@@ -175,7 +182,82 @@ impl SimConfig {
         Physics { emulator, geometry }
     }
 
-    /// Run the simulation: the dataset and its truth.
+    /// Check a configuration before running it: separations, grid, samples, noise, the
+    /// total number of reports and repeated effects. Errors say which limit and why.
+    pub fn check(&self) -> Result<(), String> {
+        if self.separations.is_empty() {
+            return Err("no separations given".into());
+        }
+        if self.separations.len() > MAX_SEPARATIONS {
+            return Err(format!(
+                "{} separations, more than the {MAX_SEPARATIONS} allowed",
+                self.separations.len()
+            ));
+        }
+        if let Some(s) = self
+            .separations
+            .iter()
+            .find(|s| !(s.is_finite() && **s > 0.0))
+        {
+            return Err(format!(
+                "separation {s} in must be a positive, finite number of inches"
+            ));
+        }
+        let beacons = self.grid.0.saturating_mul(self.grid.1);
+        let max_beacons = crate::measurement::MAX_BEACON_ID as usize + 1;
+        if beacons == 0 || beacons > max_beacons {
+            return Err(format!(
+                "grid {}x{}: between 1x1 and {max_beacons} beacons",
+                self.grid.0, self.grid.1
+            ));
+        }
+        if !(self.pitch.is_finite() && self.pitch > 0.0) {
+            return Err(format!("grid pitch {} in must be > 0", self.pitch));
+        }
+        if !(1..=MAX_SAMPLES).contains(&self.samples) {
+            return Err(format!(
+                "{} samples per point: between 1 and {MAX_SAMPLES} (as in a sweep plan)",
+                self.samples
+            ));
+        }
+        if !(self.noise.is_finite() && self.noise >= 0.0) {
+            return Err(format!("noise {} counts must be >= 0", self.noise));
+        }
+        let reports = (self.separations.len() as u128) * (beacons as u128) * (self.samples as u128);
+        if reports > MAX_REPORTS as u128 {
+            return Err(format!(
+                "{} separations x {beacons} beacons x {} samples = {reports} reports, more than the \
+                 {MAX_REPORTS} one simulation writes: fewer separations, beacons or samples",
+                self.separations.len(),
+                self.samples
+            ));
+        }
+        effects::check_unique(&self.effects)
+    }
+
+    /// Check the configuration ([`SimConfig::check`]), run it, and refuse a result without
+    /// a single report (every beacon outside the field of view or without signal): what
+    /// `cta simulate` uses.
+    pub fn try_run(&self) -> Result<(Dataset, Truth), String> {
+        self.check()?;
+        let (ds, truth) = self.run();
+        if ds.samples.is_empty() {
+            return Err(format!(
+                "nothing to write: all {} beacon positions ({} separation(s) x {} beacons) are outside \
+                 the field of view or give no signal (separations {} in; effects [{}]); choose \
+                 separations and effects under which the sensor sees the beacons",
+                truth.skipped_points,
+                self.separations.len(),
+                self.grid.0 * self.grid.1,
+                span(&self.separations),
+                truth.effects.join(" ")
+            ));
+        }
+        Ok((ds, truth))
+    }
+
+    /// Run the simulation: the dataset and its truth. Unchecked: for user input, use
+    /// [`SimConfig::try_run`].
     pub fn run(&self) -> (Dataset, Truth) {
         let phys = self.physics();
         let em = &phys.emulator;
@@ -183,7 +265,13 @@ impl SimConfig {
         let noise = Normal::new(0.0, self.noise.max(0.0)).unwrap();
         let round = self.round || self.noise > 0.0;
         let n = self.grid.0 * self.grid.1;
-        let mut samples = Vec::with_capacity(self.separations.len() * n * self.samples);
+        let mut samples = Vec::with_capacity(
+            self.separations
+                .len()
+                .saturating_mul(n)
+                .saturating_mul(self.samples)
+                .min(MAX_REPORTS),
+        );
         let mut skipped = 0;
         for (k, &sep) in self.separations.iter().enumerate() {
             let (off, err) = phys.geometry[k];
@@ -249,6 +337,25 @@ impl SimConfig {
             },
             truth,
         )
+    }
+}
+
+/// The separations for a message: the list when short, else its span; numbers far from
+/// inches in exponent form.
+fn span(seps: &[f64]) -> String {
+    let f = |v: f64| {
+        if v != 0.0 && !(1e-3..1e6).contains(&v.abs()) {
+            format!("{v:e}")
+        } else {
+            format!("{v}")
+        }
+    };
+    if seps.len() <= 8 {
+        seps.iter().map(|&v| f(v)).collect::<Vec<_>>().join(", ")
+    } else {
+        let lo = seps.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = seps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        format!("{} from {} to {}", seps.len(), f(lo), f(hi))
     }
 }
 
@@ -337,6 +444,59 @@ mod tests {
         assert!(parse_grid("100x100").unwrap_err().contains("400 beacons"));
         assert!(parse_grid("21x20").is_err());
         assert!(parse_grid("0x5").is_err());
+    }
+
+    #[test]
+    fn huge_sample_counts_are_refused_before_allocating() {
+        // `--samples 100000000` used to abort on a 1.36 TB allocation.
+        let cfg = SimConfig {
+            samples: 100_000_000,
+            ..Default::default()
+        };
+        let e = cfg.try_run().unwrap_err();
+        assert!(e.contains("between 1 and 100000"), "{e}");
+        let cfg = SimConfig {
+            samples: 0,
+            ..Default::default()
+        };
+        assert!(cfg.try_run().is_err());
+        // Within the per-point cap but too many reports in all.
+        let cfg = SimConfig {
+            samples: MAX_SAMPLES,
+            ..Default::default()
+        };
+        let e = cfg.try_run().unwrap_err();
+        assert!(
+            e.contains("29 separations x 100 beacons x 100000 samples"),
+            "{e}"
+        );
+        assert!(e.contains("more than the 10000000"), "{e}");
+    }
+
+    #[test]
+    fn nothing_simulated_is_an_error() {
+        // `--separations 1e300`: the signal underflows; 0 reports used to exit 0.
+        let cfg = SimConfig {
+            separations: vec![1e300],
+            ..Default::default()
+        };
+        assert!(cfg.run().0.samples.is_empty());
+        let e = cfg.try_run().unwrap_err();
+        assert!(
+            e.contains("nothing to write: all 100 beacon positions"),
+            "{e}"
+        );
+        assert!(e.contains("1e300"), "{e}");
+    }
+
+    #[test]
+    fn repeated_effects_are_refused() {
+        let cfg = SimConfig {
+            separations: vec![20.0],
+            effects: vec![Effect::CellGain(0.1, 0.0), Effect::CellGain(0.2, 0.0)],
+            ..Default::default()
+        };
+        assert!(cfg.try_run().unwrap_err().contains("given twice"));
     }
 
     #[test]
