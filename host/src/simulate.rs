@@ -11,6 +11,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::Normal;
 use serde::{Deserialize, Serialize};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The most samples per point: the same cap as a sweep plan's `samples`.
@@ -359,6 +360,67 @@ fn span(seps: &[f64]) -> String {
     }
 }
 
+/// Write a simulation to `out` (CSV) and its truth to `FILE.truth.json`, each through a
+/// `.partial` file renamed into place only when complete. On any error both partial files
+/// are removed and the error names the path. Returns the truth path.
+pub fn write_files(out: &Path, ds: &Dataset, truth: &Truth) -> Result<PathBuf, String> {
+    if out.is_dir() {
+        return Err(format!(
+            "{}: is a directory; give a file name, e.g. {}",
+            out.display(),
+            out.join("sim.csv").display()
+        ));
+    }
+    let tp = Truth::path_for(out);
+    let tmp = out.with_extension("csv.partial");
+    let tmp_truth = tp.with_extension("json.partial");
+    let comments = vec![
+        format!("{} ; truth in {}", truth.generator, tp.display()),
+        format!(
+            "physics {} ; beacon {} ; effects [{}]",
+            truth.physics,
+            truth.pattern,
+            truth.effects.join(" ")
+        ),
+    ];
+    let write_csv = || -> std::io::Result<()> {
+        let mut w = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        ds.write(&mut w, &comments)?;
+        w.flush()?;
+        w.into_inner().map_err(|e| e.into_error())?.sync_all()
+    };
+    let json = serde_json::to_string_pretty(truth).map_err(|e| format!("{}: {e}", tp.display()))?;
+    let result = write_csv()
+        .map_err(|e| {
+            format!(
+                "cannot write {} (via {}): {e}",
+                out.display(),
+                tmp.display()
+            )
+        })
+        .and_then(|()| {
+            std::fs::write(&tmp_truth, json).map_err(|e| {
+                format!(
+                    "cannot write {} (via {}): {e}",
+                    tp.display(),
+                    tmp_truth.display()
+                )
+            })
+        })
+        .and_then(|()| {
+            std::fs::rename(&tmp_truth, &tp)
+                .map_err(|e| format!("cannot write {}: {e}", tp.display()))
+        })
+        .and_then(|()| {
+            std::fs::rename(&tmp, out).map_err(|e| format!("cannot write {}: {e}", out.display()))
+        });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+        let _ = std::fs::remove_file(&tmp_truth);
+    }
+    result.map(|()| tp)
+}
+
 /// Beacon `i` of a `cols x rows` grid at `pitch`, centred on the N origin, plate at `z = sep`.
 pub fn grid_position_xy(grid: (usize, usize), pitch: f64, sep: f64, i: usize) -> Vector3<f64> {
     if grid.0 == grid.1 {
@@ -446,6 +508,13 @@ mod tests {
         assert!(parse_grid("0x5").is_err());
     }
 
+    fn tmpdir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("cta-simulate-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
     #[test]
     fn huge_sample_counts_are_refused_before_allocating() {
         // `--samples 100000000` used to abort on a 1.36 TB allocation.
@@ -497,6 +566,51 @@ mod tests {
             ..Default::default()
         };
         assert!(cfg.try_run().unwrap_err().contains("given twice"));
+    }
+
+    #[test]
+    fn write_files_leaves_no_partial_file_behind() {
+        let d = tmpdir("write");
+        let cfg = SimConfig {
+            separations: vec![20.0],
+            ..Default::default()
+        };
+        let (ds, truth) = cfg.try_run().unwrap();
+        let partials = |d: &Path| {
+            std::fs::read_dir(d)
+                .unwrap()
+                .filter(|e| {
+                    e.as_ref()
+                        .unwrap()
+                        .path()
+                        .to_string_lossy()
+                        .ends_with(".partial")
+                })
+                .count()
+        };
+        // --out is a directory.
+        let e = write_files(&d, &ds, &truth).unwrap_err();
+        assert!(
+            e.contains(&d.display().to_string()) && e.contains("is a directory"),
+            "{e}"
+        );
+        // The truth cannot be put in place: both partial files are removed.
+        let out = d.join("x.csv");
+        std::fs::create_dir_all(d.join("x.truth.json").join("sub")).unwrap();
+        let e = write_files(&out, &ds, &truth).unwrap_err();
+        assert!(e.contains("x.truth.json"), "{e}");
+        assert_eq!(partials(&d), 0);
+        assert!(!out.exists());
+        // A directory that does not exist.
+        let e = write_files(&d.join("no").join("y.csv"), &ds, &truth).unwrap_err();
+        assert!(e.contains("y.csv"), "{e}");
+        // Success: both files, readable, no partial.
+        let tp = write_files(&d.join("ok.csv"), &ds, &truth).unwrap();
+        assert_eq!(partials(&d), 0);
+        assert_eq!(Dataset::read(&d.join("ok.csv")).unwrap().samples.len(), 100);
+        assert!(Truth::load_for(&d.join("ok.csv")).unwrap().is_ok());
+        assert_eq!(tp, d.join("ok.truth.json"));
+        std::fs::remove_dir_all(&d).ok();
     }
 
     #[test]
