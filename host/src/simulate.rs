@@ -124,6 +124,21 @@ impl Truth {
         )
     }
 
+    /// The sidecar of `csv` for `cta fit`, which can do without it: an unreadable sidecar
+    /// gives a warning (naming the file and the parse error) instead of an error.
+    pub fn load_for_fit(csv: &Path) -> (Option<Truth>, Option<String>) {
+        match Self::load_for(csv) {
+            None => (None, None),
+            Some(Ok(t)) => (Some(t), None),
+            Some(Err(e)) => (
+                None,
+                Some(format!(
+                    "{e} (unreadable truth sidecar: the fit is not compared with the truth)"
+                )),
+            ),
+        }
+    }
+
     /// The true pose.
     pub fn pose(&self) -> Pose<f64> {
         Pose {
@@ -610,6 +625,22 @@ mod tests {
         assert_eq!(Dataset::read(&d.join("ok.csv")).unwrap().samples.len(), 100);
         assert!(Truth::load_for(&d.join("ok.csv")).unwrap().is_ok());
         assert_eq!(tp, d.join("ok.truth.json"));
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
+    fn fit_warns_about_a_corrupt_truth_sidecar() {
+        let d = tmpdir("truth");
+        let csv = d.join("m.csv");
+        assert!(matches!(Truth::load_for_fit(&csv), (None, None)));
+        std::fs::write(d.join("m.truth.json"), "{ not json").unwrap();
+        let (t, w) = Truth::load_for_fit(&csv);
+        assert!(t.is_none());
+        let w = w.unwrap();
+        assert!(
+            w.contains("m.truth.json") && w.contains("key must be a string"),
+            "{w}"
+        );
         std::fs::remove_dir_all(&d).ok();
     }
 
