@@ -22,6 +22,13 @@ pub enum Weights {
     Repeat,
 }
 
+/// The model a saved fit holds (`FitReport::model`); a fit file naming another is refused.
+pub const MODEL: &str = "pinhole (eq 65, 7 parameters)";
+
+/// The largest scale height `H` a saved fit may hold, counts (the NorthStar's is 18918.6;
+/// this is a face angle of about 88 deg).
+pub const MAX_H: f64 = 1e6;
+
 /// A saved fit (`cta fit --save`).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct FitReport {
@@ -66,14 +73,72 @@ impl FitReport {
         let s = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let r: FitReport = serde_json::from_str(&s)
             .map_err(|e| format!("{}: not a CTA fit file: {e}", path.display()))?;
-        if NAMES.iter().any(|n| !r.params.contains_key(*n)) {
+        r.validate()
+            .map_err(|e| format!("{}: not a valid CTA fit: {e}", path.display()))?;
+        Ok(r)
+    }
+
+    /// Check a loaded fit: the model, every parameter and sigma present and finite, `H` in
+    /// (0, [`MAX_H`]] counts, a 7 x 7 finite covariance, positive separations. Errors
+    /// name the field.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.model != MODEL {
             return Err(format!(
-                "{}: fit file lacks one of {}",
-                path.display(),
-                NAMES.join(", ")
+                "field `model`: `{}` is not the model `cta` fits (`{MODEL}`)",
+                self.model
             ));
         }
-        Ok(r)
+        for n in NAMES {
+            let v = *self.params.get(n).ok_or_else(|| {
+                format!("field `params` lacks `{n}` (it needs {})", NAMES.join(", "))
+            })?;
+            if !v.is_finite() {
+                return Err(format!("field `params.{n}`: {v} is not a finite number"));
+            }
+            let s = *self
+                .sigma
+                .get(n)
+                .ok_or_else(|| format!("field `sigma` lacks `{n}`"))?;
+            if !(s.is_finite() && s >= 0.0) {
+                return Err(format!(
+                    "field `sigma.{n}`: {s} is not a finite number >= 0"
+                ));
+            }
+        }
+        let h = self.params["H"];
+        if !(h > 0.0 && h <= MAX_H) {
+            return Err(format!(
+                "field `params.H`: {h} is out of range (allowed: 0 < H <= {MAX_H:e} counts; \
+                 the NorthStar's is about 18918.6)"
+            ));
+        }
+        if self.covariance.len() != NAMES.len() * NAMES.len() {
+            return Err(format!(
+                "field `covariance`: {} entries, a 7 x 7 matrix has 49",
+                self.covariance.len()
+            ));
+        }
+        if let Some(v) = self.covariance.iter().find(|v| !v.is_finite()) {
+            return Err(format!("field `covariance`: {v} is not a finite number"));
+        }
+        if self.separations.is_empty() {
+            return Err("field `separations` is empty".into());
+        }
+        if let Some(s) = self
+            .separations
+            .iter()
+            .find(|s| !(s.is_finite() && **s > 0.0))
+        {
+            return Err(format!(
+                "field `separations`: {s} in is not a positive separation"
+            ));
+        }
+        for (name, v) in [("rms_counts", self.rms_counts), ("chi2_dof", self.chi2_dof)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("field `{name}`: {v} is not a finite number >= 0"));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -219,7 +284,7 @@ pub fn fit(ds: &Dataset, weights: Weights) -> Result<FitReport, String> {
             .collect()
     };
     Ok(FitReport {
-        model: "pinhole (eq 65, 7 parameters)".into(),
+        model: MODEL.into(),
         source: ds.path.display().to_string(),
         separations: seps,
         weights,
@@ -300,4 +365,94 @@ pub fn evaluate(x: &Params<f64>, ds: &Dataset, d_ref: Option<Vector3<f64>>) -> E
         ev.reports.push(rows.len());
     }
     ev
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report() -> FitReport {
+        let vals = [0.6, 0.1, 0.06, 0.001, 0.002, 0.001, 18918.6];
+        let map = |f: &dyn Fn(usize) -> f64| {
+            NAMES
+                .iter()
+                .enumerate()
+                .map(|(i, n)| (n.to_string(), f(i)))
+                .collect()
+        };
+        FitReport {
+            model: MODEL.into(),
+            source: "sim.csv".into(),
+            separations: vec![20.0, 25.0],
+            weights: Weights::None,
+            params: map(&|i| vals[i]),
+            sigma: map(&|_| 1e-3),
+            covariance: vec![1e-6; 49],
+            rms_counts: 1.0,
+            chi2_dof: 1.0,
+            iterations: 5,
+            condition: 1e3,
+            stop: "Converged".into(),
+            observations: 200,
+            warnings: Vec::new(),
+        }
+    }
+
+    /// Save `r` (as JSON, after `edit`) and load it back.
+    fn load_edited(name: &str, edit: impl Fn(&mut serde_json::Value)) -> Result<FitReport, String> {
+        let p = std::env::temp_dir().join(format!("cta-fit-{}-{name}.json", std::process::id()));
+        let mut v = serde_json::to_value(report()).unwrap();
+        edit(&mut v);
+        std::fs::write(&p, v.to_string()).unwrap();
+        let r = FitReport::load(&p);
+        std::fs::remove_file(&p).ok();
+        r
+    }
+
+    #[test]
+    fn saved_fits_are_validated_on_load() {
+        assert!(load_edited("ok", |_| {}).is_ok());
+        for (name, value, needle) in [
+            (
+                "h0",
+                serde_json::json!(0.0),
+                "field `params.H`: 0 is out of range",
+            ),
+            (
+                "hneg",
+                serde_json::json!(-5.0),
+                "field `params.H`: -5 is out of range",
+            ),
+            ("hbig", serde_json::json!(1e308), "field `params.H`"),
+        ] {
+            let e = load_edited(name, |v| v["params"]["H"] = value.clone()).unwrap_err();
+            assert!(
+                e.contains(&format!("cta-fit-{}-{name}.json", std::process::id())),
+                "{e}"
+            );
+            assert!(e.contains(needle), "{e}");
+        }
+        let e = load_edited("cov", |v| {
+            v["covariance"] = serde_json::json!([1.0, 0.0, 0.0, 0.0, 1.0])
+        })
+        .unwrap_err();
+        assert!(
+            e.contains("field `covariance`: 5 entries, a 7 x 7 matrix has 49"),
+            "{e}"
+        );
+        let e = load_edited("model", |v| {
+            v["model"] = serde_json::json!("near-field (analyze)")
+        })
+        .unwrap_err();
+        assert!(e.contains("field `model`: `near-field (analyze)`"), "{e}");
+        let e = load_edited("d1", |v| {
+            v["params"].as_object_mut().unwrap().remove("d1");
+        })
+        .unwrap_err();
+        assert!(e.contains("field `params` lacks `d1`"), "{e}");
+        let e = load_edited("sig", |v| v["sigma"]["p2"] = serde_json::json!(-1.0)).unwrap_err();
+        assert!(e.contains("field `sigma.p2`"), "{e}");
+        let e = load_edited("seps", |v| v["separations"] = serde_json::json!([])).unwrap_err();
+        assert!(e.contains("field `separations` is empty"), "{e}");
+    }
 }
