@@ -512,6 +512,7 @@ impl Dataset {
             })?;
         }
         let opt: Vec<Option<usize>> = OPTIONAL.iter().map(|n| col(n)).collect();
+        let domains: Vec<Domain> = header.iter().map(|h| domain(h)).collect();
         let mut samples = Vec::new();
         // First line of each (separation, position, beacon, settings, sample index).
         let mut seen: HashMap<[u64; 9], usize> = HashMap::new();
@@ -550,7 +551,7 @@ impl Dataset {
                     return Ok(None);
                 }
                 let v = s.parse::<f64>().ok().filter(|v| v.is_finite());
-                match (domain(&header[idx]), v) {
+                match (domains[idx], v) {
                     (Domain::Int { lo, hi, text }, v) => match v {
                         Some(v) if v.fract() == 0.0 && v >= lo && v <= hi => Ok(Some(v)),
                         _ => Err(bad(idx, s, Reason::NotInteger(text))),
