@@ -13,7 +13,6 @@ use cta_core::real::rad;
 use cta_core::uncertainty::{self, Item};
 use serde::Deserialize;
 use serde_json::json;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Beacon radiation profile choices.
@@ -582,25 +581,8 @@ pub fn sim_config(a: &SimulateArgs) -> Result<SimConfig> {
 pub fn simulate(a: &SimulateArgs) -> Result<()> {
     let cfg = sim_config(a)?;
     check_simulate_out(&a.out, a.force)?;
-    let (ds, truth) = cfg.run();
-    if ds.samples.is_empty() {
-        bail!(
-            "no reports to write: all {} points are outside the detector's field of view (separations {}; effects [{}]); nothing written to {}",
-            truth.skipped_points,
-            fmt_list(&cfg.separations),
-            truth.effects.join(" "),
-            a.out.display()
-        );
-    }
-    let tmp = a.out.with_extension("csv.partial");
-    let written = write_simulation(&tmp, &a.out, &ds, &truth);
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    written?;
-    let tp = Truth::path_for(&a.out);
-    std::fs::write(&tp, serde_json::to_string_pretty(&truth)?)
-        .with_context(|| format!("{}", tp.display()))?;
+    let (ds, truth) = cfg.try_run().map_err(|e| anyhow!("{e}"))?;
+    let tp = crate::simulate::write_files(&a.out, &ds, &truth).map_err(|e| anyhow!("{e}"))?;
     eprintln!(
         "wrote {} reports ({} separations x {} beacons x {} samples, {} points outside the field of view) to {} (truth: {})",
         ds.samples.len(),
@@ -641,31 +623,6 @@ fn check_simulate_out(out: &Path, force: bool) -> Result<()> {
         out.display(),
         first.trim().chars().take(80).collect::<String>()
     )
-}
-
-/// Write the data to `tmp`, then move it to `out`.
-fn write_simulation(tmp: &Path, out: &Path, ds: &Dataset, truth: &Truth) -> Result<()> {
-    {
-        let f = std::fs::File::create(tmp).with_context(|| format!("{}", tmp.display()))?;
-        let mut w = std::io::BufWriter::new(f);
-        let comments = vec![
-            format!(
-                "{} ; truth in {}",
-                truth.generator,
-                Truth::path_for(out).display()
-            ),
-            format!(
-                "physics {} ; beacon {} ; effects [{}]",
-                truth.physics,
-                truth.pattern,
-                truth.effects.join(" ")
-            ),
-        ];
-        ds.write(&mut w, &comments)
-            .with_context(|| format!("{}", tmp.display()))?;
-        w.flush().with_context(|| format!("{}", tmp.display()))?;
-    }
-    std::fs::rename(tmp, out).with_context(|| format!("{}", out.display()))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -758,7 +715,10 @@ pub fn fit_cmd(a: &FitArgs) -> Result<()> {
         fmt_list(&rep.separations),
         rep.weights
     );
-    let truth = Truth::load_for(&a.file).and_then(|t| t.ok());
+    let (truth, truth_warning) = Truth::load_for_fit(&a.file);
+    if let Some(w) = truth_warning {
+        eprintln!("warning: {w}");
+    }
     for n in cta_core::collinearity::NAMES {
         let t = truth.as_ref().map(|t| match n {
             "d1" => t.d[0],

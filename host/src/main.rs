@@ -87,6 +87,10 @@ fn main() {
     };
     if let Err(e) = r {
         eprintln!("cta: error: {e:#}");
-        std::process::exit(1);
+        // An interrupted sweep exits like a shell command stopped by Ctrl-C (130).
+        let code = e
+            .downcast_ref::<cta_host::sweep::Interrupted>()
+            .map_or(1, |_| cta_host::sweep::Interrupted::EXIT_CODE);
+        std::process::exit(code);
     }
 }
