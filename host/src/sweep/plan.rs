@@ -435,7 +435,13 @@ impl Plan {
             4,
             "a sensitivity setting",
         )?;
-        let samples = int("samples", &raw.samples, 1, 100_000, "a number of samples")? as u32;
+        let samples = int(
+            "samples",
+            &raw.samples,
+            1,
+            crate::simulate::MAX_SAMPLES as i64,
+            "a number of samples",
+        )? as u32;
         let opt = |key: &str, v: &Option<Spanned<i64>>, d: i64, lo: i64, hi: i64| match v {
             None => Ok(d),
             Some(v) => int(key, v, lo, hi, "allowed"),

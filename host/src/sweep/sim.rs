@@ -643,6 +643,7 @@ impl SimCta {
             .iter()
             .map(|s| Effect::parse(s).map_err(|e| anyhow::anyhow!("--sim-effect {s}: {e}")))
             .collect::<Result<Vec<_>>>()?;
+        crate::effects::check_unique(&effects).map_err(|e| anyhow::anyhow!("--sim-effect: {e}"))?;
         if !(settings.noise.is_finite() && settings.noise >= 0.0) {
             bail!(
                 "--sim-noise {}: must be a non-negative number of counts",
