@@ -55,12 +55,13 @@ pub enum BeaconCommand {
     Status,
     /// Set one LED: `off`, `on`, or table indices (`3`, or `0,5` for several at once).
     Set {
-        /// LED id, row * 10 + column (0..100).
+        /// LED id, row * 10 + column (0-99).
+        #[arg(value_parser = clap::value_parser!(u8).range(0..=LED_COUNT as i64 - 1))]
         led: u8,
         /// `off`, `on` or comma-separated table indices.
         mode: String,
     },
-    /// Set several LEDs atomically: `ID=MODE ...` (e.g. `12=3 13=on 14=off`).
+    /// Set several LEDs atomically: `ID=MODE ...` (e.g. `12=3 13=on 14=off`; ids 0-99).
     SetMany {
         /// `ID=MODE` pairs.
         #[arg(required = true)]

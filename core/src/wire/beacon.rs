@@ -68,7 +68,7 @@ impl LedMode {
 /// One LED and what it should do.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct LedSetting {
-    /// LED id, `row * 10 + column` (0..100).
+    /// LED id, `row * 10 + column` (0..=99).
     pub led: u8,
     /// New mode.
     pub mode: LedMode,
@@ -225,7 +225,7 @@ impl fmt::Display for BeaconError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             BeaconError::UnknownBeacon { id } => {
-                write!(f, "unknown beacon {id} (ids are 0..{})", LED_COUNT)
+                write!(f, "unknown beacon {id} (ids are 0..={})", LED_COUNT - 1)
             }
             BeaconError::FrequencyNotInTable { id, index, table_len } => write!(
                 f,
@@ -239,7 +239,7 @@ impl fmt::Display for BeaconError {
             }
             BeaconError::TooManyLit { requested, cap } => write!(
                 f,
-                "{requested} LEDs would be lit but the cap is {cap} (raise it with set-limits)"
+                "{requested} LEDs would be lit but the cap is {cap} (raise it with `cta beacon limits --max-lit N`)"
             ),
             BeaconError::FrequencyOutOfRange { index, mhz } => write!(
                 f,
