@@ -9,6 +9,7 @@
 //! cta beacon --port /dev/ttyUSB0 status
 //! cta beacon --port /dev/ttyUSB0 heartbeat --every-ms 2000   # keep LEDs lit (dead-man)
 //! cta beacon --port /dev/ttyUSB0 all-off
+//! cta beacon --port /dev/ttyUSB0 limits --deadman-ms 30000   # the cap stays as it is
 //! cta beacon pins                         # the pin map
 //! ```
 //!
@@ -30,29 +31,95 @@ use cta_firmware_beacon::sim::SimBoard;
 use crate::link::{open_serial, Link, LinkConfig};
 
 /// `cta beacon`: command the beacon board over its serial link.
+///
+/// The connection options go before the subcommand (`cta beacon --port P status`) or after
+/// it (`cta beacon status --port P`); `sim`, `pins` and `measure` talk to no board and
+/// refuse them.
 #[derive(Debug, Args)]
 pub struct BeaconArgs {
-    /// Serial port of the board (e.g. /dev/ttyUSB0, or the pty printed by `cta beacon sim`).
-    #[arg(long, global = true)]
-    pub port: Option<String>,
-    /// Reply timeout per attempt, ms.
-    #[arg(long, default_value_t = 500, global = true)]
-    pub timeout_ms: u64,
-    /// Resends after a timeout.
-    #[arg(long, default_value_t = 2, global = true)]
-    pub retries: u32,
+    /// How to reach the board.
+    #[command(flatten)]
+    pub conn: BeaconConn,
     /// What to do.
     #[command(subcommand)]
     pub command: BeaconCommand,
+}
+
+/// Reply timeout per attempt when `--timeout-ms` is not given, ms.
+pub const DEFAULT_TIMEOUT_MS: u64 = 500;
+/// Resends after a timeout when `--retries` is not given.
+pub const DEFAULT_RETRIES: u32 = 2;
+
+/// The connection options of the subcommands that talk to the board.
+#[derive(Debug, Clone, Default, Args)]
+pub struct BeaconConn {
+    /// Serial port of the board (e.g. /dev/ttyUSB0, or the pty printed by `cta beacon sim`).
+    #[arg(long, value_name = "PATH")]
+    pub port: Option<String>,
+    /// Reply timeout per attempt, ms (1 or more) [default: 500].
+    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..))]
+    pub timeout_ms: Option<u64>,
+    /// Resends after a timeout [default: 2].
+    #[arg(long, value_name = "N")]
+    pub retries: Option<u32>,
+}
+
+impl BeaconConn {
+    /// The options given, as they would be written (for the error of a subcommand that
+    /// takes none).
+    fn given(&self) -> Vec<&'static str> {
+        let mut v = Vec::new();
+        if self.port.is_some() {
+            v.push("--port");
+        }
+        if self.timeout_ms.is_some() {
+            v.push("--timeout-ms");
+        }
+        if self.retries.is_some() {
+            v.push("--retries");
+        }
+        v
+    }
+
+    /// These options (given before the subcommand) with those given after it; an option
+    /// given in both places is refused.
+    fn merge(&self, after: &BeaconConn) -> Result<BeaconConn> {
+        Ok(BeaconConn {
+            port: one_of("--port", &self.port, &after.port)?,
+            timeout_ms: one_of("--timeout-ms", &self.timeout_ms, &after.timeout_ms)?,
+            retries: one_of("--retries", &self.retries, &after.retries)?,
+        })
+    }
+}
+
+/// The value of an option that may stand before or after the subcommand, not both.
+pub(crate) fn one_of<T: Clone>(
+    name: &str,
+    before: &Option<T>,
+    after: &Option<T>,
+) -> Result<Option<T>> {
+    match (before, after) {
+        (Some(_), Some(_)) => {
+            bail!("{name} is given both before and after the subcommand: give it once")
+        }
+        (Some(v), None) | (None, Some(v)) => Ok(Some(v.clone())),
+        (None, None) => Ok(None),
+    }
 }
 
 /// `cta beacon` subcommands.
 #[derive(Debug, Subcommand)]
 pub enum BeaconCommand {
     /// Which board answers, its firmware and protocol version.
-    Identify,
+    Identify {
+        #[command(flatten)]
+        conn: BeaconConn,
+    },
     /// Lit LEDs, limits, uptime, link counters.
-    Status,
+    Status {
+        #[command(flatten)]
+        conn: BeaconConn,
+    },
     /// Set one LED: `off`, `on`, or table indices (`3`, or `0,5` for several at once).
     Set {
         /// LED id, row * 10 + column (0-99).
@@ -60,31 +127,48 @@ pub enum BeaconCommand {
         led: u8,
         /// `off`, `on` or comma-separated table indices.
         mode: String,
+        #[command(flatten)]
+        conn: BeaconConn,
     },
     /// Set several LEDs atomically: `ID=MODE ...` (e.g. `12=3 13=on 14=off`; ids 0-99).
     SetMany {
         /// `ID=MODE` pairs.
         #[arg(required = true)]
         settings: Vec<String>,
+        #[command(flatten)]
+        conn: BeaconConn,
     },
     /// Every LED off.
-    AllOff,
+    AllOff {
+        #[command(flatten)]
+        conn: BeaconConn,
+    },
     /// Show the frequency table, or replace it (`--set 3040,2010,...` in Hz; all LEDs go off).
     Table {
         /// New table, comma-separated frequencies in Hz.
         #[arg(long, value_delimiter = ',')]
         set: Option<Vec<f64>>,
+        #[command(flatten)]
+        conn: BeaconConn,
     },
     /// The mode of every LED.
-    Leds,
-    /// Change the safety limits.
+    Leds {
+        #[command(flatten)]
+        conn: BeaconConn,
+    },
+    /// Change the safety limits: the LED cap, the dead-man timeout or both (the one not
+    /// given keeps the board's current value).
+    #[command(group(clap::ArgGroup::new("limit").required(true).multiple(true).args(["max_lit", "deadman_ms"])))]
     Limits {
         /// Most LEDs lit at once (1..=100).
         #[arg(long)]
-        max_lit: u8,
-        /// Dead-man timeout, ms (all LEDs off after this long without a valid frame).
-        #[arg(long, default_value_t = 10_000)]
-        deadman_ms: u32,
+        max_lit: Option<u8>,
+        /// Dead-man timeout, ms (all LEDs off after this long without a valid frame;
+        /// 100..=3600000).
+        #[arg(long)]
+        deadman_ms: Option<u32>,
+        #[command(flatten)]
+        conn: BeaconConn,
     },
     /// Send heartbeats (once, or every `--every-ms` until Ctrl-C / `--count`).
     Heartbeat {
@@ -94,6 +178,8 @@ pub enum BeaconCommand {
         /// Stop after this many heartbeats (0: never, with --every-ms).
         #[arg(long, default_value_t = 0)]
         count: u64,
+        #[command(flatten)]
+        conn: BeaconConn,
     },
     /// Run the simulated beacon board on a pseudo-terminal and print its path.
     Sim {
@@ -160,33 +246,74 @@ fn mode_text(m: LedMode) -> String {
     }
 }
 
+impl BeaconCommand {
+    /// The connection options given after the subcommand; `None` for the subcommands that
+    /// talk to no board.
+    fn conn(&self) -> Option<&BeaconConn> {
+        match self {
+            BeaconCommand::Identify { conn }
+            | BeaconCommand::Status { conn }
+            | BeaconCommand::Set { conn, .. }
+            | BeaconCommand::SetMany { conn, .. }
+            | BeaconCommand::AllOff { conn }
+            | BeaconCommand::Table { conn, .. }
+            | BeaconCommand::Leds { conn }
+            | BeaconCommand::Limits { conn, .. }
+            | BeaconCommand::Heartbeat { conn, .. } => Some(conn),
+            BeaconCommand::Sim { .. } | BeaconCommand::Pins | BeaconCommand::Measure { .. } => None,
+        }
+    }
+
+    /// The name on the command line of a subcommand that talks to no board.
+    fn name(&self) -> &'static str {
+        match self {
+            BeaconCommand::Sim { .. } => "sim",
+            BeaconCommand::Pins => "pins",
+            BeaconCommand::Measure { .. } => "measure",
+            _ => "",
+        }
+    }
+}
+
 /// Run `cta beacon`.
 pub fn run(args: &BeaconArgs) -> Result<()> {
-    match &args.command {
-        BeaconCommand::Sim { seconds } => return run_sim(*seconds),
-        BeaconCommand::Pins => {
-            print_pins();
-            return Ok(());
+    let Some(after) = args.command.conn() else {
+        let given = args.conn.given();
+        if !given.is_empty() {
+            bail!(
+                "{} {} nothing for `cta beacon {}`: it talks to no board",
+                given.join(", "),
+                if given.len() == 1 { "means" } else { "mean" },
+                args.command.name()
+            );
         }
-        BeaconCommand::Measure { seconds } => return measure(*seconds),
-        _ => {}
-    }
-    let path = args.port.as_deref().context(
+        return match &args.command {
+            BeaconCommand::Sim { seconds } => run_sim(*seconds),
+            BeaconCommand::Pins => {
+                print_pins();
+                Ok(())
+            }
+            BeaconCommand::Measure { seconds } => measure(*seconds),
+            _ => unreachable!("every board command has connection options"),
+        };
+    };
+    let conn = args.conn.merge(after)?;
+    let path = conn.port.as_deref().context(
         "--port PATH is required (the board's serial port, or the pty of `cta beacon sim`)",
     )?;
     let port = open_serial(path)?;
     let mut link = Link::<Beacon, _>::new(
         port,
         LinkConfig {
-            timeout: Duration::from_millis(args.timeout_ms),
-            retries: args.retries,
+            timeout: Duration::from_millis(conn.timeout_ms.unwrap_or(DEFAULT_TIMEOUT_MS)),
+            retries: conn.retries.unwrap_or(DEFAULT_RETRIES),
         },
     );
     let id = link
         .check_board()
         .with_context(|| format!("identifying the board on {path}"))?;
     match &args.command {
-        BeaconCommand::Identify => println!(
+        BeaconCommand::Identify { .. } => println!(
             "{} board, firmware {}, protocol {}{}, max frame {} bytes",
             id.board,
             id.firmware,
@@ -194,7 +321,7 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
             if id.simulated { " (simulated)" } else { "" },
             id.max_frame
         ),
-        BeaconCommand::Status => match link.call(BeaconRequest::Status)? {
+        BeaconCommand::Status { .. } => match link.call(BeaconRequest::Status)? {
             Some(BeaconResponse::Status(s)) => {
                 println!("uptime          {:.1} s", s.uptime_ms as f64 / 1000.0);
                 println!("lit LEDs        {} (cap {})", s.lit, s.limits.max_lit);
@@ -223,7 +350,7 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
             }
             other => bail!("unexpected reply to Status: {other:?}"),
         },
-        BeaconCommand::Set { led, mode } => {
+        BeaconCommand::Set { led, mode, .. } => {
             let setting = LedSetting {
                 led: *led,
                 mode: parse_mode(mode)?,
@@ -231,7 +358,7 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
             link.call(BeaconRequest::Set(setting))?;
             println!("LED {led}: {}", mode_text(setting.mode));
         }
-        BeaconCommand::SetMany { settings } => {
+        BeaconCommand::SetMany { settings, .. } => {
             let mut v = heapless::Vec::new();
             for s in settings {
                 v.push(parse_setting(s)?)
@@ -241,11 +368,11 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
             link.call(BeaconRequest::SetMany(v))?;
             println!("{n} LED(s) set");
         }
-        BeaconCommand::AllOff => {
+        BeaconCommand::AllOff { .. } => {
             link.call(BeaconRequest::AllOff)?;
             println!("all LEDs off");
         }
-        BeaconCommand::Table { set } => {
+        BeaconCommand::Table { set, .. } => {
             if let Some(hz) = set {
                 let mut v = heapless::Vec::new();
                 for &f in hz {
@@ -267,7 +394,7 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
                 other => bail!("unexpected reply to GetTable: {other:?}"),
             }
         }
-        BeaconCommand::Leds => match link.call(BeaconRequest::GetLeds)? {
+        BeaconCommand::Leds { .. } => match link.call(BeaconRequest::GetLeds)? {
             Some(BeaconResponse::Leds(modes)) => {
                 for (i, m) in modes.iter().enumerate() {
                     if m.is_lit() {
@@ -282,14 +409,26 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
         BeaconCommand::Limits {
             max_lit,
             deadman_ms,
+            ..
         } => {
-            link.call(BeaconRequest::SetLimits(Limits {
-                max_lit: *max_lit,
-                deadman_ms: *deadman_ms,
-            }))?;
-            println!("cap {max_lit} LEDs, dead-man {deadman_ms} ms");
+            // The one not given keeps the board's value.
+            let current = match link.call(BeaconRequest::Status)? {
+                Some(BeaconResponse::Status(s)) => s.limits,
+                other => bail!("unexpected reply to Status: {other:?}"),
+            };
+            let limits = Limits {
+                max_lit: max_lit.unwrap_or(current.max_lit),
+                deadman_ms: deadman_ms.unwrap_or(current.deadman_ms),
+            };
+            link.call(BeaconRequest::SetLimits(limits))?;
+            println!(
+                "cap {} LEDs, dead-man {} ms",
+                limits.max_lit, limits.deadman_ms
+            );
         }
-        BeaconCommand::Heartbeat { every_ms, count } => {
+        BeaconCommand::Heartbeat {
+            every_ms, count, ..
+        } => {
             let mut sent = 0u64;
             loop {
                 link.heartbeat()?;

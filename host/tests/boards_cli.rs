@@ -80,6 +80,43 @@ impl Drop for Sim {
 }
 
 #[test]
+fn beacon_limits_keep_the_value_not_given() {
+    let sim = Sim::start(&["beacon", "sim"]);
+    let p = sim.path.as_str();
+    let out = ok(&cta(&[
+        "beacon",
+        "--port",
+        p,
+        "limits",
+        "--max-lit",
+        "40",
+        "--deadman-ms",
+        "30000",
+    ]));
+    assert!(out.contains("cap 40 LEDs, dead-man 30000 ms"), "{out}");
+    // Only the cap: the dead-man stays at 30 s (it used to fall back to 10 s).
+    let out = ok(&cta(&["beacon", "--port", p, "limits", "--max-lit", "3"]));
+    assert!(out.contains("cap 3 LEDs, dead-man 30000 ms"), "{out}");
+    // Only the dead-man (the cap used to be required).
+    let out = ok(&cta(&[
+        "beacon",
+        "--port",
+        p,
+        "limits",
+        "--deadman-ms",
+        "20000",
+    ]));
+    assert!(out.contains("cap 3 LEDs, dead-man 20000 ms"), "{out}");
+    let out = ok(&cta(&["beacon", "--port", p, "status"]));
+    assert!(out.contains("(cap 3)") && out.contains("20000 ms"), "{out}");
+    // Neither: refused before talking to the board.
+    fails_with(
+        &cta(&["beacon", "--port", p, "limits"]),
+        &["--max-lit", "--deadman-ms"],
+    );
+}
+
+#[test]
 fn beacon_errors_name_the_command_and_the_id_range() {
     let sim = Sim::start(&["beacon", "sim"]);
     let p = sim.path.as_str();
@@ -102,5 +139,47 @@ fn beacon_errors_name_the_command_and_the_id_range() {
     assert!(
         help.contains("(0-99)") && !help.contains("0..100"),
         "{help}"
+    );
+}
+
+#[test]
+fn beacon_connection_options_only_where_a_board_is_talked_to() {
+    for sub in ["pins", "measure", "sim"] {
+        let help = ok(&cta(&["beacon", sub, "--help"]));
+        for opt in ["--port", "--timeout-ms", "--retries"] {
+            assert!(
+                !help.contains(opt),
+                "`beacon {sub} --help` offers {opt}: {help}"
+            );
+        }
+        fails_with(
+            &cta(&["beacon", sub, "--port", "/dev/null"]),
+            &["unexpected argument '--port'"],
+        );
+    }
+    fails_with(
+        &cta(&["beacon", "--port", "/dev/null", "pins"]),
+        &["--port means nothing for `cta beacon pins`"],
+    );
+    fails_with(
+        &cta(&["beacon", "--retries", "1", "--timeout-ms", "100", "measure"]),
+        &["--timeout-ms, --retries mean nothing for `cta beacon measure`"],
+    );
+    let help = ok(&cta(&["beacon", "status", "--help"]));
+    assert!(
+        help.contains("--port") && help.contains("--retries"),
+        "{help}"
+    );
+    // Before or after the subcommand, not both.
+    let sim = Sim::start(&["beacon", "sim"]);
+    let p = sim.path.as_str();
+    let out = ok(&cta(&["beacon", "identify", "--port", p, "--retries", "1"]));
+    assert!(
+        out.contains("beacon board") && out.contains("(simulated)"),
+        "{out}"
+    );
+    fails_with(
+        &cta(&["beacon", "--port", p, "identify", "--port", p]),
+        &["--port is given both before and after the subcommand"],
     );
 }
