@@ -4,7 +4,7 @@
 //! ```text
 //! cta sensor sim --range 12              # simulated board on a pty, target 12 in away
 //! cta sensor --port /dev/ttyUSB0 identify
-//! cta sensor --port P template calibration > cal.json    # edit, then:
+//! cta sensor template calibration > cal.json             # edit, then:
 //! cta sensor --port P load-calibration cal.json
 //! cta sensor --port P load-constellation con.json
 //! cta sensor --port P config                              # what the board has in flash
@@ -12,6 +12,7 @@
 //! cta sensor --port P stream --count 5                    # raw spot reports
 //! cta sensor --port P pose --model near-field --count 10  # 6-dof poses
 //! cta sensor --sim pose --count 5                         # same, against an in-process simulated board
+//! cta sensor --sim pose --count 5 --json                  # one JSON object per pose report
 //! cta sensor accuracy                                     # the accuracy table (simulated data)
 //! ```
 
@@ -30,7 +31,7 @@ use cta_core::pose::{
 };
 use cta_core::real::rad;
 use cta_core::wire::sensor::{
-    Mode, SensorProtocol, SensorRequest, SensorResponse, SensorStatus, SpotReport,
+    Mode, PoseReport, SensorProtocol, SensorRequest, SensorResponse, SensorStatus, SpotReport,
 };
 use cta_core::wire::Response;
 use rand::rngs::StdRng;
@@ -44,24 +45,72 @@ use cta_firmware_sensor::sim::{SimBoard, SimNorthStar};
 /// The vector type of the pose API (for callers without their own nalgebra dependency).
 pub use nalgebra::Vector3;
 
+use crate::beacon_cmd::one_of;
 use crate::link::{open_serial, Link, LinkConfig};
 use crate::plate::{built_in_constellation, Plate, SceneArgs};
 
 /// `cta sensor`: command the sensor board over its serial link.
+///
+/// The connection options go before the subcommand (`cta sensor --port P status`) or after
+/// it (`cta sensor status --port P`); `template`, `sim`, `accuracy` and `floor` talk to no
+/// board and refuse them.
 #[derive(Debug, Args)]
 pub struct SensorArgs {
-    /// Serial port of the board (e.g. /dev/ttyUSB0, or the pty printed by `cta sensor sim`).
-    #[arg(long, global = true)]
-    pub port: Option<String>,
-    /// Talk to a simulated board started in this process (instead of --port).
-    #[arg(long, global = true)]
-    pub sim: bool,
-    /// Reply timeout per attempt, ms.
-    #[arg(long, default_value_t = 500, global = true)]
-    pub timeout_ms: u64,
+    /// How to reach the board.
+    #[command(flatten)]
+    pub conn: SensorConn,
     /// What to do.
     #[command(subcommand)]
     pub command: SensorCommand,
+}
+
+/// Reply timeout per attempt when `--timeout-ms` is not given, ms.
+pub const DEFAULT_TIMEOUT_MS: u64 = 500;
+
+/// The connection options of the subcommands that talk to the board.
+#[derive(Debug, Clone, Default, Args)]
+pub struct SensorConn {
+    /// Serial port of the board (e.g. /dev/ttyUSB0, or the pty printed by `cta sensor sim`).
+    #[arg(long, value_name = "PATH", conflicts_with = "sim")]
+    pub port: Option<String>,
+    /// Talk to a simulated board started in this process (instead of --port).
+    #[arg(long)]
+    pub sim: bool,
+    /// Reply timeout per attempt, ms (1 or more) [default: 500].
+    #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..))]
+    pub timeout_ms: Option<u64>,
+}
+
+impl SensorConn {
+    /// The options given, as they would be written (for the error of a subcommand that
+    /// takes none).
+    fn given(&self) -> Vec<&'static str> {
+        let mut v = Vec::new();
+        if self.port.is_some() {
+            v.push("--port");
+        }
+        if self.sim {
+            v.push("--sim");
+        }
+        if self.timeout_ms.is_some() {
+            v.push("--timeout-ms");
+        }
+        v
+    }
+
+    /// These options (given before the subcommand) with those given after it; an option
+    /// given in both places, or `--sim` with `--port`, is refused.
+    fn merge(&self, after: &SensorConn) -> Result<SensorConn> {
+        let conn = SensorConn {
+            port: one_of("--port", &self.port, &after.port)?,
+            sim: self.sim || after.sim,
+            timeout_ms: one_of("--timeout-ms", &self.timeout_ms, &after.timeout_ms)?,
+        };
+        if conn.sim && conn.port.is_some() {
+            bail!("--sim and --port exclude each other: use the simulated board or the one on the port");
+        }
+        Ok(conn)
+    }
 }
 
 /// Pose model on the command line.
@@ -95,11 +144,20 @@ pub enum TemplateKind {
 #[derive(Debug, Subcommand)]
 pub enum SensorCommand {
     /// Which board answers, its firmware and protocol version.
-    Identify,
+    Identify {
+        #[command(flatten)]
+        conn: SensorConn,
+    },
     /// Mode, NorthStar settings, stored configuration, link counters.
-    Status,
+    Status {
+        #[command(flatten)]
+        conn: SensorConn,
+    },
     /// Send one heartbeat.
-    Heartbeat,
+    Heartbeat {
+        #[command(flatten)]
+        conn: SensorConn,
+    },
     /// Print a JSON template (calibration or constellation) to edit and load.
     Template {
         /// Which one.
@@ -113,31 +171,55 @@ pub enum SensorCommand {
     LoadCalibration {
         /// JSON file.
         file: String,
+        #[command(flatten)]
+        conn: SensorConn,
     },
     /// Load a constellation (JSON file, see `template constellation`) into the board's flash.
     LoadConstellation {
         /// JSON file.
         file: String,
+        #[command(flatten)]
+        conn: SensorConn,
     },
     /// Show the stored calibration and constellation.
-    Config,
+    Config {
+        #[command(flatten)]
+        conn: SensorConn,
+    },
     /// Set the NorthStar light sensitivity (1..=4).
     Sensitivity {
-        /// Setting.
+        /// Setting, 1..=4.
+        #[arg(value_parser = clap::value_parser!(u8).range(1..=4))]
         level: u8,
+        #[command(flatten)]
+        conn: SensorConn,
     },
     /// Set the NorthStar report rate (Hz, 1..=50).
     Rate {
-        /// Rate, Hz.
+        /// Rate, Hz, 1..=50.
+        #[arg(value_parser = clap::value_parser!(u8).range(1..=50))]
         hz: u8,
+        #[command(flatten)]
+        conn: SensorConn,
     },
     /// Stream mode: print every spot report.
     Stream {
         /// Stop after this many reports (0: until Ctrl-C).
         #[arg(long, default_value_t = 10)]
         count: u64,
+        /// Print one JSON object per report (every field of the board's spot report)
+        /// instead of text.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        conn: SensorConn,
     },
     /// Pose mode: print every pose the board solves.
+    ///
+    /// Columns: board sequence number and time; position (in); attitude as roll, pitch, yaw
+    /// (deg, the rotation vector of the MRP); their 1-sigma ("-" when the board has none);
+    /// residual RMS (counts); GLSDC iterations; beacons used; the solve time on the board
+    /// (us); whether the solve started cold; status.
     Pose {
         /// Measurement model.
         #[arg(long, value_enum, default_value_t = ModelArg::NearField)]
@@ -145,9 +227,18 @@ pub enum SensorCommand {
         /// Stop after this many poses (0: until Ctrl-C).
         #[arg(long, default_value_t = 10)]
         count: u64,
+        /// Print one JSON object per report (every field of the board's pose report, plus
+        /// `attitude_deg`: roll, pitch, yaw) instead of the table.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        conn: SensorConn,
     },
     /// Set the board idle (no reports).
-    Idle,
+    Idle {
+        #[command(flatten)]
+        conn: SensorConn,
+    },
     /// Run a simulated sensor board on a pseudo-terminal and print its path.
     Sim(SimArgs),
     /// Print the accuracy table: near-field-aware vs pinhole pose on simulated data.
@@ -321,8 +412,54 @@ fn print_table(
     Ok(())
 }
 
+impl SensorCommand {
+    /// The connection options given after the subcommand; `None` for the subcommands that
+    /// talk to no board.
+    fn conn(&self) -> Option<&SensorConn> {
+        match self {
+            SensorCommand::Identify { conn }
+            | SensorCommand::Status { conn }
+            | SensorCommand::Heartbeat { conn }
+            | SensorCommand::LoadCalibration { conn, .. }
+            | SensorCommand::LoadConstellation { conn, .. }
+            | SensorCommand::Config { conn }
+            | SensorCommand::Sensitivity { conn, .. }
+            | SensorCommand::Rate { conn, .. }
+            | SensorCommand::Stream { conn, .. }
+            | SensorCommand::Pose { conn, .. }
+            | SensorCommand::Idle { conn } => Some(conn),
+            SensorCommand::Template { .. }
+            | SensorCommand::Sim(_)
+            | SensorCommand::Accuracy(_)
+            | SensorCommand::Floor(_) => None,
+        }
+    }
+
+    /// The name on the command line of a subcommand that talks to no board.
+    fn name(&self) -> &'static str {
+        match self {
+            SensorCommand::Template { .. } => "template",
+            SensorCommand::Sim(_) => "sim",
+            SensorCommand::Accuracy(_) => "accuracy",
+            SensorCommand::Floor(_) => "floor",
+            _ => "",
+        }
+    }
+}
+
 /// Run `cta sensor`.
 pub fn run(args: &SensorArgs) -> Result<()> {
+    if args.command.conn().is_none() {
+        let given = args.conn.given();
+        if !given.is_empty() {
+            bail!(
+                "{} {} nothing for `cta sensor {}`: it talks to no board",
+                given.join(", "),
+                if given.len() == 1 { "means" } else { "mean" },
+                args.command.name()
+            );
+        }
+    }
     match &args.command {
         SensorCommand::Sim(s) => return run_sim(s),
         SensorCommand::Floor(a) => {
@@ -354,15 +491,19 @@ pub fn run(args: &SensorArgs) -> Result<()> {
         }
         _ => {}
     }
+    let conn = match args.command.conn() {
+        Some(after) => args.conn.merge(after)?,
+        None => unreachable!("handled above"),
+    };
     // In-process simulated board when --sim (kept alive for the whole command).
-    let sim = if args.sim {
+    let sim = if conn.sim {
         let sim = SimBoard::spawn(SimArgs::default().northstar())
             .context("starting the simulated sensor board")?;
         Some(sim)
     } else {
         None
     };
-    let path = match (&sim, &args.port) {
+    let path = match (&sim, &conn.port) {
         (Some(s), _) => s.path().to_string(),
         (None, Some(p)) => p.clone(),
         (None, None) => bail!(
@@ -373,7 +514,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
     let mut link = Link::<SensorProtocol, _>::new(
         port,
         LinkConfig {
-            timeout: Duration::from_millis(args.timeout_ms),
+            timeout: Duration::from_millis(conn.timeout_ms.unwrap_or(DEFAULT_TIMEOUT_MS)),
             retries: 2,
         },
     );
@@ -386,7 +527,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
         link.call(SensorRequest::LoadConstellation(cta_constellation()))?;
     }
     match &args.command {
-        SensorCommand::Identify => println!(
+        SensorCommand::Identify { .. } => println!(
             "{} board, firmware {}, protocol {}{}, max frame {} bytes",
             id.board,
             id.firmware,
@@ -394,28 +535,28 @@ pub fn run(args: &SensorArgs) -> Result<()> {
             if id.simulated { " (simulated)" } else { "" },
             id.max_frame
         ),
-        SensorCommand::Status => match link.call(SensorRequest::Status)? {
+        SensorCommand::Status { .. } => match link.call(SensorRequest::Status)? {
             Some(SensorResponse::Status(s)) => print_status(&s),
             other => bail!("unexpected reply to Status: {other:?}"),
         },
-        SensorCommand::Heartbeat => {
+        SensorCommand::Heartbeat { .. } => {
             link.heartbeat()?;
             println!("heartbeat acknowledged");
         }
-        SensorCommand::LoadCalibration { file } => {
+        SensorCommand::LoadCalibration { file, .. } => {
             let cal: Calibration = read_json(file)?;
             link.call(SensorRequest::LoadCalibration(cal))
                 .with_context(|| format!("loading the calibration of {file}"))?;
             println!("calibration from {file} stored in flash");
         }
-        SensorCommand::LoadConstellation { file } => {
+        SensorCommand::LoadConstellation { file, .. } => {
             let con: Constellation = read_json(file)?;
             let n = con.beacons.len();
             link.call(SensorRequest::LoadConstellation(con))
                 .with_context(|| format!("loading the constellation of {file}"))?;
             println!("constellation of {n} beacons from {file} stored in flash");
         }
-        SensorCommand::Config => match link.call(SensorRequest::GetConfig)? {
+        SensorCommand::Config { .. } => match link.call(SensorRequest::GetConfig)? {
             Some(SensorResponse::Config(c)) => {
                 println!("flash record generation {}", c.generation);
                 println!(
@@ -435,58 +576,55 @@ pub fn run(args: &SensorArgs) -> Result<()> {
             }
             other => bail!("unexpected reply to GetConfig: {other:?}"),
         },
-        SensorCommand::Sensitivity { level } => {
+        SensorCommand::Sensitivity { level, .. } => {
             link.call(SensorRequest::SetSensitivity(*level))?;
             println!("sensitivity {level}");
         }
-        SensorCommand::Rate { hz } => {
+        SensorCommand::Rate { hz, .. } => {
             link.call(SensorRequest::SetRate(*hz))?;
             println!("rate {hz} Hz");
         }
-        SensorCommand::Idle => {
+        SensorCommand::Idle { .. } => {
             link.call(SensorRequest::SetMode(Mode::Idle))?;
             println!("idle");
         }
-        SensorCommand::Stream { count } => {
+        SensorCommand::Stream { count, json, .. } => {
             link.call(SensorRequest::SetMode(Mode::Stream))?;
-            let mut n = 0;
+            let mut out = Ok(());
             read_reports(&mut link, *count, |r| {
                 if let SensorResponse::Spots(s) = r {
-                    print_spots(&s);
-                    n += 1;
+                    if *json {
+                        if out.is_ok() {
+                            out = serde_json::to_string(&s).map(|line| println!("{line}"));
+                        }
+                    } else {
+                        print_spots(&s);
+                    }
                 }
             })?;
+            out?;
             link.call(SensorRequest::SetMode(Mode::Idle))?;
         }
-        SensorCommand::Pose { model, count } => {
+        SensorCommand::Pose {
+            model, count, json, ..
+        } => {
             link.call(SensorRequest::SetMode(Mode::Pose((*model).into())))?;
-            println!(
-                "{:>6} {:>10} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7} {:>7} {:>3} {:>6}",
-                "seq", "t (ms)", "x (in)", "y (in)", "z (in)", "roll", "pitch", "yaw", "sx(in)", "sy", "sz", "rms", "it", "status"
-            );
+            if !*json {
+                println!("{}", pose_header());
+            }
+            let mut out = Ok(());
             read_reports(&mut link, *count, |r| {
                 if let SensorResponse::Pose(p) = r {
-                    let q = Vector3::new(p.mrp[0] as f64, p.mrp[1] as f64, p.mrp[2] as f64);
-                    let e = small_angles_deg(&q);
-                    println!(
-                        "{:>6} {:>10.1} {:>9.4} {:>9.4} {:>9.4} {:>8.3} {:>8.3} {:>8.3} {:>7.4} {:>7.4} {:>7.4} {:>7.1} {:>3} {:?}",
-                        p.seq,
-                        p.t_us as f64 / 1000.0,
-                        p.position[0],
-                        p.position[1],
-                        p.position[2],
-                        e[0],
-                        e[1],
-                        e[2],
-                        p.sigma_position[0],
-                        p.sigma_position[1],
-                        p.sigma_position[2],
-                        p.rms,
-                        p.iterations,
-                        p.status
-                    );
+                    if *json {
+                        if out.is_ok() {
+                            out = pose_json(&p).map(|line| println!("{line}"));
+                        }
+                    } else {
+                        println!("{}", pose_line(&p));
+                    }
                 }
             })?;
+            out?;
             link.call(SensorRequest::SetMode(Mode::Idle))?;
         }
         SensorCommand::Sim(_)
@@ -497,6 +635,70 @@ pub fn run(args: &SensorArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The header of `cta sensor pose`'s table (the columns of [`pose_line`]).
+pub fn pose_header() -> String {
+    format!(
+        "{:>6} {:>10} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>3} {:>3} {:>8} {:>4} {}",
+        "seq", "t (ms)", "x (in)", "y (in)", "z (in)", "roll", "pitch", "yaw", "sx(in)", "sy", "sz",
+        "sr(deg)", "sp", "sw", "rms", "it", "bcn", "solve us", "cold", "status"
+    )
+}
+
+/// One row of `cta sensor pose`'s table: position, attitude (roll, pitch, yaw in deg), their
+/// 1-sigma ("-" where the board has none), residual RMS, iterations, beacons used, solve time
+/// on the board, cold start, status.
+pub fn pose_line(p: &PoseReport) -> String {
+    let q = Vector3::new(p.mrp[0] as f64, p.mrp[1] as f64, p.mrp[2] as f64);
+    let e = small_angles_deg(&q);
+    // Sigma fields are -1 when not available.
+    let sig = |v: f32| {
+        if v >= 0.0 {
+            format!("{v:>7.4}")
+        } else {
+            format!("{:>7}", "-")
+        }
+    };
+    format!(
+        "{:>6} {:>10.1} {:>9.4} {:>9.4} {:>9.4} {:>8.3} {:>8.3} {:>8.3} {} {} {} {} {} {} {:>7.1} {:>3} {:>3} {:>8} {:>4} {:?}",
+        p.seq,
+        p.t_us as f64 / 1000.0,
+        p.position[0],
+        p.position[1],
+        p.position[2],
+        e[0],
+        e[1],
+        e[2],
+        sig(p.sigma_position[0]),
+        sig(p.sigma_position[1]),
+        sig(p.sigma_position[2]),
+        sig(p.sigma_attitude_deg[0]),
+        sig(p.sigma_attitude_deg[1]),
+        sig(p.sigma_attitude_deg[2]),
+        p.rms,
+        p.iterations,
+        p.beacons,
+        p.solve_us,
+        if p.cold_start { "yes" } else { "no" },
+        p.status
+    )
+}
+
+/// A pose report as one line of JSON: every field of the [`PoseReport`], plus
+/// `attitude_deg` (roll, pitch, yaw: the rotation vector of the MRP, as in the table).
+pub fn pose_json(p: &PoseReport) -> serde_json::Result<String> {
+    #[derive(Serialize)]
+    struct Line<'a> {
+        #[serde(flatten)]
+        report: &'a PoseReport,
+        attitude_deg: [f64; 3],
+    }
+    let q = Vector3::new(p.mrp[0] as f64, p.mrp[1] as f64, p.mrp[2] as f64);
+    serde_json::to_string(&Line {
+        report: p,
+        attitude_deg: small_angles_deg(&q),
+    })
 }
 
 /// Attitude angles (deg) about x, y, z of an MRP, `4 atan(|q|) q/|q|` (exact rotation

@@ -183,3 +183,207 @@ fn beacon_connection_options_only_where_a_board_is_talked_to() {
         &["--port is given both before and after the subcommand"],
     );
 }
+
+#[test]
+fn sensor_pose_prints_every_field_and_json() {
+    let o = cta(&["sensor", "--sim", "pose", "--count", "3"]);
+    let out = ok(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 4, "{out}");
+    for col in [
+        "sx(in)", "sr(deg)", "rms", "it", "bcn", "solve us", "cold", "status",
+    ] {
+        assert!(lines[0].contains(col), "header lacks {col}: {}", lines[0]);
+    }
+    // The first pose is a cold start, the next warm; every pose uses the 10 beacons.
+    for (i, row) in lines[1..].iter().enumerate() {
+        let f: Vec<&str> = row.split_whitespace().collect();
+        assert_eq!(f.len(), 20, "{row}");
+        assert_eq!(f[16], "10", "beacons used: {row}");
+        assert!(f[17].parse::<u32>().is_ok(), "solve us: {row}");
+        assert_eq!(
+            f[18],
+            if i == 0 { "yes" } else { "no" },
+            "cold start: {row}"
+        );
+        assert_eq!(f[19], "Ok", "{row}");
+        let sigma_att: f64 = f[11].parse().unwrap();
+        assert!(sigma_att > 0.0 && sigma_att < 5.0, "{row}");
+    }
+
+    let out = ok(&cta(&["sensor", "--sim", "pose", "--count", "2", "--json"]));
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 2, "{out}");
+    for (i, l) in lines.iter().enumerate() {
+        let v: serde_json::Value = serde_json::from_str(l).expect("one JSON object per line");
+        for k in [
+            "seq",
+            "t_us",
+            "ns_seq",
+            "model",
+            "status",
+            "position",
+            "mrp",
+            "sigma_position",
+            "sigma_attitude_deg",
+            "rms",
+            "condition",
+            "iterations",
+            "beacons",
+            "cold_start",
+            "solve_us",
+            "attitude_deg",
+        ] {
+            assert!(v.get(k).is_some(), "no {k}: {l}");
+        }
+        assert_eq!(v["beacons"], 10);
+        assert_eq!(v["cold_start"], i == 0);
+        assert_eq!(v["model"], "NearField");
+        assert_eq!(v["sigma_attitude_deg"].as_array().unwrap().len(), 3);
+        let z = v["position"][2].as_f64().unwrap();
+        assert!((z - 12.0).abs() < 0.5, "{l}");
+    }
+}
+
+#[test]
+fn sensor_stream_json() {
+    let out = ok(&cta(&[
+        "sensor", "stream", "--sim", "--count", "2", "--json",
+    ]));
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 2, "{out}");
+    for l in lines {
+        let v: serde_json::Value = serde_json::from_str(l).expect("one JSON object per line");
+        assert_eq!(v["spots"].as_array().unwrap().len(), 10, "{l}");
+        for k in ["seq", "t_us", "ns_seq", "sensitivity"] {
+            assert!(v.get(k).is_some(), "no {k}: {l}");
+        }
+    }
+}
+
+#[test]
+fn sensor_connection_options_only_where_a_board_is_talked_to() {
+    fails_with(
+        &cta(&["sensor", "--sim", "--port", "/dev/null", "identify"]),
+        &["'--sim' cannot be used with '--port"],
+    );
+    fails_with(
+        &cta(&["sensor", "--sim", "identify", "--port", "/dev/null"]),
+        &["--sim and --port exclude each other"],
+    );
+    for sub in ["template", "sim", "accuracy", "floor"] {
+        let help = ok(&cta(&["sensor", sub, "--help"]));
+        for opt in ["--port", "--sim", "--timeout-ms"] {
+            assert!(
+                !help.contains(opt),
+                "`sensor {sub} --help` offers {opt}: {help}"
+            );
+        }
+    }
+    fails_with(
+        &cta(&["sensor", "--port", "/dev/null", "template", "calibration"]),
+        &["--port means nothing for `cta sensor template`"],
+    );
+    fails_with(
+        &cta(&["sensor", "--sim", "accuracy"]),
+        &["--sim means nothing for `cta sensor accuracy`"],
+    );
+    fails_with(
+        &cta(&["sensor", "--timeout-ms", "100", "floor"]),
+        &["--timeout-ms means nothing for `cta sensor floor`"],
+    );
+    fails_with(
+        &cta(&["sensor", "sim", "--sim", "--seconds", "0.1"]),
+        &["unexpected argument '--sim'"],
+    );
+    // After the subcommand works as before it.
+    let out = ok(&cta(&[
+        "sensor",
+        "identify",
+        "--sim",
+        "--timeout-ms",
+        "300",
+    ]));
+    assert!(
+        out.contains("sensor board") && out.contains("(simulated)"),
+        "{out}"
+    );
+    let help = ok(&cta(&["sensor", "pose", "--help"]));
+    assert!(help.contains("--port") && help.contains("--sim"), "{help}");
+}
+
+/// The `cta beacon` / `cta sensor` lines of the READMEs' command blocks.
+fn documented_lines() -> Vec<(String, String)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut docs = vec![
+        root.join("README.md"),
+        root.join("firmware-beacon/README.md"),
+        root.join("firmware-sensor/README.md"),
+    ];
+    for e in std::fs::read_dir(root.join("host")).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "md") {
+            docs.push(p);
+        }
+    }
+    let mut out = Vec::new();
+    for doc in docs {
+        let text = std::fs::read_to_string(&doc).unwrap();
+        let mut fenced = false;
+        for (i, l) in text.lines().enumerate() {
+            let t = l.trim();
+            if t.starts_with("```") {
+                fenced = !fenced;
+                continue;
+            }
+            if fenced && (t.starts_with("cta beacon") || t.starts_with("cta sensor")) {
+                // Up to a comment or a redirection.
+                let cmd = t.split(['#', '>']).next().unwrap().trim().to_string();
+                out.push((format!("{}:{}", doc.display(), i + 1), cmd));
+            }
+        }
+    }
+    out
+}
+
+/// Every documented command line parses: those naming a port get as far as opening it
+/// (exit 1 with the port in the message, not clap's exit 2), the others run.
+#[test]
+fn documented_command_lines_parse() {
+    let lines = documented_lines();
+    assert!(lines.len() >= 25, "{lines:?}");
+    let port = "/nonexistent/cta-doc-port";
+    let tmp = std::env::temp_dir().join(format!("cta-boards-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    for (at, line) in lines {
+        let mut words: Vec<String> = line
+            .split_whitespace()
+            .skip(1)
+            .map(str::to_string)
+            .collect();
+        let has_port = match words.iter().position(|w| w == "--port") {
+            Some(i) => {
+                words[i + 1] = port.into();
+                true
+            }
+            None => false,
+        };
+        if words.iter().any(|w| w == "sim") && !words.iter().any(|w| w == "--seconds") {
+            words.extend(["--seconds".into(), "0.2".into()]);
+        }
+        let o = Command::new(env!("CARGO_BIN_EXE_cta"))
+            .args(&words)
+            .current_dir(&tmp)
+            .output()
+            .unwrap();
+        let err = stderr(&o);
+        assert!(!err.contains("panicked"), "{at}: {line}: {err}");
+        if has_port {
+            assert_eq!(o.status.code(), Some(1), "{at}: {line}: {err}");
+            assert!(err.contains(port), "{at}: {line}: {err}");
+        } else {
+            assert!(o.status.success(), "{at}: {line}: {err}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+}
