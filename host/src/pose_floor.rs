@@ -30,7 +30,7 @@
 //! GLSDC (f64, central differences; a host prototype, not the chip's solver) with the
 //! magnitudes as extra rows.
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::Args;
 use cta_core::emulator::Emulator;
 use cta_core::glsdc::{self, Settings};
@@ -45,25 +45,38 @@ use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
 use crate::plate::SceneArgs;
-use crate::sensor_cmd::{angle_between_deg, pinhole_calibration, random_pose};
+use crate::sensor_cmd::{
+    angle_between_deg, check_noise_fraction, check_ranges, pinhole_calibration, random_pose,
+};
 
 /// Options of `cta sensor floor`.
 #[derive(Debug, Clone, Args)]
 pub struct FloorArgs {
-    /// Ranges, in.
-    #[arg(long, value_delimiter = ',', default_values_t = [2.0, 4.0, 6.0, 8.0, 10.0, 15.0, 20.0, 30.0])]
+    /// Ranges, inches, comma-separated (each above 0, at most 1000).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "2,4,6,8,10,15,20,30",
+        allow_hyphen_values = true
+    )]
     pub ranges: Vec<f64>,
     /// Magnitude noise levels to try, percent of the magnitude (1-sigma). 0.07 % is the
     /// level the spot noise implies if both come from independent noise in the four cells
     /// (near the boresight sigma_M / M = sigma_X / (sqrt 2 beta)); larger levels stand for
-    /// LED flicker, drift and the NorthStar's own processing.
-    #[arg(long, value_delimiter = ',', default_values_t = [0.07, 0.3, 1.0, 3.0])]
+    /// LED flicker, drift and the NorthStar's own processing. Each above 0 (a huge level
+    /// stands for magnitudes that carry nothing).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0.07,0.3,1,3",
+        allow_hyphen_values = true
+    )]
     pub magnitude_noise: Vec<f64>,
-    /// Spot noise, fraction of beta (0.001 = 0.1 %, 32.8 counts).
-    #[arg(long, default_value_t = 0.001)]
+    /// Spot noise, fraction of beta (0.001 = 0.1 %, 32.8 counts; 1e-6 to 0.3).
+    #[arg(long, default_value_t = 0.001, allow_negative_numbers = true)]
     pub noise_fraction: f64,
     /// Random poses per range (lateral offset +/-0.5 in, attitude up to 3 deg, as in
-    /// `cta sensor accuracy`); the floors are RMS over them.
+    /// `cta sensor accuracy`); the floors are RMS over them (1 or more).
     #[arg(long, default_value_t = 20)]
     pub poses: usize,
     /// Also solve this many noisy frames per pose with the magnitudes (host GLSDC) and
@@ -319,8 +332,26 @@ fn floor_of(p: &DMatrix<f64>) -> (f64, f64) {
     (pos, att.to_degrees())
 }
 
+impl FloorArgs {
+    /// Check every option (with an error naming the option and its allowed range).
+    pub fn check(&self) -> Result<()> {
+        check_ranges("--ranges", &self.ranges)?;
+        for &m in &self.magnitude_noise {
+            if !(m > 0.0 && m.is_finite()) {
+                bail!("--magnitude-noise {m}: a level must be a finite percentage above 0");
+            }
+        }
+        check_noise_fraction(self.noise_fraction)?;
+        if self.poses == 0 {
+            bail!("--poses 0: expected 1 or more poses per range");
+        }
+        Ok(())
+    }
+}
+
 /// Compute the floor table.
 pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
+    args.check()?;
     let mut truth = Calibration::table3();
     let noise = args.noise_fraction * cta_core::emulator::BETA;
     truth.noise = noise as f32;

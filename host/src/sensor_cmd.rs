@@ -268,26 +268,81 @@ pub enum SensorCommand {
     Floor(crate::pose_floor::FloorArgs),
 }
 
+/// Largest range the pose tables and the simulated board take, inches (well beyond the
+/// NorthStar's use: at 100 in one frame's pose error is already inches).
+pub const MAX_RANGE_IN: f64 = 1000.0;
+
+/// Check a list of ranges given as `flag` (each `0 < r <= MAX_RANGE_IN`, at least one).
+pub fn check_ranges(flag: &str, ranges: &[f64]) -> Result<()> {
+    if ranges.is_empty() {
+        bail!("{flag}: give at least one range, inches");
+    }
+    for &r in ranges {
+        if !(r > 0.0 && r <= MAX_RANGE_IN) {
+            bail!("{flag} {r}: a range must be above 0 and at most {MAX_RANGE_IN} inches");
+        }
+    }
+    Ok(())
+}
+
+/// Smallest spot noise of the pose tables, fraction of beta (the calibration's noise field
+/// takes 0.01 counts and more).
+pub const MIN_NOISE_FRACTION: f64 = 1e-6;
+/// Largest spot noise of the pose tables, fraction of beta (the calibration's noise field
+/// takes at most 10,000 counts).
+pub const MAX_NOISE_FRACTION: f64 = 0.3;
+
+/// Check `--noise-fraction` of the pose tables. Zero is refused: the solver weighs the spots
+/// by 1 / noise^2 and the floor would be zero; the noise-free errors are the accuracy
+/// table's systematic part.
+pub fn check_noise_fraction(f: f64) -> Result<()> {
+    if !(MIN_NOISE_FRACTION..=MAX_NOISE_FRACTION).contains(&f) {
+        bail!(
+            "--noise-fraction {f}: expected {MIN_NOISE_FRACTION:e} to {MAX_NOISE_FRACTION} of beta \
+             (0 is not a table: the noise-free errors are the accuracy table's systematic part)"
+        );
+    }
+    Ok(())
+}
+
+/// Parse `x,y` (two numbers, comma-separated: `--offset 0.3,-0.2`).
+fn parse_xy(s: &str) -> std::result::Result<[f64; 2], String> {
+    let bad = || format!("{s:?}: expected two comma-separated numbers x,y (e.g. 0.3,-0.2)");
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 2 {
+        return Err(bad());
+    }
+    let mut xy = [0.0f64; 2];
+    for (v, p) in xy.iter_mut().zip(parts) {
+        *v = p.trim().parse().map_err(|_| bad())?;
+        if !v.is_finite() {
+            return Err(bad());
+        }
+    }
+    Ok(xy)
+}
+
 /// The simulated board's scene.
 #[derive(Debug, Clone, Args)]
 pub struct SimArgs {
-    /// Target range (z of the target origin in the board frame), in.
-    #[arg(long, default_value_t = 12.0)]
+    /// Target range (z of the target origin in the board frame), inches (above 0, at most
+    /// 1000).
+    #[arg(long, default_value_t = 12.0, allow_negative_numbers = true)]
     pub range: f64,
-    /// Target lateral offset x, y, in.
-    #[arg(long, value_delimiter = ',', default_values_t = [0.2, -0.1])]
-    pub offset: Vec<f64>,
+    /// Target lateral offset x,y, inches (two numbers, comma-separated).
+    #[arg(long, value_name = "X,Y", default_value = "0.2,-0.1", value_parser = parse_xy, allow_hyphen_values = true)]
+    pub offset: [f64; 2],
     /// Target rotation about z, degrees.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     pub yaw_deg: f64,
-    /// Spot noise, counts (1-sigma).
-    #[arg(long, default_value_t = 32.768)]
+    /// Spot noise, counts (1-sigma, 0 or more).
+    #[arg(long, default_value_t = 32.768, allow_negative_numbers = true)]
     pub noise: f64,
-    /// Probability of line noise before a NorthStar frame.
-    #[arg(long, default_value_t = 0.0)]
+    /// Probability of line noise before a NorthStar frame (0 to 1).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub garbage: f64,
-    /// Stop after this many seconds (default: until Ctrl-C).
-    #[arg(long)]
+    /// Stop after this many seconds (above 0; default: until Ctrl-C).
+    #[arg(long, allow_negative_numbers = true)]
     pub seconds: Option<f64>,
     /// Load the Table 3 calibration and the CTA constellation at start.
     #[arg(long)]
@@ -298,7 +353,7 @@ impl Default for SimArgs {
     fn default() -> Self {
         SimArgs {
             range: 12.0,
-            offset: vec![0.2, -0.1],
+            offset: [0.2, -0.1],
             yaw_deg: 2.0,
             noise: 32.768,
             garbage: 0.0,
@@ -309,13 +364,32 @@ impl Default for SimArgs {
 }
 
 impl SimArgs {
+    /// Check every option (with an error naming the option and its allowed range).
+    pub fn check(&self) -> Result<()> {
+        check_ranges("--range", &[self.range])?;
+        if !self.yaw_deg.is_finite() {
+            bail!(
+                "--yaw-deg {}: expected a finite angle, degrees",
+                self.yaw_deg
+            );
+        }
+        if !(self.noise >= 0.0 && self.noise <= 32768.0) {
+            bail!("--noise {}: expected 0 to 32768 counts", self.noise);
+        }
+        if !(0.0..=1.0).contains(&self.garbage) {
+            bail!("--garbage {}: expected a probability, 0 to 1", self.garbage);
+        }
+        if let Some(t) = self.seconds {
+            if !(t > 0.0 && t.is_finite()) {
+                bail!("--seconds {t}: expected a time above 0, seconds");
+            }
+        }
+        Ok(())
+    }
+
     /// The simulated NorthStar of this scene (Table 3 head, CTA constellation).
     pub fn northstar(&self) -> SimNorthStar {
-        let t = Vector3::new(
-            self.offset.first().copied().unwrap_or(0.0),
-            self.offset.get(1).copied().unwrap_or(0.0),
-            self.range,
-        );
+        let t = Vector3::new(self.offset[0], self.offset[1], self.range);
         let q = mrp::from_axis_angle(&Vector3::z(), rad(self.yaw_deg));
         let mut ns = SimNorthStar::new(
             &Calibration::table3(),
@@ -333,14 +407,19 @@ impl SimArgs {
 /// Options of the accuracy table.
 #[derive(Debug, Clone, Args)]
 pub struct AccuracyArgs {
-    /// Noise draws (and random poses) per range.
+    /// Noise draws (and random poses) per range (1 or more).
     #[arg(long, default_value_t = 40)]
     pub trials: usize,
-    /// Ranges, in.
-    #[arg(long, value_delimiter = ',', default_values_t = [2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 15.0, 20.0, 25.0, 30.0])]
+    /// Ranges, inches, comma-separated (each above 0, at most 1000).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "2,3,4,5,6,8,10,15,20,25,30",
+        allow_hyphen_values = true
+    )]
     pub ranges: Vec<f64>,
-    /// Noise, fraction of beta (0.001 = 0.1 %).
-    #[arg(long, default_value_t = 0.001)]
+    /// Noise, fraction of beta (0.001 = 0.1 %; 1e-6 to 0.3).
+    #[arg(long, default_value_t = 0.001, allow_negative_numbers = true)]
     pub noise_fraction: f64,
     /// Random seed.
     #[arg(long, default_value_t = 2010)]
@@ -352,7 +431,7 @@ pub struct AccuracyArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
     /// Samples averaged per beacon and separation in the simulated calibration sweep that
-    /// the near-field calibration is fitted to (Ch VI takes 100-200).
+    /// the near-field calibration is fitted to (Ch VI takes 100-200; 1 or more).
     #[arg(long, default_value_t = 100)]
     pub cal_samples: usize,
     /// Give the near-field solver the true head instead of a fitted calibration (the
@@ -798,6 +877,7 @@ fn print_status(s: &SensorStatus) {
 }
 
 fn run_sim(args: &SimArgs) -> Result<()> {
+    args.check()?;
     let sim = SimBoard::spawn(args.northstar()).context("starting the simulated sensor board")?;
     if args.configured {
         let port = open_serial(sim.path())?;
@@ -1368,8 +1448,24 @@ pub fn random_pose(rng: &mut StdRng, range: f64) -> (Vector3<f64>, Vector3<f64>)
     )
 }
 
+impl AccuracyArgs {
+    /// Check every option (with an error naming the option and its allowed range).
+    pub fn check(&self) -> Result<()> {
+        if self.trials == 0 {
+            bail!("--trials 0: expected 1 or more trials per range");
+        }
+        check_ranges("--ranges", &self.ranges)?;
+        check_noise_fraction(self.noise_fraction)?;
+        if self.cal_samples == 0 {
+            bail!("--cal-samples 0: expected 1 or more samples per calibration point");
+        }
+        Ok(())
+    }
+}
+
 /// Compute the accuracy table.
 pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
+    args.check()?;
     let mut truth = Calibration::table3();
     let noise = args.noise_fraction * cta_core::emulator::BETA;
     truth.noise = noise as f32;

@@ -262,6 +262,117 @@ fn sensor_stream_json() {
 }
 
 #[test]
+fn sensor_flags_are_checked_up_front() {
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &["accuracy", "--trials", "0"],
+            "--trials 0: expected 1 or more",
+        ),
+        (
+            &["accuracy", "--ranges", "0"],
+            "--ranges 0: a range must be above 0",
+        ),
+        (
+            &["accuracy", "--ranges=-5"],
+            "--ranges -5: a range must be above 0",
+        ),
+        (&["accuracy", "--ranges", "2,-5"], "--ranges -5"),
+        (&["accuracy", "--ranges", "1e9"], "at most 1000 inches"),
+        (
+            &["accuracy", "--noise-fraction", "0"],
+            "--noise-fraction 0: expected 1e-6 to 0.3 of beta",
+        ),
+        (&["accuracy", "--noise-fraction", "1"], "--noise-fraction 1"),
+        (&["accuracy", "--cal-samples", "0"], "--cal-samples 0"),
+        (
+            &["floor", "--poses", "0"],
+            "--poses 0: expected 1 or more poses",
+        ),
+        (&["floor", "--ranges", "0"], "--ranges 0"),
+        (&["floor", "--noise-fraction", "0"], "--noise-fraction 0"),
+        (
+            &["floor", "--magnitude-noise", "0.3,0"],
+            "--magnitude-noise 0",
+        ),
+        (
+            &["sim", "--range", "0"],
+            "--range 0: a range must be above 0",
+        ),
+        (&["sim", "--range", "-3"], "--range -3"),
+        (&["sim", "--noise", "-1"], "--noise -1"),
+        (&["sim", "--garbage", "1.5"], "--garbage 1.5"),
+        (&["sim", "--seconds", "0"], "--seconds 0"),
+    ];
+    for (args, needle) in cases {
+        let mut a = vec!["sensor"];
+        a.extend_from_slice(args);
+        let o = cta(&a);
+        fails_with(&o, &[needle]);
+        assert_eq!(
+            stderr(&o).trim().lines().count(),
+            1,
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+}
+
+#[test]
+fn sensor_sim_offset_takes_exactly_x_comma_y() {
+    let help = ok(&cta(&["sensor", "sim", "--help"]));
+    assert!(help.contains("[default: 0.2,-0.1]"), "{help}");
+    let range = help
+        .lines()
+        .skip_while(|l| !l.contains("--range"))
+        .take_while(|l| !l.contains("--offset"))
+        .collect::<Vec<_>>()
+        .join(" ");
+    assert!(
+        range.contains("inches") && !range.contains("), in."),
+        "{range}"
+    );
+    fails_with(
+        &cta(&["sensor", "sim", "--offset", "0.3", "--seconds", "0.1"]),
+        &["expected two comma-separated numbers x,y"],
+    );
+    fails_with(
+        &cta(&[
+            "sensor",
+            "sim",
+            "--offset",
+            "0.3",
+            "-0.2",
+            "--seconds",
+            "0.1",
+        ]),
+        &["unexpected argument"],
+    );
+    fails_with(
+        &cta(&["sensor", "sim", "--offset", "1,2,3", "--seconds", "0.1"]),
+        &["expected two comma-separated numbers x,y"],
+    );
+    // The accepted form puts the target there (a negative x too).
+    let sim = Sim::start(&[
+        "sensor",
+        "sim",
+        "--configured",
+        "--offset",
+        "-0.3,0.25",
+        "--range",
+        "10",
+    ]);
+    let out = ok(&cta(&[
+        "sensor", "--port", &sim.path, "pose", "--count", "1", "--json",
+    ]));
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    let p: Vec<f64> = (0..3).map(|i| v["position"][i].as_f64().unwrap()).collect();
+    assert!(
+        (p[0] + 0.3).abs() < 0.05 && (p[1] - 0.25).abs() < 0.05 && (p[2] - 10.0).abs() < 0.2,
+        "{p:?}"
+    );
+}
+
+#[test]
 fn sensor_connection_options_only_where_a_board_is_talked_to() {
     fails_with(
         &cta(&["sensor", "--sim", "--port", "/dev/null", "identify"]),
