@@ -325,7 +325,7 @@ fn outputs_never_replace_other_kinds_of_file() {
             "--d",
             "1000,0,0.062",
         ]),
-        "no reports to write",
+        "nothing to write",
     );
     assert!(!none.exists() && !d.join("none.csv.partial").exists());
 }
