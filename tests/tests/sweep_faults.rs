@@ -148,3 +148,19 @@ fn wrong_or_missing_ports_are_named() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn giving_up_names_the_board_that_stayed_away() {
+    let d = dir("give-up");
+    std::fs::write(
+        d.join("plan.toml"),
+        PLAN.replace("give_up_s = 30", "give_up_s = 0.5"),
+    )
+    .unwrap();
+    let s = sweep::sweep(&args(&d, "run", Some("vanish=beacon@2:5000"))).unwrap();
+    match &s.ending {
+        Ending::GaveUp(what) => assert!(what.starts_with("beacon: "), "{what}"),
+        e => panic!("{e:?}"),
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -470,14 +470,18 @@ impl<'a> Engine<'a> {
                     return Ok(Ending::Interrupted);
                 }
                 None => {
-                    let what = store
-                        .events
-                        .iter()
-                        .rev()
-                        .find_map(|e| match e {
-                            Event::Fault { what, .. } => Some(what.clone()),
+                    // The last fault that names a board (while reconnecting, the links are
+                    // down and the faults say so, not which board went away).
+                    let faults = || {
+                        store.events.iter().rev().filter_map(|e| match e {
+                            Event::Fault { board, what, .. } => Some((board, what)),
                             _ => None,
                         })
+                    };
+                    let what = faults()
+                        .find(|(b, _)| b.as_str() != "host")
+                        .or_else(|| faults().next())
+                        .map(|(b, w)| format!("{b}: {w}"))
                         .unwrap_or_default();
                     return Ok(Ending::GaveUp(what));
                 }
@@ -512,9 +516,14 @@ impl<'a> Engine<'a> {
                 return Ok(None);
             }
             attempts += 1;
-            let r = match self.beacon.link.is_some() && self.sensor.link.is_some() {
-                true => self.measure(p),
-                false => Err(Fault::Lost("host", "reconnecting".into())),
+            let r = match (self.beacon.link.is_some(), self.sensor.link.is_some()) {
+                (true, true) => self.measure(p),
+                (false, true) => Err(Fault::Lost("beacon", "not connected (reconnecting)".into())),
+                (true, false) => Err(Fault::Lost("sensor", "not connected (reconnecting)".into())),
+                (false, false) => Err(Fault::Lost(
+                    "host",
+                    "no board connected (reconnecting)".into(),
+                )),
             };
             let fault = match r {
                 Ok(m) => {

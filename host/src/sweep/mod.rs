@@ -71,14 +71,16 @@ pub struct SweepArgs {
     /// Use the simulated CTA (the default when no ports are given).
     #[arg(long, conflicts_with_all = ["beacon", "sensor"])]
     pub sim: bool,
-    /// Simulated CTA: noise of a strong signal, counts 1-sigma (grows as the signal weakens).
+    /// Simulated CTA: noise of a strong signal, counts 1-sigma (grows as the signal weakens);
+    /// default 10, and on --resume the run's own.
     #[arg(long, value_name = "COUNTS")]
     pub sim_noise: Option<f64>,
     /// Simulated CTA: inject an effect of the analysis vocabulary (repeatable), e.g.
     /// `beacon_tilt=2,45`, `plate_offset=0.05`, `cell_gain=0.03`.
     #[arg(long, value_name = "NAME=VALUE")]
     pub sim_effect: Vec<String>,
-    /// Simulated CTA: random seed (noise, geometry draws).
+    /// Simulated CTA: random seed (noise, geometry draws); default 1, and on --resume the
+    /// run's own.
     #[arg(long, value_name = "N")]
     pub sim_seed: Option<u64>,
     /// Simulated CTA: run the simulated NorthStar at the plan's rate (10 Hz, as the real
