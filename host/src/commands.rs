@@ -521,6 +521,16 @@ pub struct SimulateArgs {
     /// Round to whole counts like the sensor (always done when --noise > 0).
     #[arg(long)]
     pub round: bool,
+    /// Spot magnitude noise, percent of the magnitude (1-sigma, 0-25); 0 = every report of a
+    /// point has the same magnitude. The NorthStar's real figure is unmeasured: this is a
+    /// what-if, e.g. to rehearse `cta noise` -> `cta sensor floor --magnitude-noise`. It never
+    /// changes the x, y noise of a seed.
+    #[arg(
+        long = "magnitude-noise",
+        value_name = "PERCENT",
+        default_value_t = 0.0
+    )]
+    pub magnitude_noise: f64,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -546,6 +556,13 @@ pub fn sim_config(a: &SimulateArgs) -> Result<SimConfig> {
     }
     if a.samples == 0 {
         bail!("--samples must be at least 1");
+    }
+    if !(0.0..=crate::simulate::MAX_MAGNITUDE_NOISE).contains(&a.magnitude_noise) {
+        bail!(
+            "--magnitude-noise {}: between 0 and {} percent",
+            a.magnitude_noise,
+            crate::simulate::MAX_MAGNITUDE_NOISE
+        );
     }
     let v3 = |s: &str, what: &str| -> Result<nalgebra::Vector3<f64>> {
         let v = parse_list(s).with_context(|| what.to_string())?;
@@ -573,6 +590,7 @@ pub fn sim_config(a: &SimulateArgs) -> Result<SimConfig> {
         noise: a.noise,
         samples: a.samples,
         round: a.round,
+        magnitude_noise: a.magnitude_noise,
         seed: a.seed,
     })
 }

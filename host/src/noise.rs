@@ -485,7 +485,8 @@ pub fn render_text(r: &NoiseReport) -> String {
             if m.percent < 1e-9 {
                 let _ = writeln!(
                     s,
-                    "  no spread at all: simulated magnitudes carry no noise (no model of it exists)"
+                    "  no spread at all: a simulation without magnitude noise (the NorthStar's is \
+                     unmeasured; `cta simulate --magnitude-noise PERCENT` adds some as a what-if)"
                 );
             } else {
                 let _ = writeln!(

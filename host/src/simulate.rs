@@ -9,7 +9,7 @@ use cta_core::real::deg;
 use nalgebra::Vector3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use rand_distr::Normal;
+use rand_distr::{Normal, StandardNormal};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -20,6 +20,13 @@ pub const MAX_SAMPLES: usize = 100_000;
 /// The most reports one simulation writes (separations x beacons x samples): about 1.4 GB
 /// in memory and 0.6 GB of CSV; ten times `cargo bench --bench analyze_1m`.
 pub const MAX_REPORTS: usize = 10_000_000;
+
+/// The largest spot magnitude noise a simulation takes, percent (1-sigma): a Gaussian draw
+/// this wide is negative once in 30,000 reports (clamped to 0, which `cta noise` skips).
+pub const MAX_MAGNITUDE_NOISE: f64 = 25.0;
+
+/// Mixed into the seed of the magnitude noise's stream.
+const MAGNITUDE_STREAM: u64 = 0x6d61_676e_6974_7564;
 
 /// What to simulate.
 #[derive(Debug, Clone)]
@@ -44,6 +51,12 @@ pub struct SimConfig {
     pub samples: usize,
     /// Round to whole counts (as the sensor reports). Always on when `noise > 0`.
     pub round: bool,
+    /// Spot magnitude noise, percent of the magnitude (1-sigma, Gaussian, each report drawn
+    /// independently). 0: every report of a point has the same magnitude. No model of the
+    /// NorthStar's magnitude noise exists: this is a what-if for `cta noise` and
+    /// `cta sensor floor --magnitude-noise`. Drawn from its own stream, so it never changes
+    /// the x, y noise of a seed.
+    pub magnitude_noise: f64,
     /// Random seed.
     pub seed: u64,
 }
@@ -61,6 +74,7 @@ impl Default for SimConfig {
             noise: 0.0,
             samples: 1,
             round: false,
+            magnitude_noise: 0.0,
             seed: 1,
         }
     }
@@ -95,6 +109,10 @@ pub struct Truth {
     pub separations: Vec<f64>,
     /// Noise 1-sigma, counts.
     pub noise_counts: f64,
+    /// Spot magnitude noise, percent (1-sigma); 0 (also in files written before it existed):
+    /// none.
+    #[serde(default)]
+    pub magnitude_noise_percent: f64,
     /// Samples per point.
     pub samples: usize,
     /// Seed.
@@ -239,6 +257,13 @@ impl SimConfig {
         if !(self.noise.is_finite() && self.noise >= 0.0) {
             return Err(format!("noise {} counts must be >= 0", self.noise));
         }
+        if !(0.0..=MAX_MAGNITUDE_NOISE).contains(&self.magnitude_noise) {
+            return Err(format!(
+                "magnitude noise {} %: between 0 and {MAX_MAGNITUDE_NOISE} % (beyond that a \
+                 Gaussian draw makes magnitudes negative)",
+                self.magnitude_noise
+            ));
+        }
         let reports = (self.separations.len() as u128) * (beacons as u128) * (self.samples as u128);
         if reports > MAX_REPORTS as u128 {
             return Err(format!(
@@ -280,6 +305,9 @@ impl SimConfig {
         let mut rng = StdRng::seed_from_u64(self.seed);
         let noise = Normal::new(0.0, self.noise.max(0.0)).unwrap();
         let round = self.round || self.noise > 0.0;
+        // The magnitude noise has its own stream: turning it on leaves x and y as they were.
+        let mut mag_rng = StdRng::seed_from_u64(self.seed ^ MAGNITUDE_STREAM);
+        let mag_sigma = self.magnitude_noise / 100.0;
         let n = self.grid.0 * self.grid.1;
         let mut samples = Vec::with_capacity(
             self.separations
@@ -317,7 +345,12 @@ impl SimConfig {
                         y: v[1],
                         beacon: Some(i as u32),
                         sample: Some(s as u32),
-                        magnitude: Some(mag),
+                        magnitude: Some(if mag_sigma > 0.0 {
+                            let z: f64 = mag_rng.sample(StandardNormal);
+                            (mag * (1.0 + mag_sigma * z)).max(0.0)
+                        } else {
+                            mag
+                        }),
                         ..Default::default()
                     });
                 }
@@ -342,6 +375,7 @@ impl SimConfig {
             separation_errors: phys.geometry.iter().map(|g| g.1).collect(),
             separations: self.separations.clone(),
             noise_counts: self.noise,
+            magnitude_noise_percent: self.magnitude_noise,
             samples: self.samples,
             seed: self.seed,
             skipped_points: skipped,
@@ -512,6 +546,57 @@ mod tests {
         let (b, _) = noisy.run();
         assert_eq!(a.samples, b.samples);
         assert!(a.samples.iter().all(|s| s.x.fract() == 0.0));
+    }
+
+    /// Magnitude noise is drawn from its own stream (x and y of a seed are unchanged), is
+    /// recovered by `cta noise`, is recorded in the truth, and is refused beyond 25 %.
+    #[test]
+    fn magnitude_noise_is_its_own_stream_and_measurable() {
+        let base = SimConfig {
+            separations: vec![5.0, 20.0],
+            noise: 30.0,
+            samples: 20,
+            seed: 3,
+            ..Default::default()
+        };
+        let (plain, t0) = base.run();
+        let with = SimConfig {
+            magnitude_noise: 0.5,
+            ..base.clone()
+        };
+        let (noisy, t1) = with.run();
+        assert_eq!(t0.magnitude_noise_percent, 0.0);
+        assert_eq!(t1.magnitude_noise_percent, 0.5);
+        assert_eq!(plain.samples.len(), noisy.samples.len());
+        for (a, b) in plain.samples.iter().zip(&noisy.samples) {
+            assert_eq!([a.x, a.y], [b.x, b.y]);
+        }
+        assert!(plain
+            .samples
+            .iter()
+            .zip(&noisy.samples)
+            .any(|(a, b)| a.magnitude != b.magnitude));
+        let zero = crate::noise::analyze_noise(&plain)
+            .unwrap()
+            .magnitude
+            .unwrap();
+        assert!(zero.percent < 1e-9);
+        // 200 points x 19 degrees of freedom: the pooled estimate is within ~1.2 % (1-sigma)
+        // of the truth; 5 % is four sigma.
+        let m = crate::noise::analyze_noise(&noisy)
+            .unwrap()
+            .magnitude
+            .unwrap();
+        assert!((m.percent - 0.5).abs() < 0.025, "{m:?}");
+        for bad in [-0.1, 25.5, f64::NAN] {
+            let e = SimConfig {
+                magnitude_noise: bad,
+                ..base.clone()
+            }
+            .check()
+            .unwrap_err();
+            assert!(e.contains("magnitude noise"), "{e}");
+        }
     }
 
     #[test]
