@@ -13,6 +13,8 @@ pub mod plate;
 pub mod pose_floor;
 // `cta sensor ...` and the pose-accuracy table (firmware-sensor issue).
 pub mod sensor_cmd;
+// `cta calibrate`: the sensor board's calibration file from a measured sweep.
+pub mod calibrate;
 
 // The thesis subcommands.
 pub mod commands;

@@ -40,6 +40,10 @@ enum Cmd {
     /// Ch V: the error in angle of a saved fit per separation (eq 67), the Figure 57 curve,
     /// against the truth when the data carries it.
     Evaluate(commands::EvaluateArgs),
+    /// The sensor board's calibration from a measured sweep: the pinhole (eq 65) and
+    /// near-field (eqs 60-63: d, p, face angle, cell offset) fits, the residual RMS of both
+    /// per separation, and the JSON file `cta sensor load-calibration` stores in flash.
+    Calibrate(cta_host::calibrate::CalibrateArgs),
     /// The main job on the built-in simulated CTA (no hardware): near-field errors,
     /// uncertainty, a simulated characterization with a hidden effect, calibration and
     /// evaluation, with plots, in one folder.
@@ -78,6 +82,7 @@ fn main() {
         Cmd::Simulate(a) => commands::simulate(a),
         Cmd::Fit(a) => commands::fit_cmd(a),
         Cmd::Evaluate(a) => commands::evaluate_cmd(a),
+        Cmd::Calibrate(a) => cta_host::calibrate::run(a),
         Cmd::Demo(a) => cta_host::demo::run(a),
         Cmd::Sweep(a) => cta_host::sweep::run(a),
         Cmd::Analyze(a) => cta_host::analyze::run(a),

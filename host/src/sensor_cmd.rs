@@ -1286,122 +1286,17 @@ pub fn nearfield_calibration(
             }
         }
     }
-    let nominal = start.near_field.unwrap_or(NearField::nominal());
-    let cal_of = |x: &[f64]| Calibration {
-        d: [x[0] as f32, x[1] as f32, x[2] as f32],
-        p: [x[3] as f32, x[4] as f32, x[5] as f32],
-        h: start.h,
+    let w = 1.0 / (sigma * sigma);
+    let obs: Vec<crate::calibrate::NfObs> = obs
+        .into_iter()
+        .map(|(r, y)| crate::calibrate::NfObs { r, y, w: [w; 2] })
+        .collect();
+    let start = Calibration {
         noise: truth.noise,
-        near_field: Some(NearField {
-            alpha_deg: x[6] as f32,
-            s: x[7] as f32,
-            ..nominal
-        }),
+        ..*start
     };
-    let x0 = nalgebra::DVector::from_vec(vec![
-        start.d[0] as f64,
-        start.d[1] as f64,
-        start.d[2] as f64,
-        start.p[0] as f64,
-        start.p[1] as f64,
-        start.p[2] as f64,
-        nominal.alpha_deg as f64,
-        nominal.s as f64,
-    ]);
-    let base = cta_firmware_sensor::sim::physics(start);
-    let problem = NearFieldFit {
-        obs: &obs,
-        model: &|x: &[f64]| {
-            // The physics of `start` (beta, beacon pattern) with these parameters, in f64.
-            Emulator::new(
-                Head {
-                    alpha_x: x[6].to_radians(),
-                    alpha_y: x[6].to_radians(),
-                    s: x[7],
-                    ..base.head
-                },
-                HeadPose {
-                    d: Vector3::new(x[0], x[1], x[2]),
-                    p: Vector3::new(x[3], x[4], x[5]),
-                },
-                base.effects,
-            )
-        },
-        w: 1.0 / (sigma * sigma),
-    };
-    let settings = Settings {
-        weights_absolute: true,
-        ..Settings::default()
-    };
-    let sol = glsdc::solve(&problem, x0, &settings)
-        .map_err(|e| anyhow::anyhow!("near-field calibration fit failed: {e:?}"))?;
-    let x = sol.x.as_slice();
-    let mut sig = [0.0; 8];
-    for (k, v) in sig.iter_mut().enumerate() {
-        *v = sol.sigma[k];
-    }
-    Ok((cal_of(x), sig))
-}
-
-/// The eq 60-63 calibration fit of [`nearfield_calibration`]: 8 parameters (d, p, a in
-/// degrees, s), central-difference Jacobian.
-struct NearFieldFit<'a> {
-    obs: &'a [(Vector3<f64>, [f64; 2])],
-    model: &'a dyn Fn(&[f64]) -> Emulator<f64>,
-    w: f64,
-}
-
-impl glsdc::Problem<f64> for NearFieldFit<'_> {
-    type D = nalgebra::Dyn;
-    fn dim(&self) -> nalgebra::Dyn {
-        nalgebra::Dyn(8)
-    }
-    fn n_rows(&self) -> usize {
-        2 * self.obs.len()
-    }
-    fn rows(
-        &self,
-        x: &nalgebra::DVector<f64>,
-        jac: bool,
-        sink: &mut dyn FnMut(f64, f64, &[f64]),
-    ) -> Result<(), glsdc::ModelError> {
-        const STEP: [f64; 8] = [1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-4, 1e-5];
-        let base = (self.model)(x.as_slice());
-        let pert: Vec<(Emulator<f64>, Emulator<f64>)> = if jac {
-            (0..8)
-                .map(|k| {
-                    let mut a = x.clone();
-                    let mut b = x.clone();
-                    a[k] += STEP[k];
-                    b[k] -= STEP[k];
-                    ((self.model)(a.as_slice()), (self.model)(b.as_slice()))
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let mut j = [[0.0; 8]; 2];
-        for (r, y) in self.obs {
-            let p = base.output(r).ok_or(glsdc::ModelError::NonFinite)?;
-            for (k, (a, b)) in pert.iter().enumerate() {
-                let (ya, yb) = (
-                    a.output(r).ok_or(glsdc::ModelError::NonFinite)?,
-                    b.output(r).ok_or(glsdc::ModelError::NonFinite)?,
-                );
-                for axis in 0..2 {
-                    j[axis][k] = (ya[axis] - yb[axis]) / (2.0 * STEP[k]);
-                }
-            }
-            for axis in 0..2 {
-                let row: &[f64] = if jac { &j[axis] } else { &[] };
-                sink(y[axis] - p[axis], self.w, row);
-            }
-        }
-        Ok(())
-    }
-    fn param_name(&self, i: usize, w: &mut dyn std::fmt::Write) -> std::fmt::Result {
-        w.write_str(["d1", "d2", "d3", "p1", "p2", "p3", "a", "s"][i])
-    }
+    let sol = crate::calibrate::fit_near_field(&obs, &start)?;
+    Ok((sol.calibration, sol.sigma))
 }
 
 /// `a / b` for the table (`>1e5` when `b` is at rounding level).

@@ -349,3 +349,112 @@ fn demo_force_replaces_only_an_earlier_demo() {
     );
     assert!(!fresh.exists());
 }
+
+/// `cta calibrate` closes the loop from a sweep to the board: on a simulated sweep of a
+/// head at a non-default place, it recovers d, p, the face angle and the cell offset within
+/// 4 sigma, the noise within 5 %, chi2/dof near 1, and the board stores the file it writes.
+/// A hidden effect the chip's model cannot represent is flagged, pointing at `cta analyze`.
+#[test]
+fn calibrate_writes_what_the_board_loads() {
+    let d = tmpdir("cal");
+    let csv = d.join("sweep.csv");
+    let cal = d.join("cal.json");
+    let sim = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "simulate",
+            "--out",
+            s(out),
+            "--separations",
+            "2..30:2,25",
+            "--samples",
+            "4",
+            "--noise",
+            "32.8",
+            "--d",
+            "0.55,0.12,0.07",
+            "--p",
+            "0.002,-0.001,0.003",
+            "--seed",
+            "5",
+        ];
+        args.extend_from_slice(extra);
+        let o = cta(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    sim(&csv, &[]);
+    let r = json(&cta(&["calibrate", s(&csv), "--out", s(&cal), "--json"]));
+    let f = &r["file"];
+    let sigma = |n: &str| f["fitted"]["sigma"][n].as_f64().unwrap();
+    let near = |v: &serde_json::Value, truth: f64, n: &str| {
+        let v = v.as_f64().unwrap();
+        assert!(
+            (v - truth).abs() < 4.0 * sigma(n),
+            "{n} = {v}, truth {truth}, sigma {}",
+            sigma(n)
+        );
+    };
+    for (k, t) in [0.55, 0.12, 0.07].into_iter().enumerate() {
+        near(&f["d"][k], t, ["d1", "d2", "d3"][k]);
+    }
+    for (k, t) in [0.002, -0.001, 0.003].into_iter().enumerate() {
+        near(&f["p"][k], t, ["p1", "p2", "p3"][k]);
+    }
+    near(&f["near_field"]["alpha_deg"], 30.0, "a");
+    near(&f["near_field"]["s"], 0.175, "s");
+    assert_eq!(
+        f["fitted"]["pinhole_separations"],
+        serde_json::json!([25.0, 30.0])
+    );
+    let noise = f["noise"].as_f64().unwrap();
+    assert!((noise / 32.8 - 1.0).abs() < 0.05, "noise {noise}");
+    let chi2 = f["fitted"]["chi2_dof"].as_f64().unwrap();
+    assert!((0.85..1.15).contains(&chi2), "chi2/dof {chi2}");
+    assert_eq!(
+        r["warnings"].as_array().unwrap().len(),
+        1,
+        "{}",
+        r["warnings"]
+    );
+    // The near-field model gains over the pinhole one close in, not at 30 in.
+    let by = r["by_separation"].as_array().unwrap();
+    let rms = |k: usize, m: &str| by[k][m].as_f64().unwrap();
+    assert!(rms(0, "pinhole_counts") > 100.0 * rms(0, "near_field_counts"));
+    let last = by.len() - 1;
+    assert!(rms(last, "near_field_counts") < 1.2 * rms(last, "noise_counts"));
+    // The board stores it; the file is replaced by a later calibration.
+    let o = cta(&["sensor", "--sim", "load-calibration", s(&cal)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = cta(&["calibrate", s(&csv), "--out", s(&cal)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("load-calibration"), "{text}");
+
+    // A cell gain mismatch: flagged, with the file to analyze.
+    let gain = d.join("gain.csv");
+    sim(&gain, &["--effect", "cell_gain=0.03,-0.02"]);
+    let r = json(&cta(&["calibrate", s(&gain), "--json"]));
+    let w = r["warnings"].to_string();
+    assert!(w.contains("cta analyze") && w.contains("gain.csv"), "{w}");
+    assert!(r["file"]["fitted"]["chi2_dof"].as_f64().unwrap() > 10.0);
+
+    // Refusals, one line each, nothing written.
+    fails_with(
+        &cta(&["calibrate", s(&csv), "--out", s(&csv)]),
+        "is the measurement file",
+    );
+    let truth = d.join("sweep.truth.json");
+    fails_with(
+        &cta(&["calibrate", s(&csv), "--out", s(&truth)]),
+        "not an earlier `cta calibrate` calibration",
+    );
+    fails_with(
+        &cta(&["calibrate", s(&csv), "--separations", "30"]),
+        "at least 2 separations",
+    );
+    let one = d.join("one.csv");
+    let o = cta(&["simulate", "--out", s(&one), "--separations", "10,20"]);
+    assert!(o.status.success());
+    fails_with(&cta(&["calibrate", s(&one)]), "give --noise");
+    let o = cta(&["calibrate", s(&one), "--noise", "32.8"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

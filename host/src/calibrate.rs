@@ -1,0 +1,730 @@
+//! `cta calibrate`: the sensor board's calibration from a measured CTA sweep, written as the
+//! JSON file `cta sensor load-calibration` stores in the board's flash.
+//!
+//! Two fits, as the lab would do them by hand (REFERENCE.md: start the near-field fit from
+//! the 7-parameter fit to avoid false minima):
+//!
+//! 1. **Pinhole** (eq 65, `d, p, H`; [`crate::fit::fit`]) on the far separations (25 and 30
+//!    in when the file has them, else its two largest): the chip's `pinhole` model and the
+//!    near-field fit's start.
+//! 2. **Near-field** (eqs 60-63, `d, p`, the face angle `a` and the cell offset `s`, with the
+//!    calibration's `beta` and beacon pattern held) on every point of every separation, by
+//!    GLSDC with a central-difference Jacobian ([`NearFieldFit`]). Points are the means of
+//!    their repeated samples, each weighted by `n / sigma^2` with `sigma` the one-sample
+//!    noise pooled per separation and axis (weights are absolute, so chi2/dof is 1 when the
+//!    model explains the data to the noise). Points with a pinned output (a coordinate at
+//!    +/-32767) carry no position information and are left out.
+//!
+//! The calibration's `noise` (the chip's per-coordinate 1-sigma) is the one-sample noise
+//! pooled over the file (or `--noise`). The residual RMS per separation of both models is
+//! printed: what the near-field model gains over the pinhole one on this sensor. A chi2/dof
+//! well above 1 means the data hold structure the chip's model cannot represent: `cta
+//! analyze` names it.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use anyhow::{anyhow, bail, Context, Result};
+use clap::Args;
+use cta_core::collinearity::{self, ParamsExt};
+use cta_core::emulator::{Emulator, Head, Pose as HeadPose};
+use cta_core::glsdc::{self, Settings};
+use cta_core::pose::{Calibration, NearField};
+use nalgebra::{DVector, Vector3};
+use serde::{Deserialize, Serialize};
+
+use crate::analyze::data::PINNED;
+use crate::fit::{self, Weights};
+use crate::measurement::{fmt_list, parse_separations, Dataset};
+
+/// What `--out` files carry in `fitted` (and how an earlier one is recognised).
+pub const WRITER: &str = "cta calibrate";
+
+/// One point for the near-field fit: a beacon at `r` (N, inches), the mean output `y`
+/// (counts) and the weights of its two residuals (inverse variances of the mean).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NfObs {
+    /// Beacon position, N, inches.
+    pub r: Vector3<f64>,
+    /// Measured (mean) `(X, Y)`, counts.
+    pub y: [f64; 2],
+    /// Weights of the X and Y residuals, 1/counts^2.
+    pub w: [f64; 2],
+}
+
+/// The eq 60-63 calibration fit: 8 parameters (`d1..3` in, `p1..3` MRP, `a` in degrees, `s`
+/// in), central-difference Jacobian, the physics of `base` (its `beta` and beacon pattern)
+/// with these parameters.
+pub struct NearFieldFit<'a> {
+    /// The points.
+    pub obs: &'a [NfObs],
+    /// The physics whose `beta` and beacon pattern are held.
+    pub base: Emulator<f64>,
+}
+
+/// Parameter names of [`NearFieldFit`], in order.
+pub const NF_NAMES: [&str; 8] = ["d1", "d2", "d3", "p1", "p2", "p3", "a", "s"];
+
+impl NearFieldFit<'_> {
+    /// The emulator at parameter vector `x`.
+    pub fn model(&self, x: &[f64]) -> Emulator<f64> {
+        Emulator::new(
+            Head {
+                alpha_x: x[6].to_radians(),
+                alpha_y: x[6].to_radians(),
+                s: x[7],
+                ..self.base.head
+            },
+            HeadPose {
+                d: Vector3::new(x[0], x[1], x[2]),
+                p: Vector3::new(x[3], x[4], x[5]),
+            },
+            self.base.effects,
+        )
+    }
+}
+
+impl glsdc::Problem<f64> for NearFieldFit<'_> {
+    type D = nalgebra::Dyn;
+    fn dim(&self) -> nalgebra::Dyn {
+        nalgebra::Dyn(8)
+    }
+    fn n_rows(&self) -> usize {
+        2 * self.obs.len()
+    }
+    fn rows(
+        &self,
+        x: &DVector<f64>,
+        jac: bool,
+        sink: &mut dyn FnMut(f64, f64, &[f64]),
+    ) -> Result<(), glsdc::ModelError> {
+        const STEP: [f64; 8] = [1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-4, 1e-5];
+        let base = self.model(x.as_slice());
+        let pert: Vec<(Emulator<f64>, Emulator<f64>)> = if jac {
+            (0..8)
+                .map(|k| {
+                    let mut a = x.clone();
+                    let mut b = x.clone();
+                    a[k] += STEP[k];
+                    b[k] -= STEP[k];
+                    (self.model(a.as_slice()), self.model(b.as_slice()))
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let mut j = [[0.0; 8]; 2];
+        for o in self.obs {
+            let p = base.output(&o.r).ok_or(glsdc::ModelError::NonFinite)?;
+            for (k, (a, b)) in pert.iter().enumerate() {
+                let (ya, yb) = (
+                    a.output(&o.r).ok_or(glsdc::ModelError::NonFinite)?,
+                    b.output(&o.r).ok_or(glsdc::ModelError::NonFinite)?,
+                );
+                for axis in 0..2 {
+                    j[axis][k] = (ya[axis] - yb[axis]) / (2.0 * STEP[k]);
+                }
+            }
+            for axis in 0..2 {
+                let row: &[f64] = if jac { &j[axis] } else { &[] };
+                sink(o.y[axis] - p[axis], o.w[axis], row);
+            }
+        }
+        Ok(())
+    }
+    fn param_name(&self, i: usize, w: &mut dyn std::fmt::Write) -> std::fmt::Result {
+        w.write_str(NF_NAMES[i])
+    }
+}
+
+/// A near-field calibration fit.
+#[derive(Debug, Clone)]
+pub struct NearFieldSolution {
+    /// `start` with the fitted `d, p, a, s`.
+    pub calibration: Calibration,
+    /// 1-sigma of `d1..3, p1..3, a (deg), s`.
+    pub sigma: [f64; 8],
+    /// The fitted parameters in f64 (the calibration holds them in f32).
+    pub x: [f64; 8],
+    /// Chi-square per degree of freedom (absolute weights).
+    pub chi2_dof: f64,
+    /// Iterations.
+    pub iterations: usize,
+    /// Condition number of the scaled, weighted Jacobian.
+    pub condition: f64,
+}
+
+/// Fit `d, p, a, s` of the eq 60-63 model to `obs` (weights absolute), starting from
+/// `start`'s `d, p` and near-field parameters (nominal when it has none); `start`'s `beta`,
+/// beacon pattern, `H` and `noise` are kept.
+pub fn fit_near_field(obs: &[NfObs], start: &Calibration) -> Result<NearFieldSolution> {
+    let nominal = start.near_field.unwrap_or(NearField::nominal());
+    let f = |a: [f32; 3]| a.map(f64::from);
+    let (d, p) = (f(start.d), f(start.p));
+    let x0 = DVector::from_vec(vec![
+        d[0],
+        d[1],
+        d[2],
+        p[0],
+        p[1],
+        p[2],
+        nominal.alpha_deg as f64,
+        nominal.s as f64,
+    ]);
+    let problem = NearFieldFit {
+        obs,
+        base: cta_firmware_sensor::sim::physics(start),
+    };
+    let settings = Settings {
+        weights_absolute: true,
+        ..Settings::default()
+    };
+    let sol = glsdc::solve(&problem, x0, &settings)
+        .map_err(|e| anyhow!("near-field calibration fit failed: {e:?}"))?;
+    let mut x = [0.0; 8];
+    let mut sigma = [0.0; 8];
+    for k in 0..8 {
+        x[k] = sol.x[k];
+        sigma[k] = sol.sigma[k];
+    }
+    let c = |k: usize| x[k] as f32;
+    Ok(NearFieldSolution {
+        calibration: Calibration {
+            d: [c(0), c(1), c(2)],
+            p: [c(3), c(4), c(5)],
+            near_field: Some(NearField {
+                alpha_deg: c(6),
+                s: c(7),
+                ..nominal
+            }),
+            ..*start
+        },
+        sigma,
+        x,
+        chi2_dof: sol.variance_factor,
+        iterations: sol.iterations,
+        condition: sol.condition,
+    })
+}
+
+/// `cta calibrate`: fit the sensor board's calibration to a measured sweep.
+#[derive(Debug, Args)]
+#[command(
+    long_about = "Fit the sensor board's calibration to a measured (or simulated) CTA sweep and write \
+the JSON file `cta sensor load-calibration` stores in the board's flash.\n\n\
+Two fits: the pinhole model (eq 65: d, p, H) on the far separations, then the near-field model \
+(eqs 60-63: d, p, face angle a, cell offset s) on every separation, started from it. Repeated \
+samples are averaged per point and weighted by their noise, pooled per separation and axis. The \
+report gives every parameter with its 1-sigma, the residual RMS per separation of both models (what \
+the near-field model gains on this sensor), and warns when the data hold structure the chip's \
+model cannot represent (then run `cta analyze` on the same file).\n\n\
+Example:\n  cta sweep --sim --out run && cta calibrate run/data.csv --out cal.json\n  \
+cta sensor --port /dev/ttyUSB0 load-calibration cal.json"
+)]
+pub struct CalibrateArgs {
+    /// Measurement file (CSV, host/MEASUREMENTS.md), e.g. a sweep's `data.csv`.
+    pub file: PathBuf,
+    /// Write the calibration here (JSON for `cta sensor load-calibration`). An earlier
+    /// calibration written by `cta calibrate` is replaced; any other file only with --force.
+    #[arg(long, value_name = "CAL.json")]
+    pub out: Option<PathBuf>,
+    /// Let --out replace a file that is not an earlier calibration.
+    #[arg(long)]
+    pub force: bool,
+    /// Fit the near-field model to these separations only (list or range, e.g. `2..30`);
+    /// default: every separation in the file.
+    #[arg(long, value_name = "SEPS")]
+    pub separations: Option<String>,
+    /// Fit the pinhole model (eq 65) to these separations; default: 25 and 30 in when the
+    /// file has both (the thesis's calibration), else the file's two largest.
+    #[arg(long, value_name = "SEPS")]
+    pub pinhole_separations: Option<String>,
+    /// One-sample noise of a coordinate, counts: the calibration's `noise` and the weights.
+    /// Default: measured from the repeated samples; a file with one sample per point needs
+    /// it (0.1 % of beta is 32.8).
+    #[arg(long, value_name = "COUNTS")]
+    pub noise: Option<f64>,
+    /// Beacon pattern exponent m of the LEDs (`cos^m`; 1 = the VSML3710's 60 deg
+    /// half-intensity angle), held in the fit and written to the calibration.
+    #[arg(long = "pattern-m", value_name = "M", default_value_t = 1.0)]
+    pub pattern_m: f64,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The file `--out` writes: the board's calibration (what `load-calibration` reads) and,
+/// under `fitted`, where it came from (ignored by the board).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CalibrationFile {
+    /// The calibration (its fields at the top level, as `cta sensor template calibration`).
+    #[serde(flatten)]
+    pub calibration: Calibration,
+    /// Provenance and fit quality.
+    pub fitted: Provenance,
+}
+
+/// Where a calibration came from.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Provenance {
+    /// [`WRITER`] and its version.
+    pub by: String,
+    /// The measurement file.
+    pub source: String,
+    /// Separations of the near-field fit, inches.
+    pub separations: Vec<f64>,
+    /// Separations of the pinhole fit, inches.
+    pub pinhole_separations: Vec<f64>,
+    /// 1-sigma by parameter (`d1..3` in, `p1..3`, `a` deg, `s` in, `H` counts).
+    pub sigma: BTreeMap<String, f64>,
+    /// Near-field fit chi-square per degree of freedom.
+    pub chi2_dof: f64,
+    /// Near-field fit residual RMS, counts (unweighted, point means).
+    pub rms_counts: f64,
+    /// Points fitted and points left out (pinned outputs).
+    pub points: usize,
+    /// Points left out because an output was pinned.
+    pub pinned_points: usize,
+}
+
+/// Residual RMS of both models at one separation.
+#[derive(Debug, Clone, Serialize)]
+pub struct SeparationRms {
+    /// Separation, inches.
+    pub separation_in: f64,
+    /// Points.
+    pub points: usize,
+    /// Pinhole model (eq 65), counts; `None` where it predicts no point.
+    pub pinhole_counts: Option<f64>,
+    /// Near-field model, counts.
+    pub near_field_counts: f64,
+    /// What the noise alone gives: the RMS of a point mean's error, counts.
+    pub noise_counts: f64,
+}
+
+/// The `cta calibrate` report.
+#[derive(Debug, Clone, Serialize)]
+pub struct CalibrationReport {
+    /// The file written (or that would be written).
+    pub file: CalibrationFile,
+    /// Pinhole fit: `H` and its 1-sigma, chi2/dof, warnings.
+    pub pinhole_h: f64,
+    /// Pinhole fit warnings.
+    pub pinhole_warnings: Vec<String>,
+    /// Where the noise figure came from.
+    pub noise_source: String,
+    /// Near-field fit iterations.
+    pub iterations: usize,
+    /// Near-field fit condition number.
+    pub condition: f64,
+    /// Residual RMS per separation, both models.
+    pub by_separation: Vec<SeparationRms>,
+    /// Things the user should know.
+    pub warnings: Vec<String>,
+}
+
+/// The pooled one-sample noise: per separation and axis `(sum of squares, dof)`.
+struct Pooled(BTreeMap<u64, [(f64, usize); 2]>);
+
+impl Pooled {
+    fn var(&self, sep: f64, axis: usize) -> Option<f64> {
+        let (ss, dof) = self.0.get(&sep.to_bits())?[axis];
+        (dof > 0).then(|| ss / dof as f64)
+    }
+    fn overall(&self) -> Option<f64> {
+        let (ss, dof) = self
+            .0
+            .values()
+            .flatten()
+            .fold((0.0, 0), |(s, d), (a, b)| (s + a, d + b));
+        (dof > 0).then(|| (ss / dof as f64).sqrt())
+    }
+}
+
+/// Calibrate from a dataset (already restricted to the near-field separations). `all` is
+/// the whole file, for the pinhole fit's separations.
+pub fn calibrate(
+    ds: &Dataset,
+    all: &Dataset,
+    pinhole_seps: Option<&[f64]>,
+    noise_arg: Option<f64>,
+    pattern_m: f64,
+) -> Result<CalibrationReport> {
+    let seps = ds.separations();
+    if seps.len() < 2 {
+        bail!(
+            "{}: the near-field fit needs at least 2 separations (has {}): the face angle and \
+             the cell offset show only in how the outputs change with range",
+            ds.path.display(),
+            fmt_list(&seps)
+        );
+    }
+    // Point means and the pooled noise.
+    struct Pt {
+        sep: f64,
+        r: Vector3<f64>,
+        mean: [f64; 2],
+        n: usize,
+    }
+    let mut pts = Vec::new();
+    let mut pooled = Pooled(BTreeMap::new());
+    let mut pinned = 0;
+    for p in ds.points() {
+        let rows: Vec<_> = p.rows.iter().map(|&i| &ds.samples[i]).collect();
+        if rows
+            .iter()
+            .any(|s| s.x.abs() >= PINNED || s.y.abs() >= PINNED)
+        {
+            pinned += 1;
+            continue;
+        }
+        let n = rows.len();
+        let mean = [
+            rows.iter().map(|s| s.x).sum::<f64>() / n as f64,
+            rows.iter().map(|s| s.y).sum::<f64>() / n as f64,
+        ];
+        let e = pooled
+            .0
+            .entry(p.first.separation_in.to_bits())
+            .or_insert([(0.0, 0); 2]);
+        for (axis, slot) in e.iter_mut().enumerate() {
+            let v = |s: &&crate::measurement::Sample| if axis == 0 { s.x } else { s.y };
+            slot.0 += rows
+                .iter()
+                .map(|s| (v(s) - mean[axis]).powi(2))
+                .sum::<f64>();
+            slot.1 += n - 1;
+        }
+        pts.push(Pt {
+            sep: p.first.separation_in,
+            r: Vector3::from(p.first.r),
+            mean,
+            n,
+        });
+    }
+    let (noise, noise_source) = match (noise_arg, pooled.overall()) {
+        (Some(v), _) => (v, format!("--noise {v} counts")),
+        (None, Some(v)) => (
+            v,
+            "measured: one-sample noise of the repeated samples, pooled over the file".into(),
+        ),
+        (None, None) => bail!(
+            "{}: every point has one sample, so the noise cannot be measured: give --noise \
+             COUNTS (0.1 % of beta is 32.8), or sweep with repeated samples",
+            ds.path.display()
+        ),
+    };
+    if !(noise.is_finite() && (0.01..=10_000.0).contains(&noise)) {
+        bail!("noise {noise} counts: the board takes 0.01 to 10,000 counts");
+    }
+    if !(pattern_m.is_finite() && (0.0..=50.0).contains(&pattern_m)) {
+        bail!("--pattern-m {pattern_m}: the board takes 0 to 50");
+    }
+    if pts.len() < 8 {
+        bail!(
+            "{}: {} usable points ({pinned} pinned), the near-field fit needs at least 8",
+            ds.path.display(),
+            pts.len()
+        );
+    }
+    // Weights: the separation's pooled variance when it has one and --noise is not given.
+    // The floor is the quantisation of integer counts.
+    let measured = noise_arg.is_none();
+    let var = |sep: f64, axis: usize| -> f64 {
+        measured
+            .then(|| pooled.var(sep, axis))
+            .flatten()
+            .unwrap_or(noise * noise)
+            .max(1.0 / 12.0)
+    };
+    let obs: Vec<NfObs> = pts
+        .iter()
+        .map(|p| NfObs {
+            r: p.r,
+            y: p.mean,
+            w: [0, 1].map(|a| p.n as f64 / var(p.sep, a)),
+        })
+        .collect();
+
+    // 1. Pinhole.
+    let pinhole_seps: Vec<f64> = match pinhole_seps {
+        Some(s) => s.to_vec(),
+        None => {
+            let have = all.separations();
+            if [25.0, 30.0].iter().all(|s| have.contains(s)) {
+                vec![25.0, 30.0]
+            } else {
+                have.iter().rev().take(2).rev().copied().collect()
+            }
+        }
+    };
+    let far = all
+        .select(&pinhole_seps)
+        .map_err(|e| anyhow!("pinhole separations: {e}"))?;
+    let repeated = far.points().iter().all(|p| p.rows.len() >= 2);
+    let ph = fit::fit(
+        &far,
+        if repeated {
+            Weights::Repeat
+        } else {
+            Weights::None
+        },
+    )
+    .map_err(|e| anyhow!("pinhole fit at {} in: {e}", fmt_list(&pinhole_seps)))?;
+    let xp = ph.x();
+    let start = Calibration {
+        d: [xp[0], xp[1], xp[2]].map(|v| v as f32),
+        p: [xp[3], xp[4], xp[5]].map(|v| v as f32),
+        h: xp.h() as f32,
+        noise: noise as f32,
+        near_field: Some(NearField {
+            pattern_m: pattern_m as f32,
+            ..NearField::nominal()
+        }),
+    };
+
+    // 2. Near field.
+    let nf = fit_near_field(&obs, &start)?;
+    let cal = nf.calibration;
+    cal.validate().map_err(|e| {
+        anyhow!(
+            "the fitted calibration is outside what the board accepts: {e:?}; the data do not \
+             look like a NorthStar on the CTA (check the file's columns and units)"
+        )
+    })?;
+
+    // Residuals by separation.
+    let fitted = NearFieldFit {
+        obs: &obs,
+        base: cta_firmware_sensor::sim::physics(&start),
+    }
+    .model(&nf.x);
+    let mut by: BTreeMap<u64, (usize, f64, f64, usize, f64)> = BTreeMap::new();
+    for (p, o) in pts.iter().zip(&obs) {
+        let e = by.entry(p.sep.to_bits()).or_default();
+        e.0 += 1;
+        if let Some(y) = fitted.output(&p.r) {
+            e.1 += (p.mean[0] - y[0]).powi(2) + (p.mean[1] - y[1]).powi(2);
+        }
+        if let Some(y) = collinearity::predict(&xp, &p.r) {
+            e.2 += (p.mean[0] - y[0]).powi(2) + (p.mean[1] - y[1]).powi(2);
+            e.3 += 1;
+        }
+        e.4 += 1.0 / o.w[0] + 1.0 / o.w[1];
+    }
+    let by_separation: Vec<SeparationRms> = by
+        .into_iter()
+        .map(|(k, (n, nf_ss, ph_ss, ph_n, var_sum))| SeparationRms {
+            separation_in: f64::from_bits(k),
+            points: n,
+            pinhole_counts: (ph_n > 0).then(|| (ph_ss / (2 * ph_n) as f64).sqrt()),
+            near_field_counts: (nf_ss / (2 * n) as f64).sqrt(),
+            noise_counts: (var_sum / (2 * n) as f64).sqrt(),
+        })
+        .collect();
+    let total_n: usize = by_separation.iter().map(|b| b.points).sum();
+    let rms = (by_separation
+        .iter()
+        .map(|b| b.near_field_counts.powi(2) * b.points as f64)
+        .sum::<f64>()
+        / total_n as f64)
+        .sqrt();
+
+    let mut warnings = Vec::new();
+    if nf.chi2_dof > 1.2 {
+        warnings.push(format!(
+            "chi2/dof {:.2}: the residuals are {:.1}x the noise, so the data hold structure the \
+             chip's near-field model (d, p, a, s) cannot represent, and the 1-sigma above are \
+             too small by about that factor. `cta analyze {}` names what it is.",
+            nf.chi2_dof,
+            nf.chi2_dof.sqrt(),
+            all.path.display()
+        ));
+    }
+    if pinned > 0 {
+        warnings.push(format!(
+            "{pinned} points left out: an output pinned at +/-32767 (a cell in shadow or \
+             saturated) carries no position information"
+        ));
+    }
+    for b in &by_separation {
+        if b.pinhole_counts.is_none() {
+            warnings.push(format!(
+                "at {} in the pinhole model puts beacons behind the head: its RMS there is not \
+                 given",
+                b.separation_in
+            ));
+        }
+    }
+    let mut sigma: BTreeMap<String, f64> = NF_NAMES
+        .iter()
+        .zip(nf.sigma)
+        .map(|(n, s)| (n.to_string(), s))
+        .collect();
+    sigma.insert("H".into(), ph.sigma["H"]);
+    Ok(CalibrationReport {
+        file: CalibrationFile {
+            calibration: cal,
+            fitted: Provenance {
+                by: format!("{WRITER} {}", env!("CARGO_PKG_VERSION")),
+                source: all.path.display().to_string(),
+                separations: seps,
+                pinhole_separations: ph.separations.clone(),
+                sigma,
+                chi2_dof: nf.chi2_dof,
+                rms_counts: rms,
+                points: pts.len(),
+                pinned_points: pinned,
+            },
+        },
+        pinhole_h: xp.h(),
+        pinhole_warnings: ph.warnings.clone(),
+        noise_source,
+        iterations: nf.iterations,
+        condition: nf.condition,
+        by_separation,
+        warnings,
+    })
+}
+
+/// `--out` may replace an earlier calibration written by `cta calibrate`; never the
+/// measurement file, and anything else only with `--force`.
+fn check_out(out: &Path, data: &Path, force: bool) -> Result<()> {
+    if out.is_dir() {
+        bail!(
+            "--out {}: is a folder; give a file name (e.g. cal.json)",
+            out.display()
+        );
+    }
+    if !out.exists() {
+        return Ok(());
+    }
+    if let (Ok(a), Ok(b)) = (out.canonicalize(), data.canonicalize()) {
+        if a == b {
+            bail!("--out {}: is the measurement file", out.display());
+        }
+    }
+    let earlier = std::fs::read_to_string(out)
+        .ok()
+        .and_then(|s| serde_json::from_str::<CalibrationFile>(&s).ok())
+        .is_some_and(|f| f.fitted.by.starts_with(WRITER));
+    if force || earlier {
+        return Ok(());
+    }
+    bail!(
+        "--out {}: exists and is not an earlier `cta calibrate` calibration: pass --force to \
+         replace it",
+        out.display()
+    )
+}
+
+/// Run `cta calibrate`.
+pub fn run(a: &CalibrateArgs) -> Result<()> {
+    if let Some(out) = &a.out {
+        check_out(out, &a.file, a.force)?;
+    }
+    if let Some(v) = a.noise {
+        if !(v.is_finite() && v > 0.0) {
+            bail!("--noise {v}: a positive number of counts");
+        }
+    }
+    let all = Dataset::read(&a.file).map_err(|e| anyhow!("{e}"))?;
+    let ds = match &a.separations {
+        None => all.clone(),
+        Some(s) => {
+            let seps = parse_separations(s).map_err(|e| anyhow!("--separations: {e}"))?;
+            all.select(&seps)
+                .map_err(|e| anyhow!("--separations: {e}"))?
+        }
+    };
+    let ph = match &a.pinhole_separations {
+        None => None,
+        Some(s) => Some(parse_separations(s).map_err(|e| anyhow!("--pinhole-separations: {e}"))?),
+    };
+    let rep = calibrate(&ds, &all, ph.as_deref(), a.noise, a.pattern_m)?;
+    if let Some(out) = &a.out {
+        let json = serde_json::to_string_pretty(&rep.file)?;
+        let tmp = out.with_extension("json.partial");
+        std::fs::write(&tmp, json)
+            .and_then(|()| std::fs::rename(&tmp, out))
+            .with_context(|| format!("cannot write {}", out.display()))?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rep)?);
+        return Ok(());
+    }
+    print_report(&rep, a.out.as_deref());
+    Ok(())
+}
+
+fn print_report(rep: &CalibrationReport, out: Option<&Path>) {
+    let f = &rep.file.fitted;
+    let c = &rep.file.calibration;
+    let nf = c.near_field.unwrap_or(NearField::nominal());
+    let seps = match f.separations.as_slice() {
+        [a, .., b] if f.separations.len() > 6 => {
+            format!("{} separations, {a}-{b} in", f.separations.len())
+        }
+        v => format!("{} in", fmt_list(v)),
+    };
+    println!(
+        "Sensor calibration from {} ({} points at {seps}; {} left out)",
+        f.source, f.points, f.pinned_points
+    );
+    println!(
+        "  pinhole (eq 65) at {} in: H = {:.1} ± {:.1} counts",
+        fmt_list(&f.pinhole_separations),
+        rep.pinhole_h,
+        f.sigma["H"]
+    );
+    println!("  near-field (eqs 60-63), started from it:");
+    let s = |n: &str| f.sigma[n];
+    for (k, n) in ["d1", "d2", "d3"].iter().enumerate() {
+        println!("    {n} = {:>10.6} ± {:.2e} in", c.d[k], s(n));
+    }
+    for (k, n) in ["p1", "p2", "p3"].iter().enumerate() {
+        println!("    {n} = {:>10.6} ± {:.2e}", c.p[k], s(n));
+    }
+    println!(
+        "    a  = {:>10.4} ± {:.2e} deg   (face angle; 30 nominal)",
+        nf.alpha_deg,
+        s("a")
+    );
+    println!(
+        "    s  = {:>10.5} ± {:.2e} in    (cell offset; 0.175 nominal)",
+        nf.s,
+        s("s")
+    );
+    println!(
+        "    held: beta = {}, beacon pattern m = {}; noise = {:.2} counts ({})",
+        nf.beta, nf.pattern_m, c.noise, rep.noise_source
+    );
+    println!(
+        "  chi2/dof {:.3}, residual RMS {:.2} counts, {} iterations, condition {:.2e}",
+        f.chi2_dof, f.rms_counts, rep.iterations, rep.condition
+    );
+    println!("\n sep(in)  points   RMS pinhole  near-field   noise (counts, point means)");
+    for b in &rep.by_separation {
+        println!(
+            " {:>7}  {:>6}  {:>12}  {:>10.2}  {:>6.2}",
+            b.separation_in,
+            b.points,
+            b.pinhole_counts
+                .map(|v| format!("{v:.2}"))
+                .unwrap_or_else(|| "-".into()),
+            b.near_field_counts,
+            b.noise_counts
+        );
+    }
+    for w in rep.pinhole_warnings.iter().chain(&rep.warnings) {
+        println!("warning: {w}");
+    }
+    match out {
+        Some(p) => println!(
+            "\nwritten to {}: load it with `cta sensor --port PORT load-calibration {}`",
+            p.display(),
+            p.display()
+        ),
+        None => println!("\n(not written: give --out CAL.json)"),
+    }
+}
