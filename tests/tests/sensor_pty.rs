@@ -210,3 +210,73 @@ fn garbage_on_both_links_is_survived() {
     assert!(s.pc.bad() >= 1, "{s:?}");
     assert!(s.northstar.discarded > 0, "{s:?}");
 }
+
+/// The lab's whole path on the simulated CTA: a sweep of a head mounted off its nominal place
+/// (`cta simulate`), `cta calibrate`, the calibration loaded into the board, poses solved on
+/// the board. The fitted calibration puts the pose on the noise floor; the nominal (Table 3)
+/// calibration, which is what the board would hold without the sweep, misses by the mounting
+/// error.
+#[test]
+fn a_calibration_fitted_to_a_sweep_solves_poses() {
+    use cta_host::calibrate::calibrate;
+    use cta_host::simulate::SimConfig;
+    let truth = Calibration {
+        d: [0.55, 0.12, 0.07],
+        p: [0.002, -0.001, 0.003],
+        ..Calibration::table3()
+    };
+    let f = |a: [f32; 3]| Vector3::new(a[0] as f64, a[1] as f64, a[2] as f64);
+    let sweep = SimConfig {
+        separations: (1..=15).map(|k| 2.0 * k as f64).chain([25.0]).collect(),
+        pose: cta_core::emulator::Pose {
+            d: f(truth.d),
+            p: f(truth.p),
+        },
+        noise: 32.8,
+        samples: 4,
+        seed: 11,
+        ..Default::default()
+    };
+    let (ds, _) = sweep.try_run().unwrap();
+    let rep = calibrate(&ds, &ds, None, None, 1.0).unwrap();
+    let fitted = rep.file.calibration;
+    assert!(rep.file.fitted.chi2_dof < 1.15, "{:?}", rep.file.fitted);
+
+    let t = Vector3::new(0.2, -0.1, 6.0);
+    let q = mrp::from_axis_angle(&Vector3::new(0.2, 0.3, 1.0), 2f64.to_radians());
+    let mean_error = |cal: Calibration| -> (f64, f64) {
+        let mut ns = SimNorthStar::new(&truth, cta_constellation(), t, q, 32.768, 3);
+        ns.rate_hz = 50;
+        let sim = SimBoard::spawn(ns).unwrap();
+        let mut l = connect(&sim);
+        l.call(SensorRequest::LoadCalibration(cal)).unwrap();
+        l.call(SensorRequest::LoadConstellation(cta_constellation()))
+            .unwrap();
+        l.call(SensorRequest::SetMode(Mode::Pose(ModelKind::NearField)))
+            .unwrap();
+        let ps = poses(&mut l, 12);
+        l.call(SensorRequest::SetMode(Mode::Idle)).unwrap();
+        let mut pos = Vector3::zeros();
+        for p in &ps[2..] {
+            assert_eq!(p.status, PoseStatus::Ok, "{p:?}");
+            pos += f(p.position) / (ps.len() - 2) as f64;
+        }
+        let sigma = ps[2..]
+            .iter()
+            .map(|p| f(p.sigma_position).norm())
+            .sum::<f64>()
+            / (ps.len() - 2) as f64;
+        ((pos - t).norm(), sigma)
+    };
+    let (err_fitted, sigma) = mean_error(fitted);
+    let (err_nominal, _) = mean_error(Calibration::table3());
+    // The mean of 10 frames: its noise is a third of one frame's 1-sigma.
+    assert!(
+        err_fitted < sigma,
+        "fitted: {err_fitted} in (1-sigma {sigma})"
+    );
+    assert!(
+        err_nominal > 5.0 * err_fitted && err_nominal > 0.03,
+        "nominal {err_nominal} in vs fitted {err_fitted} in"
+    );
+}
