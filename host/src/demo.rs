@@ -46,13 +46,14 @@ fn parse_args<A: clap::Args>(args: &[&str]) -> Result<A> {
 }
 
 /// What the demo writes into its folder: `--force` deletes a folder holding only these.
-const DEMO_ENTRIES: [&str; 7] = [
+const DEMO_ENTRIES: [&str; 8] = [
     "nearfield.svg",
     "uncertainty.svg",
     "plan.toml",
     "run",
     "fit.json",
     "figure57.svg",
+    "cal.json",
     "report",
 ];
 
@@ -156,7 +157,16 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         plot: Some(p("figure57.svg")),
         json: false,
     })?;
-    println!("\n== 6. What the simulation gets wrong, why, and the gain of the extended model");
+    println!(
+        "\n== 6. The sensor board's calibration from the sweep (pinhole, then the chip's near-field model)"
+    );
+    let cal = p("cal.json");
+    crate::calibrate::run(&parse_args::<crate::calibrate::CalibrateArgs>(&[
+        path_str(&data)?,
+        "--out",
+        path_str(&cal)?,
+    ])?)?;
+    println!("\n== 7. What the simulation gets wrong, why, and the gain of the extended model");
     let report = p("report");
     let analyze = parse_args::<crate::analyze::AnalyzeArgs>(&[
         path_str(&data)?,
@@ -166,7 +176,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     crate::analyze::run(&analyze)?;
     println!(
         "\nDemo output in {}: nearfield.svg, uncertainty.svg, run/ (sweep data, manifest, truth), fit.json, \
-         figure57.svg, and the analysis report: open {}",
+         figure57.svg, cal.json (for `cta sensor load-calibration`), and the analysis report: open {}",
         a.out.display(),
         report.join("index.html").display()
     );

@@ -224,11 +224,14 @@ fn demo_runs_end_to_end() {
         String::from_utf8_lossy(&o.stderr)
     );
     assert!(stdout.contains("named: cell_gain"), "{stdout}");
+    // The board's calibration cannot hold the hidden cell gain: the calibration says so.
+    assert!(stdout.contains("cannot represent"), "{stdout}");
     for f in [
         "nearfield.svg",
         "uncertainty.svg",
         "fit.json",
         "figure57.svg",
+        "cal.json",
         "run/data.csv",
         "report/index.html",
     ] {
