@@ -118,6 +118,7 @@ pub fn physics(cal: &Calibration) -> Emulator<f64> {
         pattern: cta_core::pattern::Pattern::Lambertian {
             m: nf.pattern_m as f64,
         },
+        gain: nf.cell_gains(),
         ..Effects::default()
     };
     Emulator::new(

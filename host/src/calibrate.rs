@@ -7,8 +7,9 @@
 //! 1. **Pinhole** (eq 65, `d, p, H`; [`crate::fit::fit`]) on the far separations (25 and 30
 //!    in when the file has them, else its two largest): the chip's `pinhole` model and the
 //!    near-field fit's start.
-//! 2. **Near-field** (eqs 60-63, `d, p`, the face angle `a` and the cell offset `s`, with the
-//!    calibration's `beta` and beacon pattern held) on every point of every separation, by
+//! 2. **Near-field** (eqs 60-63, `d, p`, the face angle `a`, the cell offset `s` and the
+//!    cell gains `gx, gy` of [`NearField::gain`], with the calibration's `beta` and beacon
+//!    pattern held) on every point of every separation, by
 //!    GLSDC with a central-difference Jacobian ([`NearFieldFit`]). Points are the means of
 //!    their repeated samples, each weighted by `n / sigma^2` with `sigma` the one-sample
 //!    noise pooled per separation and axis (weights are absolute, so chi2/dof is 1 when the
@@ -53,21 +54,37 @@ pub struct NfObs {
 }
 
 /// The eq 60-63 calibration fit: 8 parameters (`d1..3` in, `p1..3` MRP, `a` in degrees, `s`
-/// in), central-difference Jacobian, the physics of `base` (its `beta` and beacon pattern)
-/// with these parameters.
+/// in), or 10 with the cell gains `gx, gy` ([`NearField::gain`]), central-difference
+/// Jacobian, the physics of `base` (its `beta` and beacon pattern) with these parameters.
 pub struct NearFieldFit<'a> {
     /// The points.
     pub obs: &'a [NfObs],
-    /// The physics whose `beta` and beacon pattern are held.
+    /// The physics whose `beta` and beacon pattern (and, unless fitted, cell gains) are held.
     pub base: Emulator<f64>,
+    /// Fit the cell gains too (10 parameters).
+    pub gains: bool,
 }
 
-/// Parameter names of [`NearFieldFit`], in order.
-pub const NF_NAMES: [&str; 8] = ["d1", "d2", "d3", "p1", "p2", "p3", "a", "s"];
+/// Parameter names of [`NearFieldFit`], in order (the first 8 without the gains).
+pub const NF_NAMES: [&str; 10] = ["d1", "d2", "d3", "p1", "p2", "p3", "a", "s", "gx", "gy"];
 
 impl NearFieldFit<'_> {
-    /// The emulator at parameter vector `x`.
+    fn n(&self) -> usize {
+        if self.gains {
+            10
+        } else {
+            8
+        }
+    }
+
+    /// The emulator at parameter vector `x` (8 or 10 values).
     pub fn model(&self, x: &[f64]) -> Emulator<f64> {
+        let mut effects = self.base.effects;
+        if let [.., gx, gy] = x[..] {
+            if x.len() == 10 {
+                effects.gain = [1.0 + gx, 1.0, 1.0 + gy, 1.0];
+            }
+        }
         Emulator::new(
             Head {
                 alpha_x: x[6].to_radians(),
@@ -79,7 +96,7 @@ impl NearFieldFit<'_> {
                 d: Vector3::new(x[0], x[1], x[2]),
                 p: Vector3::new(x[3], x[4], x[5]),
             },
-            self.base.effects,
+            effects,
         )
     }
 }
@@ -87,7 +104,7 @@ impl NearFieldFit<'_> {
 impl glsdc::Problem<f64> for NearFieldFit<'_> {
     type D = nalgebra::Dyn;
     fn dim(&self) -> nalgebra::Dyn {
-        nalgebra::Dyn(8)
+        nalgebra::Dyn(self.n())
     }
     fn n_rows(&self) -> usize {
         2 * self.obs.len()
@@ -98,10 +115,11 @@ impl glsdc::Problem<f64> for NearFieldFit<'_> {
         jac: bool,
         sink: &mut dyn FnMut(f64, f64, &[f64]),
     ) -> Result<(), glsdc::ModelError> {
-        const STEP: [f64; 8] = [1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-4, 1e-5];
+        const STEP: [f64; 10] = [1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-4, 1e-5, 1e-5, 1e-5];
+        let n = self.n();
         let base = self.model(x.as_slice());
         let pert: Vec<(Emulator<f64>, Emulator<f64>)> = if jac {
-            (0..8)
+            (0..n)
                 .map(|k| {
                     let mut a = x.clone();
                     let mut b = x.clone();
@@ -113,7 +131,7 @@ impl glsdc::Problem<f64> for NearFieldFit<'_> {
         } else {
             Vec::new()
         };
-        let mut j = [[0.0; 8]; 2];
+        let mut j = [[0.0; 10]; 2];
         for o in self.obs {
             let p = base.output(&o.r).ok_or(glsdc::ModelError::NonFinite)?;
             for (k, (a, b)) in pert.iter().enumerate() {
@@ -126,7 +144,7 @@ impl glsdc::Problem<f64> for NearFieldFit<'_> {
                 }
             }
             for axis in 0..2 {
-                let row: &[f64] = if jac { &j[axis] } else { &[] };
+                let row: &[f64] = if jac { &j[axis][..n] } else { &[] };
                 sink(o.y[axis] - p[axis], o.w[axis], row);
             }
         }
@@ -140,12 +158,13 @@ impl glsdc::Problem<f64> for NearFieldFit<'_> {
 /// A near-field calibration fit.
 #[derive(Debug, Clone)]
 pub struct NearFieldSolution {
-    /// `start` with the fitted `d, p, a, s`.
+    /// `start` with the fitted `d, p, a, s` (and gains).
     pub calibration: Calibration,
-    /// 1-sigma of `d1..3, p1..3, a (deg), s`.
-    pub sigma: [f64; 8],
-    /// The fitted parameters in f64 (the calibration holds them in f32).
-    pub x: [f64; 8],
+    /// 1-sigma of `d1..3, p1..3, a (deg), s` (and `gx, gy`; 0 when not fitted).
+    pub sigma: [f64; 10],
+    /// The fitted parameters in f64 (the calibration holds them in f32); `start`'s gains
+    /// when they were not fitted.
+    pub x: [f64; 10],
     /// Chi-square per degree of freedom (absolute weights).
     pub chi2_dof: f64,
     /// Iterations.
@@ -154,14 +173,19 @@ pub struct NearFieldSolution {
     pub condition: f64,
 }
 
-/// Fit `d, p, a, s` of the eq 60-63 model to `obs` (weights absolute), starting from
-/// `start`'s `d, p` and near-field parameters (nominal when it has none); `start`'s `beta`,
-/// beacon pattern, `H` and `noise` are kept.
-pub fn fit_near_field(obs: &[NfObs], start: &Calibration) -> Result<NearFieldSolution> {
+/// Fit `d, p, a, s` (and with `gains` the cell gains) of the eq 60-63 model to `obs`
+/// (weights absolute), starting from `start`'s `d, p` and near-field parameters (nominal
+/// when it has none); `start`'s `beta`, beacon pattern, `H` and `noise` are kept.
+pub fn fit_near_field(
+    obs: &[NfObs],
+    start: &Calibration,
+    gains: bool,
+) -> Result<NearFieldSolution> {
     let nominal = start.near_field.unwrap_or(NearField::nominal());
     let f = |a: [f32; 3]| a.map(f64::from);
     let (d, p) = (f(start.d), f(start.p));
-    let x0 = DVector::from_vec(vec![
+    let g = nominal.gain.map(f64::from);
+    let mut x0 = vec![
         d[0],
         d[1],
         d[2],
@@ -170,20 +194,26 @@ pub fn fit_near_field(obs: &[NfObs], start: &Calibration) -> Result<NearFieldSol
         p[2],
         nominal.alpha_deg as f64,
         nominal.s as f64,
-    ]);
+    ];
+    if gains {
+        x0.extend(g);
+    }
     let problem = NearFieldFit {
         obs,
         base: cta_firmware_sensor::sim::physics(start),
+        gains,
     };
+    let x0 = DVector::from_vec(x0);
     let settings = Settings {
         weights_absolute: true,
         ..Settings::default()
     };
     let sol = glsdc::solve(&problem, x0, &settings)
         .map_err(|e| anyhow!("near-field calibration fit failed: {e:?}"))?;
-    let mut x = [0.0; 8];
-    let mut sigma = [0.0; 8];
-    for k in 0..8 {
+    let mut x = [0.0; 10];
+    let mut sigma = [0.0; 10];
+    x[8..].copy_from_slice(&g);
+    for k in 0..sol.x.len() {
         x[k] = sol.x[k];
         sigma[k] = sol.sigma[k];
     }
@@ -195,6 +225,7 @@ pub fn fit_near_field(obs: &[NfObs], start: &Calibration) -> Result<NearFieldSol
             near_field: Some(NearField {
                 alpha_deg: c(6),
                 s: c(7),
+                gain: [c(8), c(9)],
                 ..nominal
             }),
             ..*start
@@ -213,8 +244,8 @@ pub fn fit_near_field(obs: &[NfObs], start: &Calibration) -> Result<NearFieldSol
     long_about = "Fit the sensor board's calibration to a measured (or simulated) CTA sweep and write \
 the JSON file `cta sensor load-calibration` stores in the board's flash.\n\n\
 Two fits: the pinhole model (eq 65: d, p, H) on the far separations, then the near-field model \
-(eqs 60-63: d, p, face angle a, cell offset s) on every separation, started from it. Repeated \
-samples are averaged per point and weighted by their noise, pooled per separation and axis. The \
+(eqs 60-63: d, p, face angle a, cell offset s, cell gains gx, gy) on every separation, started \
+from it. Repeated samples are averaged per point and weighted by their noise, pooled per separation and axis. The \
 report gives every parameter with its 1-sigma, the residual RMS per separation of both models (what \
 the near-field model gains on this sensor), and warns when the data hold structure the chip's \
 model cannot represent (then run `cta analyze` on the same file).\n\n\
@@ -484,7 +515,7 @@ pub fn calibrate(
     };
 
     // 2. Near field.
-    let nf = fit_near_field(&obs, &start)?;
+    let nf = fit_near_field(&obs, &start, true)?;
     let cal = nf.calibration;
     cal.validate().map_err(|e| {
         anyhow!(
@@ -497,6 +528,7 @@ pub fn calibrate(
     let fitted = NearFieldFit {
         obs: &obs,
         base: cta_firmware_sensor::sim::physics(&start),
+        gains: true,
     }
     .model(&nf.x);
     let mut by: BTreeMap<u64, (usize, f64, f64, usize, f64)> = BTreeMap::new();
@@ -534,7 +566,7 @@ pub fn calibrate(
     if nf.chi2_dof > 1.2 {
         warnings.push(format!(
             "chi2/dof {:.2}: the residuals are {:.1}x the noise, so the data hold structure the \
-             chip's near-field model (d, p, a, s) cannot represent, and the 1-sigma above are \
+             chip's near-field model (d, p, a, s, cell gains) cannot represent, and the 1-sigma above are \
              too small by about that factor. `cta analyze {}` names what it is.",
             nf.chi2_dof,
             nf.chi2_dof.sqrt(),
@@ -694,6 +726,16 @@ fn print_report(rep: &CalibrationReport, out: Option<&Path>) {
         "    s  = {:>10.5} ± {:.2e} in    (cell offset; 0.175 nominal)",
         nf.s,
         s("s")
+    );
+    println!(
+        "    gx = {:>10.6} ± {:.2e}       (cell 1 gain - 1; 0 nominal)",
+        nf.gain[0],
+        s("gx")
+    );
+    println!(
+        "    gy = {:>10.6} ± {:.2e}       (cell 3 gain - 1; 0 nominal)",
+        nf.gain[1],
+        s("gy")
     );
     println!(
         "    held: beta = {}, beacon pattern m = {}; noise = {:.2} counts ({})",

@@ -1295,8 +1295,10 @@ pub fn nearfield_calibration(
         noise: truth.noise,
         ..*start
     };
-    let sol = crate::calibrate::fit_near_field(&obs, &start)?;
-    Ok((sol.calibration, sol.sigma))
+    let sol = crate::calibrate::fit_near_field(&obs, &start, false)?;
+    let mut sigma = [0.0; 8];
+    sigma.copy_from_slice(&sol.sigma[..8]);
+    Ok((sol.calibration, sigma))
 }
 
 /// `a / b` for the table (`>1e5` when `b` is at rounding level).

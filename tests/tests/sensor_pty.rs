@@ -212,10 +212,10 @@ fn garbage_on_both_links_is_survived() {
 }
 
 /// The lab's whole path on the simulated CTA: a sweep of a head mounted off its nominal place
-/// (`cta simulate`), `cta calibrate`, the calibration loaded into the board, poses solved on
-/// the board. The fitted calibration puts the pose on the noise floor; the nominal (Table 3)
-/// calibration, which is what the board would hold without the sweep, misses by the mounting
-/// error.
+/// with mismatched cells (`cta simulate --effect cell_gain=...`), `cta calibrate`, the
+/// calibration loaded into the board, poses solved on the board. The fitted calibration puts
+/// the pose on the noise floor; the nominal (Table 3) calibration, which is what the board
+/// would hold without the sweep, misses by the mounting error and the gains.
 #[test]
 fn a_calibration_fitted_to_a_sweep_solves_poses() {
     use cta_host::calibrate::calibrate;
@@ -223,6 +223,10 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
     let truth = Calibration {
         d: [0.55, 0.12, 0.07],
         p: [0.002, -0.001, 0.003],
+        near_field: Some(cta_core::pose::NearField {
+            gain: [0.02, -0.01],
+            ..cta_core::pose::NearField::nominal()
+        }),
         ..Calibration::table3()
     };
     let f = |a: [f32; 3]| Vector3::new(a[0] as f64, a[1] as f64, a[2] as f64);
@@ -232,6 +236,7 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
             d: f(truth.d),
             p: f(truth.p),
         },
+        effects: vec![cta_host::effects::Effect::CellGain(0.02, -0.01)],
         noise: 32.8,
         samples: 4,
         seed: 11,
@@ -241,6 +246,11 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
     let rep = calibrate(&ds, &ds, None, None, 1.0).unwrap();
     let fitted = rep.file.calibration;
     assert!(rep.file.fitted.chi2_dof < 1.15, "{:?}", rep.file.fitted);
+    let gain = fitted.near_field.unwrap().gain;
+    assert!(
+        (gain[0] - 0.02).abs() < 3e-4 && (gain[1] + 0.01).abs() < 3e-4,
+        "{gain:?}"
+    );
 
     let t = Vector3::new(0.2, -0.1, 6.0);
     let q = mrp::from_axis_angle(&Vector3::new(0.2, 0.3, 1.0), 2f64.to_radians());
