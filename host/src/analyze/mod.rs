@@ -12,7 +12,9 @@
 //! 4. Report the causes with their parameters and 1-sigma, the held-out gain, chi-square per
 //!    degree of freedom and the angle-error spread per separation before and after; say
 //!    "unexplained structure remains" (and where) when the best extension still leaves
-//!    chi-square per degree of freedom clearly above 1.
+//!    chi-square per degree of freedom clearly above 1. For every candidate tried on top of
+//!    the final model and not accepted, report its estimates +/- 1-sigma (how tightly the
+//!    data rule it out, [`RuledOut`]).
 
 pub mod data;
 pub mod diag;
@@ -200,6 +202,48 @@ pub struct TrialOut {
     pub accepted: bool,
     /// Fit failure.
     pub failure: Option<String>,
+    /// Whether the candidate was fitted on all data (false: a failure, or no saturation level
+    /// to start from).
+    pub fitted: bool,
+    /// The candidate's fitted parameters with 1-sigma and no-effect value (empty when it was
+    /// not fitted): the global ones as [`model::Cand::trial_report`] gives them, then every
+    /// per-separation value (`x@2in`).
+    pub params: Vec<Param>,
+}
+
+/// A candidate tried on top of the final model and not accepted: how tightly the data rule
+/// it out.
+#[derive(Debug, Clone, Serialize)]
+pub struct RuledOut {
+    /// Candidate.
+    pub effect: String,
+    /// Added parameters.
+    pub k: usize,
+    /// Chi-square improvement.
+    pub dchi2: f64,
+    /// BIC improvement.
+    pub dbic: f64,
+    /// Whether it was fitted (false: see `note`).
+    pub fitted: bool,
+    /// Global parameters: estimate, 1-sigma, no-effect value.
+    pub params: Vec<Param>,
+    /// Per-separation parameters, summarised.
+    pub per_separation: Vec<SepSpread>,
+    /// Failure, or why a candidate with dBIC > 10 was still not accepted.
+    pub note: Option<String>,
+}
+
+/// The spread of one per-separation parameter over the separations.
+#[derive(Debug, Clone, Serialize)]
+pub struct SepSpread {
+    /// Parameter (`x`, `y`, `z`), in.
+    pub name: String,
+    /// RMS of the per-separation estimates, in.
+    pub rms: f64,
+    /// The RMS noise alone would give: the root of the mean of their variances, in.
+    pub noise_rms: f64,
+    /// Separations.
+    pub separations: usize,
 }
 
 /// A parameter with its 1-sigma.
@@ -211,6 +255,11 @@ pub struct Param {
     pub value: f64,
     /// 1-sigma.
     pub sigma: f64,
+    /// For a candidate's parameter, its value when the effect is absent (thesis physics:
+    /// `S` 0.175 in, `H_deg` 60, everything else 0; omitted for `saturation`, which has no
+    /// finite one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub no_effect: Option<f64>,
 }
 
 /// The analysis result (`--json` prints it).
@@ -272,6 +321,10 @@ pub struct Analysis {
     pub diagnostics_after: diag::Diagnostics,
     /// Every candidate tried.
     pub trials: Vec<TrialOut>,
+    /// The candidates tried on top of the final model and not accepted, with their estimates.
+    pub ruled_out: Vec<RuledOut>,
+    /// Why `ruled_out` is empty, when it is.
+    pub ruled_out_note: Option<String>,
     /// Everything the report plots (not in JSON).
     #[serde(skip)]
     pub detail: Option<Box<Detail>>,
@@ -354,8 +407,48 @@ fn params_of(model: &Model, f: &FitResult, seps: &[f64], globals_only: bool) -> 
             name: names[i].clone(),
             value: f.x[i],
             sigma: f.sigma[i],
+            no_effect: None,
         })
         .collect()
+}
+
+/// Quantities `rep` of effect `c`'s global parameters in the fit `f` of `model`, each with its
+/// 1-sigma by the delta method (numerical gradient of the quantity through the fitted
+/// covariance of those parameters): (name, value, sigma).
+fn delta_method<'n>(
+    model: &Model,
+    c: Cand,
+    f: &FitResult,
+    rep: impl Fn(&[f64]) -> Vec<(&'n str, f64)>,
+) -> Vec<(&'n str, f64, f64)> {
+    let idx: Vec<usize> = model.global_indices(c).collect();
+    let v: Vec<f64> = idx.iter().map(|&i| f.x[i]).collect();
+    // Covariance block of the global parameters.
+    let pos: Vec<Option<usize>> = idx
+        .iter()
+        .map(|i| f.free.iter().position(|j| j == i))
+        .collect();
+    let values = rep(&v);
+    let mut out = Vec::with_capacity(values.len());
+    for (k, &(name, val)) in values.iter().enumerate() {
+        let mut grad = vec![0.0; v.len()];
+        for (j, g) in grad.iter_mut().enumerate() {
+            let h = 1e-7 * (1.0 + v[j].abs());
+            let mut vp = v.clone();
+            vp[j] += h;
+            *g = (rep(&vp)[k].1 - val) / h;
+        }
+        let mut var = 0.0;
+        for a in 0..v.len() {
+            for b in 0..v.len() {
+                if let (Some(pa), Some(pb)) = (pos[a], pos[b]) {
+                    var += grad[a] * grad[b] * f.cov[(pa, pb)];
+                }
+            }
+        }
+        out.push((name, val, var.max(0.0).sqrt()));
+    }
+    out
 }
 
 /// The reported parameters of `c` in the fit `f` of `model`, with 1-sigma by the delta
@@ -368,32 +461,9 @@ fn cause_params(
 ) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
     let mut p = BTreeMap::new();
     let mut s = BTreeMap::new();
-    let idx: Vec<usize> = model.global_indices(c).collect();
-    let v: Vec<f64> = idx.iter().map(|&i| f.x[i]).collect();
-    let rep = c.report(model.base, &v);
-    // Covariance block of the global parameters.
-    let pos: Vec<Option<usize>> = idx
-        .iter()
-        .map(|i| f.free.iter().position(|j| j == i))
-        .collect();
-    for (k, (name, val)) in rep.iter().enumerate() {
-        let mut grad = vec![0.0; v.len()];
-        for (j, g) in grad.iter_mut().enumerate() {
-            let h = 1e-7 * (1.0 + v[j].abs());
-            let mut vp = v.clone();
-            vp[j] += h;
-            *g = (c.report(model.base, &vp)[k].1 - val) / h;
-        }
-        let mut var = 0.0;
-        for a in 0..v.len() {
-            for b in 0..v.len() {
-                if let (Some(pa), Some(pb)) = (pos[a], pos[b]) {
-                    var += grad[a] * grad[b] * f.cov[(pa, pb)];
-                }
-            }
-        }
-        p.insert(name.to_string(), *val);
-        s.insert(name.to_string(), var.max(0.0).sqrt());
+    for (name, val, sg) in delta_method(model, c, f, |v| c.report(model.base, v)) {
+        p.insert(name.to_string(), val);
+        s.insert(name.to_string(), sg);
     }
     if !c.local_names().is_empty() {
         let mut sumsq = 0.0;
@@ -410,6 +480,134 @@ fn cause_params(
         p.insert("rms_in".into(), (sumsq / n.max(1) as f64).sqrt());
     }
     (p, s)
+}
+
+/// The parameters of candidate `c` in its trial fit `f` of `model` (the round's model plus
+/// `c`), as [`Cand::trial_report`] gives them (smooth through the no-effect value, which each
+/// carries), 1-sigma by the delta method; then every per-separation value (`x@2in`, no-effect
+/// value 0).
+fn trial_params(model: &Model, c: Cand, f: &FitResult, seps: &[f64]) -> Vec<Param> {
+    let idx: Vec<usize> = model.global_indices(c).collect();
+    let v: Vec<f64> = idx.iter().map(|&i| f.x[i]).collect();
+    let nulls: Vec<Option<f64>> = c.trial_report(model.base, &v).iter().map(|r| r.2).collect();
+    let rep = |v: &[f64]| {
+        c.trial_report(model.base, v)
+            .into_iter()
+            .map(|(n, x, _)| (n, x))
+            .collect::<Vec<_>>()
+    };
+    let mut out: Vec<Param> = delta_method(model, c, f, rep)
+        .into_iter()
+        .zip(nulls)
+        .map(|((name, value, sigma), no_effect)| Param {
+            name: name.into(),
+            value,
+            sigma,
+            no_effect,
+        })
+        .collect();
+    for (k, sep) in seps.iter().enumerate() {
+        for (j, i) in model.local_indices(c, k).enumerate() {
+            out.push(Param {
+                name: format!("{}@{}in", c.local_names()[j], sep),
+                value: f.x[i],
+                sigma: f.sigma[i],
+                no_effect: Some(0.0),
+            });
+        }
+    }
+    out
+}
+
+/// The spread of per-separation values `NAME@SEPin` in `params`, per name, in order of first
+/// appearance.
+pub fn spreads(params: &[Param]) -> Vec<SepSpread> {
+    let mut out: Vec<(String, f64, f64, usize)> = Vec::new();
+    for p in params {
+        let Some((name, _)) = p.name.split_once('@') else {
+            continue;
+        };
+        let e = match out.iter().position(|o| o.0 == name) {
+            Some(k) => &mut out[k],
+            None => {
+                out.push((name.to_string(), 0.0, 0.0, 0));
+                out.last_mut().expect("just pushed")
+            }
+        };
+        e.1 += p.value * p.value;
+        e.2 += p.sigma * p.sigma;
+        e.3 += 1;
+    }
+    out.into_iter()
+        .map(|(name, ss, vv, n)| SepSpread {
+            name,
+            rms: (ss / n as f64).sqrt(),
+            noise_rms: (vv / n as f64).sqrt(),
+            separations: n,
+        })
+        .collect()
+}
+
+/// The candidates of the last round (tried on top of the final model) that were not
+/// accepted, or why there are none.
+fn ruled_out(
+    trials: &[TrialOut],
+    sel: &select::Selection,
+    max_effects: usize,
+) -> (Vec<RuledOut>, Option<String>) {
+    let last = trials.iter().map(|t| t.round).max();
+    let Some(last) = last else {
+        return (Vec::new(), Some("no candidate was tried".into()));
+    };
+    if trials.iter().any(|t| t.round == last && t.accepted) {
+        let why = if sel.steps.len() >= max_effects {
+            format!("the search stopped at --max-effects {max_effects}")
+        } else {
+            "every candidate was accepted: none is left to rule out".to_string()
+        };
+        return (Vec::new(), Some(why));
+    }
+    let list = trials
+        .iter()
+        .filter(|t| t.round == last)
+        .map(|t| {
+            let note = if let Some(f) = &t.failure {
+                Some(f.clone())
+            } else if !t.fitted && t.effect == Cand::Saturation.name() {
+                Some(
+                    "not fitted: no clipping level below the brightest predicted signal fits \
+                     better than none"
+                        .into(),
+                )
+            } else if t.dbic > select::BIC_MIN {
+                Some(format!(
+                    "dBIC above {} but the held-out chi-square did not drop{}",
+                    select::BIC_MIN,
+                    t.heldout_rms
+                        .map(|r| format!(" (held-out RMS {r:.2} counts)"))
+                        .unwrap_or_default()
+                ))
+            } else {
+                None
+            };
+            RuledOut {
+                effect: t.effect.clone(),
+                k: t.k,
+                dchi2: t.dchi2,
+                dbic: t.dbic,
+                fitted: t.fitted,
+                params: t
+                    .params
+                    .iter()
+                    .filter(|p| !p.name.contains('@'))
+                    .cloned()
+                    .collect(),
+                per_separation: spreads(&t.params),
+                note,
+            }
+        })
+        .collect();
+    (list, None)
 }
 
 /// Analyze a dataset. `progress` is called after each fit with a short message.
@@ -565,6 +763,27 @@ pub fn analyze(
             fcv.rms
         )
     };
+    let trials: Vec<TrialOut> = sel
+        .trials
+        .iter()
+        .map(|t| TrialOut {
+            round: t.round,
+            effect: t.cand.name().into(),
+            k: t.k,
+            dchi2: t.dchi2,
+            dbic: t.dbic,
+            heldout_rms: t.cv_rms,
+            accepted: t.accepted,
+            failure: t.failure.clone(),
+            fitted: t.fit.is_some(),
+            params: t
+                .fit
+                .as_deref()
+                .map(|(m, f)| trial_params(m, t.cand, f, &data.seps))
+                .unwrap_or_default(),
+        })
+        .collect();
+    let (ruled_out, ruled_out_note) = ruled_out(&trials, &sel, opts.max_effects);
     Ok(Analysis {
         file,
         model_from: opts.from.name().into(),
@@ -596,20 +815,9 @@ pub fn analyze(
         structure,
         diagnostics_before,
         diagnostics_after,
-        trials: sel
-            .trials
-            .iter()
-            .map(|t| TrialOut {
-                round: t.round,
-                effect: t.cand.name().into(),
-                k: t.k,
-                dchi2: t.dchi2,
-                dbic: t.dbic,
-                heldout_rms: t.cv_rms,
-                accepted: t.accepted,
-                failure: t.failure.clone(),
-            })
-            .collect(),
+        trials,
+        ruled_out,
+        ruled_out_note,
         detail: Some(Box::new(Detail {
             data,
             before: before_res,
@@ -658,6 +866,36 @@ pub fn render_text(a: &Analysis) -> String {
             let _ = writeln!(s, "     {}", shown.join(", "));
         }
     }
+    if !a.ruled_out.is_empty() {
+        let _ = writeln!(
+            s,
+            "{}ruled out (tried on top of the final model, not accepted): estimate +/- \
+             1-sigma; the data allow about estimate +/- 2 sigma{}",
+            if a.causes.is_empty() && a.tentative.is_empty() {
+                ""
+            } else {
+                "\n"
+            },
+            if a.unexplained {
+                " (too small here: structure remains)"
+            } else {
+                ""
+            }
+        );
+        for r in &a.ruled_out {
+            let est = r.estimates("+/-");
+            let note = r.note.as_deref().unwrap_or_default();
+            let _ = if est.is_empty() {
+                writeln!(s, "  {}: {note}", r.effect)
+            } else if note.is_empty() {
+                writeln!(s, "  {}: {est} (dBIC {:.0})", r.effect, r.dbic)
+            } else {
+                writeln!(s, "  {}: {est} (dBIC {:.0}): {note}", r.effect, r.dbic)
+            };
+        }
+    } else if let Some(n) = &a.ruled_out_note {
+        let _ = writeln!(s, "\nruled out: none tried on top of the final model ({n})");
+    }
     if !a.structure.is_empty() {
         let _ = writeln!(s, "\nwhere the residuals stand out (chi2 per residual):");
         for n in &a.structure {
@@ -692,6 +930,119 @@ pub fn render_text(a: &Analysis) -> String {
         let _ = writeln!(s, "  {:<26} {:>14} +/- {}", p.name, g(p.value), g(p.sigma));
     }
     s
+}
+
+/// `value PM sigma` with sigma to 2 significant digits and the value to the same decimal
+/// place (fixed-point between 1e-3 and 1e5, else each in exponent form).
+pub fn pm(v: f64, s: f64, pm: &str) -> String {
+    if !(s > 0.0 && s.is_finite() && v.is_finite()) {
+        return format!("{} {pm} {}", g(v), g(s));
+    }
+    let es = s.log10().floor() as i32;
+    let big = v.abs().max(s);
+    if (1e-3..1e5).contains(&big) {
+        let d = (1 - es).max(0) as usize;
+        format!("{v:.d$} {pm} {s:.d$}")
+    } else {
+        let ev = if v == 0.0 {
+            es
+        } else {
+            v.abs().log10().floor() as i32
+        };
+        let d = (1 + ev - es).max(0) as usize;
+        format!("{v:.d$e} {pm} {s:.1e}")
+    }
+}
+
+/// The unit of a candidate's parameter as printed (` in`, ` deg`, ...; empty for ratios and
+/// names that carry their unit).
+pub fn unit(effect: &str, param: &str) -> &'static str {
+    match (effect, param) {
+        ("proximity", "S") => " in",
+        ("cell_bias", _) | ("saturation", "S") => " /in^2",
+        ("face_angle", _) => " deg",
+        _ => "",
+    }
+}
+
+/// A candidate's estimates in one line: global parameters as `name = value PM sigma unit`
+/// (with the no-effect value when it is not 0), per-separation ones as the RMS over the
+/// separations against the RMS noise alone would give. "a switch, no parameter" for a fitted
+/// candidate without parameters (`intensity`), empty when it was not fitted.
+fn estimates_text(
+    effect: &str,
+    globals: &[&Param],
+    spreads: &[SepSpread],
+    fitted: bool,
+    pmark: &str,
+) -> String {
+    let mut parts: Vec<String> = globals
+        .iter()
+        .map(|p| {
+            let base = format!(
+                "{} = {}{}",
+                p.name,
+                pm(p.value, p.sigma, pmark),
+                unit(effect, &p.name)
+            );
+            match p.no_effect {
+                Some(n) if n != 0.0 => format!("{base} (no effect: {})", g(n)),
+                _ => base,
+            }
+        })
+        .collect();
+    if let Some(sp) = spreads.first() {
+        let each: Vec<String> = spreads
+            .iter()
+            .map(|p| {
+                format!(
+                    "{} RMS {:.1e} in (noise alone {:.1e})",
+                    p.name, p.rms, p.noise_rms
+                )
+            })
+            .collect();
+        parts.push(format!(
+            "per separation ({}): {}",
+            sp.separations,
+            each.join(", ")
+        ));
+    }
+    if parts.is_empty() && fitted {
+        parts.push("a switch, no parameter".into());
+    }
+    parts.join(", ")
+}
+
+impl RuledOut {
+    /// The estimates in one line (empty when the candidate was not fitted).
+    pub fn estimates(&self, pmark: &str) -> String {
+        let globals: Vec<&Param> = self.params.iter().collect();
+        estimates_text(
+            &self.effect,
+            &globals,
+            &self.per_separation,
+            self.fitted,
+            pmark,
+        )
+    }
+}
+
+impl TrialOut {
+    /// The estimates in one line (empty when the candidate was not fitted).
+    pub fn estimates(&self, pmark: &str) -> String {
+        let globals: Vec<&Param> = self
+            .params
+            .iter()
+            .filter(|p| !p.name.contains('@'))
+            .collect();
+        estimates_text(
+            &self.effect,
+            &globals,
+            &spreads(&self.params),
+            self.fitted,
+            pmark,
+        )
+    }
 }
 
 /// Compact number formatting.

@@ -214,6 +214,31 @@ impl Cand {
                 .collect(),
         }
     }
+
+    /// The parameters of a candidate as shown for every trial, in particular a rejected one:
+    /// (name, value, value at which the effect is absent). Unlike [`Cand::report`] these stay
+    /// smooth through the no-effect value, so an estimate +/- 1-sigma there is meaningful:
+    /// `beacon_tilt` as the tilt vector (`tx_deg`, `ty_deg`; T and AZ are degenerate at zero
+    /// tilt), `beacon_pattern` from `pinhole` as `m` (the half-angle is flat at m = 0).
+    /// `saturation` has no finite no-effect value (None): any level above the brightest
+    /// signal is no saturation.
+    pub fn trial_report(self, base: Base, v: &[f64]) -> Vec<(&'static str, f64, Option<f64>)> {
+        let absent = self.absent(base);
+        match (self, base) {
+            (Cand::BeaconPattern, Base::Thesis) => {
+                let h = self.report(base, v)[0].1;
+                vec![("H_deg", h, Some(60.0))]
+            }
+            (Cand::Saturation, _) => vec![("S", v[0].exp(), None)],
+            _ => self
+                .global_names(base)
+                .iter()
+                .zip(v)
+                .zip(absent)
+                .map(|((n, &x), a)| (*n, x, Some(a)))
+                .collect(),
+        }
+    }
 }
 
 /// A starting model plus effects, for a dataset with `nsep` separations.

@@ -2,8 +2,9 @@
 //! inline SVG plots (plotters' SVG backend) and no external resources.
 //!
 //! Contents: the verdict; the named causes with parameters, 1-sigma and held-out gain; the
-//! evidence (every candidate of every round with its chi-square and BIC improvement and
-//! held-out RMS); residual quiver maps per separation before and after; held-out RMS
+//! candidates ruled out on top of the final model with their estimates +/- 1-sigma; the
+//! evidence (every candidate of every round with its estimates, chi-square and BIC
+//! improvement and held-out RMS); residual quiver maps per separation before and after; held-out RMS
 //! versus separation; chi-square per residual versus off-boresight angle; the Figure 57
 //! curve (angle-error spread versus separation) before and after; the final parameter table;
 //! and the residual diagnostics.
@@ -61,6 +62,51 @@ fn cause_rows(s: &mut String, causes: &[Cause]) {
             );
         }
     }
+}
+
+/// The candidates tried on top of the final model and not accepted, with how tightly the data
+/// bound each.
+fn ruled_out(s: &mut String, a: &Analysis) {
+    if a.ruled_out.is_empty() {
+        if let Some(n) = &a.ruled_out_note {
+            let _ = write!(
+                s,
+                "<h2>Ruled out</h2><p>None tried on top of the final model ({}).</p>",
+                html_escape(n)
+            );
+        }
+        return;
+    }
+    let _ = write!(
+        s,
+        "<h2>Ruled out</h2><p>Candidates tried on top of the final model and not accepted, with \
+         their estimates &plusmn; 1-sigma (GLSDC covariance; delta method for derived \
+         quantities): the data still allow an effect of about the estimate &plusmn; 2 sigma, \
+         measured from the no-effect value. Per-separation effects: the RMS of the \
+         per-separation estimates against the RMS that noise alone would give.{}</p><table><tr>\
+         <th>candidate</th><th>estimates (1-sigma)</th><th>&Delta;BIC</th><th>note</th></tr>",
+        if a.unexplained {
+            " Structure remains unexplained, so these 1-sigma are too small."
+        } else {
+            ""
+        }
+    );
+    for r in &a.ruled_out {
+        let est = r.estimates("+/-");
+        let _ = write!(
+            s,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            r.effect,
+            html_escape(&est).replace("+/-", "&plusmn;"),
+            if r.fitted {
+                format!("{:.1}", r.dbic)
+            } else {
+                String::new()
+            },
+            html_escape(r.note.as_deref().unwrap_or(""))
+        );
+    }
+    s.push_str("</table>");
 }
 
 const STYLE: &str = "body{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em}\
@@ -140,21 +186,24 @@ pub fn render(a: &Analysis) -> Result<String, String> {
         }
         s.push_str("</ul>");
     }
+    ruled_out(&mut s, a);
     // Evidence.
     s.push_str(
         "<h2>Evidence: every candidate, every round</h2><p>Accepted when &Delta;BIC &gt; 10 \
          and the held-out chi-square drops; the best &Delta;BIC is tried first.</p><table><tr>\
-         <th>round</th><th>candidate</th><th>k</th><th>&Delta;chi2</th><th>&Delta;BIC</th>\
-         <th>held-out RMS</th><th>note</th></tr>",
+         <th>round</th><th>candidate</th><th>k</th><th>estimates (1-sigma)</th>\
+         <th>&Delta;chi2</th><th>&Delta;BIC</th><th>held-out RMS</th><th>note</th></tr>",
     );
     for t in &a.trials {
         let _ = write!(
             s,
-            "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{:.1}</td><td>{:.1}</td><td>{}</td><td>{}</td></tr>",
+            "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.1}</td><td>{:.1}</td><td>{}</td>\
+             <td>{}</td></tr>",
             if t.accepted { " class=acc" } else { "" },
             t.round,
             t.effect,
             t.k,
+            html_escape(&t.estimates("+/-")).replace("+/-", "&plusmn;"),
             t.dchi2,
             t.dbic,
             t.heldout_rms.map(|v| format!("{v:.2}")).unwrap_or_default(),

@@ -54,6 +54,11 @@ pub struct Trial {
     pub accepted: bool,
     /// Why it could not be fitted, when it could not.
     pub failure: Option<String>,
+    /// The model the candidate was fitted as (the round's model plus the candidate) and its
+    /// fit on all data: the candidate's estimates and covariance, also when it is not
+    /// accepted (`None` when it was not fitted: a failure, or no saturation level to start
+    /// from).
+    pub fit: Option<Box<(Model, FitResult)>>,
 }
 
 /// One accepted effect.
@@ -406,11 +411,13 @@ pub fn select_with_folds(
                 cv_chi2: None,
                 accepted: false,
                 failure: None,
+                fit: None,
             };
             match r {
                 Ok(Some(f)) => {
                     t.dchi2 = cur.chi2 - f.chi2;
                     t.dbic = t.dchi2 - k as f64 * ln_m;
+                    t.fit = Some(Box::new((model.with(c), f.clone())));
                     scored.push((sel.trials.len(), f));
                 }
                 Ok(None) => {}
