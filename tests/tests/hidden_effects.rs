@@ -278,7 +278,7 @@ fn clean_data_rules_every_candidate_out() {
     );
     assert!(
         text.contains("  cell_bias: BX = ")
-            && text.contains("  plate_offset: per separation (13): x RMS "),
+            && text.contains("  plate_offset: per separation (13): x weighted RMS "),
         "{text}"
     );
     // Every trial keeps its estimates (in JSON too).

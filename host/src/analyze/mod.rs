@@ -238,9 +238,13 @@ pub struct RuledOut {
 pub struct SepSpread {
     /// Parameter (`x`, `y`, `z`), in.
     pub name: String,
-    /// RMS of the per-separation estimates, in.
+    /// RMS of the per-separation estimates x_k, weighted by their inverse variance
+    /// `1/sigma_k^2` (the best-measured separations count most): `sqrt(sum(x_k^2/sigma_k^2) /
+    /// sum(1/sigma_k^2))`, in.
     pub rms: f64,
-    /// The RMS noise alone would give: the root of the mean of their variances, in.
+    /// What noise alone gives that RMS on average: `sqrt(n / sum(1/sigma_k^2))`, in. An
+    /// effect that scatters the separations with standard deviation D raises the square of
+    /// `rms` by about D^2.
     pub noise_rms: f64,
     /// Separations.
     pub separations: usize,
@@ -520,13 +524,18 @@ fn trial_params(model: &Model, c: Cand, f: &FitResult, seps: &[f64]) -> Vec<Para
 }
 
 /// The spread of per-separation values `NAME@SEPin` in `params`, per name, in order of first
-/// appearance.
+/// appearance: the inverse-variance weighted RMS of the estimates and the value noise alone
+/// would give it (values without a positive 1-sigma are skipped).
 pub fn spreads(params: &[Param]) -> Vec<SepSpread> {
+    // name, sum of x^2 / sigma^2, sum of 1 / sigma^2, count.
     let mut out: Vec<(String, f64, f64, usize)> = Vec::new();
     for p in params {
         let Some((name, _)) = p.name.split_once('@') else {
             continue;
         };
+        if !(p.sigma > 0.0 && p.sigma.is_finite()) {
+            continue;
+        }
         let e = match out.iter().position(|o| o.0 == name) {
             Some(k) => &mut out[k],
             None => {
@@ -534,15 +543,16 @@ pub fn spreads(params: &[Param]) -> Vec<SepSpread> {
                 out.last_mut().expect("just pushed")
             }
         };
-        e.1 += p.value * p.value;
-        e.2 += p.sigma * p.sigma;
+        let w = 1.0 / (p.sigma * p.sigma);
+        e.1 += w * p.value * p.value;
+        e.2 += w;
         e.3 += 1;
     }
     out.into_iter()
-        .map(|(name, ss, vv, n)| SepSpread {
+        .map(|(name, swx2, sw, n)| SepSpread {
             name,
-            rms: (ss / n as f64).sqrt(),
-            noise_rms: (vv / n as f64).sqrt(),
+            rms: (swx2 / sw).sqrt(),
+            noise_rms: (n as f64 / sw).sqrt(),
             separations: n,
         })
         .collect()
@@ -575,8 +585,8 @@ fn ruled_out(
                 Some(f.clone())
             } else if !t.fitted && t.effect == Cand::Saturation.name() {
                 Some(
-                    "not fitted: no clipping level below the brightest predicted signal fits \
-                     better than none"
+                    "not fitted: no scanned clipping level (each clips >= 0.5 % of the points) \
+                     fits better than none"
                         .into(),
                 )
             } else if t.dbic > select::BIC_MIN {
@@ -996,7 +1006,7 @@ fn estimates_text(
             .iter()
             .map(|p| {
                 format!(
-                    "{} RMS {:.1e} in (noise alone {:.1e})",
+                    "{} weighted RMS {:.1e} in (noise alone {:.1e})",
                     p.name, p.rms, p.noise_rms
                 )
             })
