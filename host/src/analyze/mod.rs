@@ -54,6 +54,8 @@ VERDICTS:
   no significant effect  the starting model already explains the data
   unexplained structure remains  the best extension still leaves chi2/dof > 1.2: nothing is
                       named with confidence; the output shows where the residuals are
+  ruled out           every candidate tried on top of the final model and not accepted, with
+                      its estimate +/- 1-sigma: the data still allow about estimate +/- 2 sigma
 
 EXAMPLE:
   cta simulate --out tilt.csv --separations 2..30 --noise 32.8 --samples 5 --effect beacon_tilt=3,45
