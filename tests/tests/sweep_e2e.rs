@@ -1,16 +1,10 @@
 //! `cta sweep` end to end on the simulated CTA (both boards behind pseudo-terminals).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use cta_host::measurement::Dataset;
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("cta-sweep-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use cta_tests::{sweep_args, write_plan, TestDir};
 
 const PLAN: &str = r#"
 name = "test"
@@ -27,21 +21,17 @@ no_signal_reports = 6
 
 fn args(dir: &Path, plan: &Path) -> SweepArgs {
     SweepArgs {
-        plan: Some(plan.to_path_buf()),
-        out: Some(dir.join("run")),
-        quiet: true,
         sim_noise: Some(15.0),
         sim_seed: Some(7),
         no_sync: true,
-        ..Default::default()
+        ..sweep_args(plan, &dir.join("run"))
     }
 }
 
 #[test]
 fn short_sweep_end_to_end() {
-    let d = tmp("e2e");
-    let plan = d.join("plan.toml");
-    std::fs::write(&plan, PLAN).unwrap();
+    let d = TestDir::new("sweep-e2e");
+    let plan = write_plan(&d, PLAN);
     let a = args(&d, &plan);
     let s = sweep::sweep(&a).unwrap();
     assert_eq!(s.ending, Ending::Complete);
@@ -85,23 +75,19 @@ fn short_sweep_end_to_end() {
     assert!(m.contains("\"state\": \"complete\""), "{m}");
     assert!(m.contains("\"done\": 60"), "{m}");
     assert!(d.join("run/data.truth.json").exists());
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
 fn realtime_sensor_runs_at_the_plan_rate() {
-    let d = tmp("realtime");
-    let plan = d.join("plan.toml");
-    std::fs::write(
-        &plan,
+    let d = TestDir::new("sweep-e2e-realtime");
+    let plan = write_plan(
+        &d,
         "separations_in = [20]\nbeacons = [44, 55]\nsamples = 3\nsettle_ms = 50\nrate_hz = 10\n",
-    )
-    .unwrap();
+    );
     let mut a = args(&d, &plan);
     a.sim_realtime = true;
     let s = sweep::sweep(&a).unwrap();
     assert_eq!(s.stats.ok, 2);
     // 6 reports at 10 Hz (the first of each point may come at once) plus two settles.
     assert!(s.seconds > 0.4, "{} s: not throttled to 10 Hz", s.seconds);
-    let _ = std::fs::remove_dir_all(&d);
 }

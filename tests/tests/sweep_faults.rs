@@ -4,12 +4,13 @@
 //! exactly once; without byte damage the data equal a fault-free run with the same seed.
 //! Also: ports that answer as the wrong board, ports that do not exist.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use cta_host::measurement::Dataset;
 use cta_host::sweep::plan::Plan;
 use cta_host::sweep::sim::{SimCta, SimSettings};
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_tests::{data_rows, journal, journal_field, sweep_args, write_plan, TestDir};
 
 const PLAN: &str = r#"
 name = "fault test"
@@ -29,48 +30,32 @@ backoff_max_s = 0.2
 give_up_s = 30
 "#;
 
-fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("cta-sweep-faults-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    std::fs::write(d.join("plan.toml"), PLAN).unwrap();
+/// A test directory holding [`PLAN`] as `plan.toml`.
+fn dir(name: &str) -> TestDir {
+    let d = TestDir::new(&format!("sweep-faults-{name}"));
+    write_plan(&d, PLAN);
     d
 }
 
 fn args(d: &Path, out: &str, faults: Option<&str>) -> SweepArgs {
     SweepArgs {
-        plan: Some(d.join("plan.toml")),
-        out: Some(d.join(out)),
-        quiet: true,
         no_sync: true,
         sim_seed: Some(3),
         sim_noise: Some(20.0),
         sim_fault: faults.map(String::from),
-        ..Default::default()
+        ..sweep_args(&d.join("plan.toml"), &d.join(out))
     }
-}
-
-fn data_rows(d: &Path) -> Vec<String> {
-    std::fs::read_to_string(sweep::data_path(d))
-        .unwrap()
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(String::from)
-        .collect()
 }
 
 /// Every plan point committed once, in order.
 fn points_once(run: &Path, n: usize) {
-    let j = std::fs::read_to_string(run.join("journal.jsonl")).unwrap();
-    let idx: Vec<usize> = j
+    let j = journal(run);
+    let idx: Vec<u64> = j
         .lines()
         .filter(|l| l.contains("\"event\":\"point\""))
-        .map(|l| {
-            let k = l.find("\"i\":").unwrap() + 4;
-            l[k..].split([',', '}']).next().unwrap().parse().unwrap()
-        })
+        .map(|l| journal_field(l, "i"))
         .collect();
-    assert_eq!(idx, (0..n).collect::<Vec<_>>());
+    assert_eq!(idx, (0..n as u64).collect::<Vec<_>>());
 }
 
 #[test]
@@ -86,12 +71,11 @@ fn unplugged_silent_and_stalled_boards_pause_and_resume_with_identical_data() {
     points_once(&d.join("faulty"), clean.points);
     // The retried points were measured again from scratch: same data as without faults.
     assert_eq!(data_rows(&d.join("clean")), data_rows(&d.join("faulty")));
-    let j = std::fs::read_to_string(d.join("faulty/journal.jsonl")).unwrap();
+    let j = journal(&d.join("faulty"));
     assert!(j.contains("\"board\":\"beacon\"") && j.contains("\"board\":\"sensor\""));
     assert!(j.contains("no spot report"), "the stall is journalled");
     let m = std::fs::read_to_string(d.join("faulty/manifest.json")).unwrap();
     assert!(m.contains("retry point"));
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -115,7 +99,6 @@ fn dropped_and_corrupted_bytes_lose_nothing() {
         "{:?}",
         s.stats
     );
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -146,21 +129,15 @@ fn wrong_or_missing_ports_are_named() {
         e.contains("/dev/cta-no-such-port") && e.contains("beacon"),
         "{e}"
     );
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
 fn giving_up_names_the_board_that_stayed_away() {
     let d = dir("give-up");
-    std::fs::write(
-        d.join("plan.toml"),
-        PLAN.replace("give_up_s = 30", "give_up_s = 0.5"),
-    )
-    .unwrap();
+    write_plan(&d, &PLAN.replace("give_up_s = 30", "give_up_s = 0.5"));
     let s = sweep::sweep(&args(&d, "run", Some("vanish=beacon@2:5000"))).unwrap();
     match &s.ending {
         Ending::GaveUp(what) => assert!(what.starts_with("beacon: "), "{what}"),
         e => panic!("{e:?}"),
     }
-    let _ = std::fs::remove_dir_all(&d);
 }

@@ -6,11 +6,11 @@
 //! running only `child_run`, which calls `sweep::run` (the `cta sweep` command: Ctrl-C handler,
 //! summary, result) and exits the way the binary does.
 
-use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cta_host::sweep::{self, Interrupted, SweepArgs};
+use cta_tests::{child, child_paths, journal, journal_points, sweep_args, write_plan, TestDir};
 
 /// Slow enough (the simulated sensor at 50 Hz, two samples per point) that the run is still
 /// going when the signal comes; it is interrupted after a few points.
@@ -26,17 +26,13 @@ rate_hz = 50
 /// Runs `cta sweep --plan PLAN --out OUT` as the binary would (only in the re-executed child).
 #[test]
 fn child_run() {
-    let Ok(spec) = std::env::var("CTA_SWEEP_INT_CHILD") else {
+    let Some([out, plan]) = child_paths("CTA_SWEEP_INT_CHILD") else {
         return;
     };
-    let (out, plan) = spec.split_once('|').unwrap();
     let a = SweepArgs {
-        plan: Some(PathBuf::from(plan)),
-        out: Some(PathBuf::from(out)),
-        quiet: true,
         no_sync: true,
         sim_realtime: true,
-        ..Default::default()
+        ..sweep_args(&plan, &out)
     };
     // What host/src/main.rs does with the command's result.
     match sweep::run(&a) {
@@ -51,30 +47,18 @@ fn child_run() {
     }
 }
 
-fn journal(dir: &Path) -> String {
-    std::fs::read_to_string(dir.join("journal.jsonl")).unwrap_or_default()
-}
-
 #[test]
 fn ctrl_c_exits_non_zero_with_the_resume_hint() {
-    let d = std::env::temp_dir().join(format!("cta-sweep-int-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    let plan = d.join("plan.toml");
-    std::fs::write(&plan, PLAN).unwrap();
+    let d = TestDir::new("sweep-interrupt");
+    let plan = write_plan(&d, PLAN);
     let run = d.join("run");
-    let mut child = Command::new(std::env::current_exe().unwrap())
-        .args(["child_run", "--exact", "--nocapture", "--test-threads=1"])
-        .env(
-            "CTA_SWEEP_INT_CHILD",
-            format!("{}|{}", run.display(), plan.display()),
-        )
+    let mut child = child("child_run", "CTA_SWEEP_INT_CHILD", &[&run, &plan])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let t0 = Instant::now();
-    while journal(&run).matches("\"event\":\"point\"").count() < 3 {
+    while journal_points(&run) < 3 {
         assert!(
             t0.elapsed() < Duration::from_secs(60),
             "the sweep never started"
@@ -107,5 +91,4 @@ fn ctrl_c_exits_non_zero_with_the_resume_hint() {
     assert!(journal(&run).contains("\"reason\":\"interrupted (Ctrl-C)\""));
     let m = std::fs::read_to_string(run.join("manifest.json")).unwrap();
     assert!(m.contains("\"state\": \"stopped\""), "{m}");
-    let _ = std::fs::remove_dir_all(&d);
 }

@@ -6,10 +6,12 @@
 //! The failing process is this test binary re-executed under `sh -c 'ulimit -f ...'` with
 //! `CTA_SWEEP_IO_CHILD` set, running only `child_run`.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_tests::{
+    assert_same_data, child_in_shell, child_paths, resume_args, sweep_args, write_plan, TestDir,
+};
 
 /// About 900 bytes of data and 150 of journal per point: data.csv reaches the limit first.
 const PLAN: &str = r#"
@@ -27,22 +29,18 @@ const LIMIT_BLOCKS: u32 = 48;
 
 fn args(out: &Path, plan: &Path) -> SweepArgs {
     SweepArgs {
-        plan: Some(plan.to_path_buf()),
-        out: Some(out.to_path_buf()),
-        quiet: true,
         sim_seed: Some(11),
-        ..Default::default()
+        ..sweep_args(plan, out)
     }
 }
 
 /// The sweep, as the binary runs it (only in the re-executed child).
 #[test]
 fn child_run() {
-    let Ok(spec) = std::env::var("CTA_SWEEP_IO_CHILD") else {
+    let Some([out, plan]) = child_paths("CTA_SWEEP_IO_CHILD") else {
         return;
     };
-    let (out, plan) = spec.split_once('|').unwrap();
-    if let Err(e) = sweep::sweep(&args(Path::new(out), Path::new(plan))) {
+    if let Err(e) = sweep::sweep(&args(&out, &plan)) {
         eprintln!("cta: error: {e:#}");
         std::process::exit(1);
     }
@@ -50,29 +48,21 @@ fn child_run() {
 
 #[test]
 fn a_write_error_names_the_file_and_records_the_stop() {
-    let d: PathBuf = std::env::temp_dir().join(format!("cta-sweep-io-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    let plan = d.join("plan.toml");
-    std::fs::write(&plan, PLAN).unwrap();
+    let d = TestDir::new("sweep-io-errors");
+    let plan = write_plan(&d, PLAN);
     let full = sweep::sweep(&args(&d.join("full"), &plan)).unwrap();
     assert_eq!(full.ending, Ending::Complete);
 
     let run = d.join("run");
     // SIGXFSZ ignored (inherited through exec), so the write fails instead of killing.
-    let out = Command::new("sh")
-        .args([
-            "-c",
-            &format!("trap '' XFSZ; ulimit -f {LIMIT_BLOCKS} && exec \"$0\" \"$@\""),
-        ])
-        .arg(std::env::current_exe().unwrap())
-        .args(["child_run", "--exact", "--nocapture", "--test-threads=1"])
-        .env(
-            "CTA_SWEEP_IO_CHILD",
-            format!("{}|{}", run.display(), plan.display()),
-        )
-        .output()
-        .unwrap();
+    let out = child_in_shell(
+        &format!("trap '' XFSZ; ulimit -f {LIMIT_BLOCKS}"),
+        "child_run",
+        "CTA_SWEEP_IO_CHILD",
+        &[&run, &plan],
+    )
+    .output()
+    .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     let data = run.join("data.csv");
@@ -110,21 +100,7 @@ fn a_write_error_names_the_file_and_records_the_stop() {
     assert!(done > 0 && done < full.points, "{done}");
 
     // With room again, the resume continues where the journal says and completes.
-    let r = sweep::sweep(&SweepArgs {
-        resume: Some(run.clone()),
-        quiet: true,
-        ..Default::default()
-    })
-    .unwrap();
+    let r = sweep::sweep(&resume_args(&run)).unwrap();
     assert_eq!(r.ending, Ending::Complete);
-    let body = |p: &Path| {
-        std::fs::read_to_string(p)
-            .unwrap()
-            .lines()
-            .skip(1)
-            .map(String::from)
-            .collect::<Vec<_>>()
-    };
-    assert!(body(&data) == body(&d.join("full/data.csv")));
-    let _ = std::fs::remove_dir_all(&d);
+    assert_same_data(&d.join("full"), &run);
 }

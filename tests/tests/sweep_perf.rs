@@ -10,18 +10,16 @@
 //! (once `cta sweep` is wired: `cta sweep --plan host/plans/chvi.toml --out /tmp/chvi --quiet`)
 
 use cta_host::sweep::{self, SweepArgs};
+use cta_tests::{sweep_args, TestDir};
 
 #[test]
 #[ignore = "performance measurement: run in release with --ignored --nocapture"]
 fn full_chvi_plan_on_the_simulated_cta() {
     let plan = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../host/plans/chvi.toml");
-    let out = std::env::temp_dir().join(format!("cta-sweep-perf-{}", std::process::id()));
+    let d = TestDir::new("sweep-perf");
     let a = SweepArgs {
-        plan: Some(plan),
-        out: Some(out.clone()),
-        force: true,
         quiet: std::env::var("CTA_PERF_BARS").is_err(),
-        ..Default::default()
+        ..sweep_args(&plan, &d.join("run"))
     };
     let s = sweep::sweep(&a).unwrap();
     println!(
@@ -34,5 +32,4 @@ fn full_chvi_plan_on_the_simulated_cta() {
         s.seconds,
         s.stats.samples as f64 / s.seconds
     );
-    let _ = std::fs::remove_dir_all(&out);
 }

@@ -2,37 +2,24 @@
 //! the detector must see it there (it once kept seeing quadrant 0 at every quadrant's
 //! recorded positions, which the fit turned into H = 4,173 instead of 18,919).
 
-use std::path::PathBuf;
-
 use cta_host::fit::{self, Weights};
 use cta_host::measurement::Dataset;
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("cta-sweep-quad-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use cta_tests::{sweep_args, write_plan, TestDir};
 
 #[test]
 fn each_quadrant_is_seen_where_it_is_mounted() {
-    let d = tmp("quad");
-    let plan = d.join("plan.toml");
-    std::fs::write(
-        &plan,
+    let d = TestDir::new("sweep-quad");
+    let plan = write_plan(
+        &d,
         "name = \"quad\"\nlayout = \"quad\"\nseparations_in = [20, 25, 30]\nbeacons = [0, 9, 44, 90, 99]\n\
          samples = 2\nsettle_ms = 0\n",
-    )
-    .unwrap();
+    );
     let a = SweepArgs {
-        plan: Some(plan),
-        out: Some(d.join("run")),
-        quiet: true,
         sim_noise: Some(10.0),
         sim_seed: Some(3),
         no_sync: true,
-        ..Default::default()
+        ..sweep_args(&plan, &d.join("run"))
     };
     let s = sweep::sweep(&a).unwrap();
     assert_eq!(s.ending, Ending::Complete);

@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_tests::{journal_field, resume_args, sweep_args, write_plan, TestDir};
 
 const PLAN: &str = r#"
 name = "resume checks"
@@ -19,19 +20,14 @@ no_signal_reports = 5
 "#;
 
 /// A complete run of [`PLAN`] in a fresh directory; returns (test dir, run dir).
-fn complete_run(name: &str) -> (PathBuf, PathBuf) {
-    let d = std::env::temp_dir().join(format!("cta-sweep-checks-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    std::fs::write(d.join("plan.toml"), PLAN).unwrap();
+fn complete_run(name: &str) -> (TestDir, PathBuf) {
+    let d = TestDir::new(&format!("sweep-checks-{name}"));
+    let plan = write_plan(&d, PLAN);
     let run = d.join("run");
     let s = sweep::sweep(&SweepArgs {
-        plan: Some(d.join("plan.toml")),
-        out: Some(run.clone()),
-        quiet: true,
         no_sync: true,
         sim_seed: Some(5),
-        ..Default::default()
+        ..sweep_args(&plan, &run)
     })
     .unwrap();
     assert_eq!(s.ending, Ending::Complete);
@@ -40,10 +36,8 @@ fn complete_run(name: &str) -> (PathBuf, PathBuf) {
 
 fn resume(run: &Path) -> Result<sweep::Summary, String> {
     sweep::sweep(&SweepArgs {
-        resume: Some(run.to_path_buf()),
-        quiet: true,
         no_sync: true,
-        ..Default::default()
+        ..resume_args(run)
     })
     .map_err(|e| format!("{e:#}"))
 }
@@ -54,7 +48,7 @@ fn read(p: &Path) -> String {
 
 #[test]
 fn an_emptied_journal_is_refused_not_a_restart_that_wipes_the_data() {
-    let (d, run) = complete_run("empty-journal");
+    let (_dir, run) = complete_run("empty-journal");
     let data = read(&run.join("data.csv"));
     std::fs::write(run.join("journal.jsonl"), "").unwrap();
     let e = resume(&run).unwrap_err();
@@ -81,7 +75,6 @@ fn an_emptied_journal_is_refused_not_a_restart_that_wipes_the_data() {
         e.contains("manifest.json") && e.contains("30 were done"),
         "{e}"
     );
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// The journal cut back to its first `points` point lines, as if the session had been killed
@@ -97,8 +90,7 @@ fn crash_after(run: &Path, points: usize) -> u64 {
                 break;
             }
             n += 1;
-            let k = l.find("\"csv_end\":").unwrap() + 10;
-            end = l[k..].split([',', '}']).next().unwrap().parse().unwrap();
+            end = journal_field(l, "csv_end");
         }
         kept.push_str(l);
         kept.push('\n');
@@ -109,7 +101,7 @@ fn crash_after(run: &Path, points: usize) -> u64 {
 
 #[test]
 fn an_edited_data_file_is_refused_not_cut_mid_row() {
-    let (d, run) = complete_run("edited");
+    let (_dir, run) = complete_run("edited");
     let end = crash_after(&run, 20) as usize;
     let data = read(&run.join("data.csv"));
     // A note inserted at the top: every committed byte moves; cutting at the journalled
@@ -134,12 +126,11 @@ fn an_edited_data_file_is_refused_not_cut_mid_row() {
         edited,
         "not touched"
     );
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
 fn uncommitted_leftovers_are_discarded_and_said() {
-    let (d, run) = complete_run("leftovers");
+    let (_dir, run) = complete_run("leftovers");
     let full = read(&run.join("data.csv"));
     // Killed after point 19's journal line, with the rows of points 20.. already written.
     let end = crash_after(&run, 20);
@@ -180,12 +171,11 @@ fn uncommitted_leftovers_are_discarded_and_said() {
         "{j}"
     );
     assert_eq!(read(&run.join("data.csv")), full);
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
 fn a_changed_plan_is_refused_naming_the_keys() {
-    let (d, run) = complete_run("plan");
+    let (_dir, run) = complete_run("plan");
     crash_after(&run, 20);
     let plan = run.join("plan.toml");
     for (from, to, key) in [
@@ -230,5 +220,4 @@ fn a_changed_plan_is_refused_naming_the_keys() {
             r => panic!("{to}: {r:?}"),
         }
     }
-    let _ = std::fs::remove_dir_all(&d);
 }
