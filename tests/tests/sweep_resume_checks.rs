@@ -1,11 +1,17 @@
 //! `cta sweep --resume` refuses a run directory whose files no longer agree with each other
 //! (edited, emptied, replaced) instead of silently cutting or re-measuring data, and says
-//! what it discards when it cuts a crashed session's uncommitted leftovers.
+//! what it discards when it cuts a crashed session's uncommitted leftovers. Of the plan, only
+//! the timing keys that govern waiting and retrying may change: said, and journalled.
+//!
+//! The resume whose terminal output is checked is this test binary re-executed with
+//! `CTA_SWEEP_CHECKS_CHILD` set, running only `child_resume`.
 
 use std::path::{Path, PathBuf};
 
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
-use cta_tests::{journal_field, resume_args, sweep_args, write_plan, TestDir};
+use cta_tests::{
+    child, child_paths, journal, journal_field, resume_args, sweep_args, write_plan, TestDir,
+};
 
 const PLAN: &str = r#"
 name = "resume checks"
@@ -44,6 +50,24 @@ fn resume(run: &Path) -> Result<sweep::Summary, String> {
 
 fn read(p: &Path) -> String {
     std::fs::read_to_string(p).unwrap()
+}
+
+/// Resumes the run in `CTA_SWEEP_CHECKS_CHILD` to the end (only in the re-executed child).
+#[test]
+fn child_resume() {
+    let Some([run]) = child_paths("CTA_SWEEP_CHECKS_CHILD") else {
+        return;
+    };
+    assert_eq!(resume(&run).unwrap().ending, Ending::Complete);
+}
+
+/// The journal's last `session` line.
+fn last_session(run: &Path) -> String {
+    journal(run)
+        .lines()
+        .rfind(|l| l.contains("\"event\":\"session\""))
+        .unwrap()
+        .to_string()
 }
 
 #[test]
@@ -200,6 +224,17 @@ fn a_changed_plan_is_refused_naming_the_keys() {
             "no_signal_reports = 7",
             "`timing.no_signal_reports`: 5 -> 7",
         ),
+        (
+            "no_signal_reports = 5",
+            "no_signal_reports = 5\nmax_reports = 40",
+            "`timing.max_reports`: 16 -> 40",
+        ),
+        ("settle_ms = 0", "settle_ms = 100", "`settle_ms`: 0 -> 100"),
+        (
+            "settle_ms = 0",
+            "settle_ms = 0\nrate_hz = 20",
+            "`rate_hz`: 10 -> 20",
+        ),
     ] {
         std::fs::write(&plan, PLAN.replace(from, to)).unwrap();
         let data = read(&run.join("data.csv"));
@@ -220,4 +255,108 @@ fn a_changed_plan_is_refused_naming_the_keys() {
             r => panic!("{to}: {r:?}"),
         }
     }
+}
+
+/// [`PLAN`] with its `[timing]` table extended by `lines`.
+fn with_timing(lines: &str) -> String {
+    format!("{PLAN}{lines}\n")
+}
+
+#[test]
+fn a_timing_change_resumes_with_a_note_and_the_same_data() {
+    let (_dir, run) = complete_run("timing");
+    let full = read(&run.join("data.csv"));
+    // Stopped at point 20 (as by a timeout too short), then the timing lengthened.
+    crash_after(&run, 20);
+    let plan = run.join("plan.toml");
+    std::fs::write(
+        &plan,
+        with_timing(
+            "request_timeout_ms = 900\nretries = 4\nreport_timeout_ms = 5000\nheartbeat_ms = 1000\n\
+             backoff_max_s = 5\ngive_up_s = 120",
+        ),
+    )
+    .unwrap();
+    let out = child("child_resume", "CTA_SWEEP_CHECKS_CHILD", &[&run])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let note = format!(
+        "cta: note: {}: plan.toml: timing changed since the last session (as recorded in \
+         journal.jsonl): `timing.request_timeout_ms`: 500 -> 900; `timing.retries`: 2 -> 4; \
+         `timing.report_timeout_ms`: 2000 -> 5000; `timing.heartbeat_ms`: 2000 -> 1000; \
+         `timing.backoff_max_s`: 30.0 -> 5.0; `timing.give_up_s`: 3600.0 -> 120.0; ",
+        run.display()
+    );
+    assert!(stderr.contains(&note), "{note}\n{stderr}");
+    // Points 20.. measured again under the new timing: the uninterrupted run's file.
+    assert_eq!(read(&run.join("data.csv")), full);
+    // The session journals the note and the plan it used; the manifest shows that plan.
+    let session = last_session(&run);
+    assert!(
+        session.contains("timing changed since the last session")
+            && session.contains("\"retries\":4")
+            && session.contains("\"request_timeout_ms\":900"),
+        "{session}"
+    );
+    let m = read(&run.join("manifest.json"));
+    assert!(
+        m.contains("\"retries\": 4") && m.contains("\"state\": \"complete\""),
+        "{m}"
+    );
+
+    // The next resume compares with the plan that session used: nothing changed, no note.
+    resume(&run).unwrap();
+    let session = last_session(&run);
+    assert!(!session.contains("timing changed"), "{session}");
+    // ... and a key set back to the run's first value is a change again, from the last.
+    std::fs::write(
+        &plan,
+        with_timing(
+            "request_timeout_ms = 900\nreport_timeout_ms = 5000\nheartbeat_ms = 1000\n\
+             backoff_max_s = 5\ngive_up_s = 120",
+        ),
+    )
+    .unwrap();
+    resume(&run).unwrap();
+    let session = last_session(&run);
+    assert!(
+        session.contains("timing changed since the last session")
+            && session.contains("`timing.retries`: 4 -> 2;")
+            && !session.contains("request_timeout_ms`:"),
+        "{session}"
+    );
+    assert_eq!(read(&run.join("data.csv")), full);
+}
+
+#[test]
+fn a_timing_change_with_another_is_refused_naming_the_other() {
+    let (_dir, run) = complete_run("mixed");
+    crash_after(&run, 20);
+    let plan = run.join("plan.toml");
+    std::fs::write(
+        &plan,
+        with_timing("retries = 5").replace("sensitivities = [2, 4]", "sensitivities = [2, 3]"),
+    )
+    .unwrap();
+    let data = read(&run.join("data.csv"));
+    let journal = read(&run.join("journal.jsonl"));
+    let e = resume(&run).unwrap_err();
+    assert!(
+        e.starts_with(&format!(
+            "{}: the plan was changed since the run started (as recorded in {}): `sensitivities`: [2, 4] -> [2, 3]. ",
+            plan.display(),
+            run.join("journal.jsonl").display()
+        )) && e.contains("(the change of `timing.retries` alone would be accepted)")
+            && e.contains("not resuming, nothing was changed: restore plan.toml"),
+        "{e}"
+    );
+    assert!(!e.contains("`timing.retries`: 2 -> 5"), "{e}");
+    assert_eq!(read(&run.join("data.csv")), data, "not touched");
+    assert_eq!(read(&run.join("journal.jsonl")), journal, "not touched");
+    // With `sensitivities` restored, the timing change alone resumes.
+    std::fs::write(&plan, with_timing("retries = 5")).unwrap();
+    assert_eq!(resume(&run).unwrap().ending, Ending::Complete);
+    assert!(last_session(&run).contains("`timing.retries`: 2 -> 5"));
 }

@@ -236,9 +236,11 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             let kept = std::fs::read_to_string(&plan_path)?;
             if given != kept {
                 bail!(
-                    "{} differs from the plan this run started with ({}); a resume continues the \
-                     same plan (leave out --plan)",
+                    "{} differs from the run's plan ({}); a resume continues the run's own plan \
+                     (leave out --plan; to change its timeouts, retries, heartbeat or \
+                     reconnection timing, edit them in {})",
                     p.display(),
+                    plan_path.display(),
                     plan_path.display()
                 );
             }

@@ -109,6 +109,102 @@ pub struct Plan {
     pub give_up_s: f64,
 }
 
+/// The plan keys `cta sweep --resume` accepts changed: the `[timing]` keys that govern only
+/// how long the run waits and how often it tries again, never what is measured, where, or how
+/// it is recorded. A committed point's rows come from one complete attempt; when a wait runs
+/// out the attempt is abandoned with nothing of it written and the point is measured again
+/// from the start (the simulated CTA's noise depends on the point and the sample, not on
+/// time), or the run stops, resumable. So points measured before and after the change are the
+/// same measurement:
+///
+/// * `timing.request_timeout_ms`, `timing.retries`: how long a reply is awaited and how often
+///   a request is resent before the board counts as lost (the point is then retried);
+/// * `timing.report_timeout_ms`: how long a streaming sensor may stay silent before it counts
+///   as stalled (the point is then retried);
+/// * `timing.heartbeat_ms`: how often the beacon board hears from the host while a point is
+///   measured; the plan check keeps it within half the board's dead-man timer
+///   ([`MAX_HEARTBEAT_MS`]), so the LED stays lit through every point whatever the value;
+/// * `timing.backoff_max_s`, `timing.give_up_s`: the pauses between reconnection attempts to a
+///   lost board, and how long they go on before the run stops.
+///
+/// Every other key stays as the run started, `[timing]` ones included:
+/// `timing.no_signal_reports` and `timing.max_reports` decide whether a point is recorded as
+/// ok, partial or "no signal" (rows, or a comment line instead); `settle_ms` (how long the
+/// light settles before sampling) and `rate_hz` (the NorthStar's report rate) shape the
+/// measurement on the apparatus; `name` is in the data file's header; the others define and
+/// number the points.
+pub const RESUME_MAY_CHANGE: [&str; 6] = [
+    "timing.request_timeout_ms",
+    "timing.retries",
+    "timing.report_timeout_ms",
+    "timing.heartbeat_ms",
+    "timing.backoff_max_s",
+    "timing.give_up_s",
+];
+
+/// A plan key's value in a [`Plan`], as [`Plan::differences`] shows it.
+pub type KeyValue = fn(&Plan) -> String;
+
+/// Every plan key as written in the file (`[timing]` ones as `timing.KEY`), with its value.
+pub const KEYS: [(&str, KeyValue); 18] = [
+    ("name", |p| show(&p.name)),
+    ("separations_in", |p| show(&p.separations)),
+    ("layout", |p| match p.layout {
+        Layout::Single => "\"single\"".into(),
+        Layout::Quad { spacing } => format!("\"quad\" (quad_spacing_in {spacing})"),
+    }),
+    ("beacons", |p| show(&p.beacons)),
+    ("frequencies_hz", |p| show(&p.frequencies_hz)),
+    ("power_levels", |p| show(&p.power_levels)),
+    ("sensitivities", |p| show(&p.sensitivities)),
+    ("samples", |p| show(&p.samples)),
+    ("settle_ms", |p| show(&p.settle_ms)),
+    ("rate_hz", |p| show(&p.rate_hz)),
+    ("timing.request_timeout_ms", |p| show(&p.request_timeout_ms)),
+    ("timing.retries", |p| show(&p.retries)),
+    ("timing.report_timeout_ms", |p| show(&p.report_timeout_ms)),
+    ("timing.no_signal_reports", |p| show(&p.no_signal_reports)),
+    ("timing.max_reports", |p| show(&p.max_reports)),
+    ("timing.heartbeat_ms", |p| show(&p.heartbeat_ms)),
+    ("timing.backoff_max_s", |p| show(&p.backoff_max_s)),
+    ("timing.give_up_s", |p| show(&p.give_up_s)),
+];
+
+/// A value as [`Plan::differences`] shows it: its `Debug` form, cut to 60 characters.
+fn show<T: fmt::Debug>(v: &T) -> String {
+    let s = format!("{v:?}");
+    if s.chars().count() > 60 {
+        format!("{}...", s.chars().take(57).collect::<String>())
+    } else {
+        s
+    }
+}
+
+/// A plan key whose value differs between two plans ([`Plan::differences`]); shown as
+/// `` `samples`: 6 -> 8 ``.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Change {
+    /// The key, as in [`KEYS`].
+    pub key: &'static str,
+    /// Its value in the earlier plan.
+    pub was: String,
+    /// Its value now.
+    pub now: String,
+}
+
+impl Change {
+    /// Whether a resume accepts this change ([`RESUME_MAY_CHANGE`]).
+    pub fn resumable(&self) -> bool {
+        RESUME_MAY_CHANGE.contains(&self.key)
+    }
+}
+
+impl fmt::Display for Change {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "`{}`: {} -> {}", self.key, self.was, self.now)
+    }
+}
+
 /// One measurement point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Point {
@@ -538,82 +634,15 @@ impl Plan {
         })
     }
 
-    /// What differs from `before`, one entry per plan key: `` `samples`: 6 -> 8 ``. Empty when
-    /// the plans are equal.
-    pub fn differences(&self, before: &Plan) -> Vec<String> {
-        fn show<T: fmt::Debug>(v: &T) -> String {
-            let s = format!("{v:?}");
-            if s.chars().count() > 60 {
-                format!("{}...", s.chars().take(57).collect::<String>())
-            } else {
-                s
-            }
-        }
-        fn layout(l: &Layout) -> String {
-            match l {
-                Layout::Single => "\"single\"".into(),
-                Layout::Quad { spacing } => format!("\"quad\" (quad_spacing_in {spacing})"),
-            }
-        }
-        let mut out = Vec::new();
-        let mut cmp = |key: &str, now: String, was: String| {
-            if now != was {
-                out.push(format!("`{key}`: {was} -> {now}"));
-            }
-        };
-        let (a, b) = (self, before);
-        cmp("name", show(&a.name), show(&b.name));
-        cmp("separations_in", show(&a.separations), show(&b.separations));
-        cmp("layout", layout(&a.layout), layout(&b.layout));
-        cmp("beacons", show(&a.beacons), show(&b.beacons));
-        cmp(
-            "frequencies_hz",
-            show(&a.frequencies_hz),
-            show(&b.frequencies_hz),
-        );
-        cmp("power_levels", show(&a.power_levels), show(&b.power_levels));
-        cmp(
-            "sensitivities",
-            show(&a.sensitivities),
-            show(&b.sensitivities),
-        );
-        cmp("samples", show(&a.samples), show(&b.samples));
-        cmp("settle_ms", show(&a.settle_ms), show(&b.settle_ms));
-        cmp("rate_hz", show(&a.rate_hz), show(&b.rate_hz));
-        let t = |k: &str| format!("timing.{k}");
-        cmp(
-            &t("request_timeout_ms"),
-            show(&a.request_timeout_ms),
-            show(&b.request_timeout_ms),
-        );
-        cmp(&t("retries"), show(&a.retries), show(&b.retries));
-        cmp(
-            &t("report_timeout_ms"),
-            show(&a.report_timeout_ms),
-            show(&b.report_timeout_ms),
-        );
-        cmp(
-            &t("no_signal_reports"),
-            show(&a.no_signal_reports),
-            show(&b.no_signal_reports),
-        );
-        cmp(
-            &t("max_reports"),
-            show(&a.max_reports),
-            show(&b.max_reports),
-        );
-        cmp(
-            &t("heartbeat_ms"),
-            show(&a.heartbeat_ms),
-            show(&b.heartbeat_ms),
-        );
-        cmp(
-            &t("backoff_max_s"),
-            show(&a.backoff_max_s),
-            show(&b.backoff_max_s),
-        );
-        cmp(&t("give_up_s"), show(&a.give_up_s), show(&b.give_up_s));
-        out
+    /// What differs from `before`, one entry per plan key (`` `samples`: 6 -> 8 `` when
+    /// shown), in the order of [`KEYS`]. Empty when the plans are equal.
+    pub fn differences(&self, before: &Plan) -> Vec<Change> {
+        KEYS.iter()
+            .filter_map(|&(key, value)| {
+                let (was, now) = (value(before), value(self));
+                (was != now).then_some(Change { key, was, now })
+            })
+            .collect()
     }
 
     /// Number of points.
@@ -765,6 +794,51 @@ settle_ms = 0
             let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("plans").join(p);
             Plan::load(&path).unwrap();
         }
+    }
+
+    #[test]
+    fn differences_name_every_key_and_only_timing_may_change_on_resume() {
+        // Every field of a plan has its key: a field left out would change unseen on resume.
+        let p = Plan::parse("p.toml", SHORT).unwrap();
+        let fields = serde_json::to_value(&p).unwrap().as_object().unwrap().len();
+        assert_eq!(fields, KEYS.len());
+        for k in RESUME_MAY_CHANGE {
+            assert!(KEYS.iter().any(|(key, _)| *key == k), "{k}");
+        }
+        let with =
+            |timing: &str| Plan::parse("p.toml", &format!("{SHORT}[timing]\n{timing}\n")).unwrap();
+        let d = with("retries = 5\ngive_up_s = 60\nheartbeat_ms = 500").differences(&p);
+        let shown: Vec<String> = d.iter().map(|c| c.to_string()).collect();
+        assert_eq!(
+            shown,
+            [
+                "`timing.retries`: 2 -> 5",
+                "`timing.heartbeat_ms`: 2000 -> 500",
+                "`timing.give_up_s`: 3600.0 -> 60.0"
+            ]
+        );
+        assert!(d.iter().all(Change::resumable));
+        // What decides how a point is recorded, or shapes the measurement, is not timing.
+        for (changed, key) in [
+            (with("no_signal_reports = 7"), "timing.no_signal_reports"),
+            (with("max_reports = 50"), "timing.max_reports"),
+            (
+                Plan::parse("p.toml", &SHORT.replace("settle_ms = 0", "settle_ms = 50")).unwrap(),
+                "settle_ms",
+            ),
+            (
+                Plan::parse("p.toml", &format!("rate_hz = 20\n{SHORT}")).unwrap(),
+                "rate_hz",
+            ),
+            (
+                Plan::parse("p.toml", &SHORT.replace("samples = 5", "samples = 6")).unwrap(),
+                "samples",
+            ),
+        ] {
+            let d = changed.differences(&p);
+            assert!(d.iter().any(|c| c.key == key && !c.resumable()), "{d:?}");
+        }
+        assert!(p.differences(&p).is_empty());
     }
 
     #[test]

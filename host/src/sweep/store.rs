@@ -2,7 +2,8 @@
 //! nothing is written twice, whatever stops the run.
 //!
 //! ```text
-//! RUN_DIR/plan.toml      the plan, as given (a resume reads it from here)
+//! RUN_DIR/plan.toml      the plan, as given (a resume reads it from here; its timing keys
+//!                        may be edited between sessions)
 //! RUN_DIR/data.csv       the measurements (host/MEASUREMENTS.md), appended per point
 //! RUN_DIR/journal.jsonl  one JSON event per line: sessions, operator entries, points, faults
 //! RUN_DIR/manifest.json  the run's metadata, rewritten from the journal at every session
@@ -35,7 +36,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
-use super::plan::Plan;
+use super::plan::{Change, Plan, RESUME_MAY_CHANGE};
 use crate::measurement::{write_row, Sample, OPTIONAL, REQUIRED};
 
 /// What became of a point.
@@ -85,9 +86,10 @@ pub enum Event {
         boards: serde_json::Value,
         /// Simulation settings (`None` for real boards).
         sim: Option<serde_json::Value>,
-        /// The plan in use (validated; [`Plan`]'s fields): a resume refuses a run whose
-        /// `plan.toml` no longer says the same as when the run started. Absent in journals of
-        /// older versions.
+        /// The plan in use (validated; [`Plan`]'s fields): a resume compares `plan.toml` with
+        /// the last session's, accepts changed timing keys ([`RESUME_MAY_CHANGE`]) with a note
+        /// and refuses any other change, so every session's plan says what the first one's
+        /// did but for timing. Absent in journals of older versions.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         plan: Option<serde_json::Value>,
         /// First point of this session.
@@ -381,9 +383,11 @@ impl RunDir {
     }
 
     /// Reopen `dir` to continue it with `plan` (read from its `plan.toml`): reads the journal
-    /// (dropping a torn last line), checks the plan is the one the run started with and the
-    /// committed data are intact, cuts `data.csv` back to the last committed point, and
-    /// positions both files for appending. Nothing is modified when a check fails.
+    /// (dropping a torn last line), checks the plan is the one the run started with (only the
+    /// timing keys of [`RESUME_MAY_CHANGE`] may differ from the last session's plan, each
+    /// change said in a note) and the committed data are intact, cuts `data.csv` back to the
+    /// last committed point, and positions both files for appending. Nothing is modified when a
+    /// check fails.
     pub fn open(dir: &Path, sync: bool, plan: &Plan) -> Result<RunDir> {
         let jp = dir.join(JOURNAL);
         let dp = dir.join(DATA);
@@ -427,29 +431,65 @@ impl RunDir {
             }
         }
         // The points are numbered by the plan: continuing with another one would leave points
-        // never measured (or measured under other settings) while the run says complete.
-        let started = events.iter().find_map(|e| match e {
+        // never measured (or measured under other settings) while the run says complete. Each
+        // session journals the plan it ran with; the last one is what this session continues.
+        // Only the keys that govern waiting and retrying may differ from it (their change is
+        // said, and this session journals the plan with it); every other key is the same in
+        // all sessions, so it is still the plan the run started with.
+        let last = events.iter().rev().find_map(|e| match e {
             Event::Session { plan: Some(p), .. } => Some(p),
             _ => None,
         });
-        match started {
+        match last {
             Some(v) => {
                 let pp = dir.join(PLAN);
                 let was: Plan = serde_json::from_value(v.clone())
                     .with_context(|| format!("{}: unreadable plan in a session", jp.display()))?;
                 // Through the same JSON text as the journalled one, so floats compare exactly.
                 let now: Plan = serde_json::from_str(&serde_json::to_string(plan)?)?;
-                let changed = now.differences(&was);
-                if !changed.is_empty() {
+                let (timing, refused): (Vec<Change>, Vec<Change>) = now
+                    .differences(&was)
+                    .into_iter()
+                    .partition(Change::resumable);
+                let list = |c: &[Change]| {
+                    c.iter()
+                        .map(|c| c.to_string())
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                };
+                let keys = |c: &[Change]| {
+                    c.iter()
+                        .map(|c| format!("`{}`", c.key))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                };
+                if !refused.is_empty() {
                     bail!(
                         "{}: the plan was changed since the run started (as recorded in {}): {}. A \
                          resume continues the plan the run started with, whose point numbers the \
-                         data use; not resuming, nothing was changed: restore {PLAN}, or start a \
-                         new run with --out for the new plan",
+                         data use, measuring and recording the points as before: only the keys \
+                         that govern waiting and retrying ({}) may change{}; not resuming, \
+                         nothing was changed: restore {PLAN}, or start a new run with --out for \
+                         the new plan",
                         pp.display(),
                         jp.display(),
-                        changed.join("; ")
+                        list(&refused),
+                        RESUME_MAY_CHANGE.join(", "),
+                        if timing.is_empty() {
+                            String::new()
+                        } else {
+                            format!(" (the change of {} alone would be accepted)", keys(&timing))
+                        },
                     );
+                }
+                if !timing.is_empty() {
+                    notes.push(format!(
+                        "{PLAN}: timing changed since the last session (as recorded in \
+                         {JOURNAL}): {}; these govern only waiting and retrying, not what is \
+                         measured or recorded: the run continues with the new values, journalled \
+                         with this session's plan",
+                        list(&timing)
+                    ));
                 }
             }
             None if !events.is_empty() => notes.push(format!(
