@@ -142,7 +142,7 @@ pub const RESUME_MAY_CHANGE: [&str; 6] = [
     "timing.give_up_s",
 ];
 
-/// A plan key's value in a [`Plan`], as [`Plan::differences`] shows it.
+/// A plan key's value in a [`Plan`], in full, as [`Plan::differences`] compares it.
 pub type KeyValue = fn(&Plan) -> String;
 
 /// Every plan key as written in the file (`[timing]` ones as `timing.KEY`), with its value.
@@ -170,14 +170,39 @@ pub const KEYS: [(&str, KeyValue); 18] = [
     ("timing.give_up_s", |p| show(&p.give_up_s)),
 ];
 
-/// A value as [`Plan::differences`] shows it: its `Debug` form, cut to 60 characters.
+/// A value as [`Plan::differences`] compares it: its `Debug` form.
 fn show<T: fmt::Debug>(v: &T) -> String {
-    let s = format!("{v:?}");
-    if s.chars().count() > 60 {
-        format!("{}...", s.chars().take(57).collect::<String>())
+    format!("{v:?}")
+}
+
+/// Two different values cut for display to about 60 characters each, around where they
+/// first differ (`...` where something is left out), so a long list shows the change.
+fn shorten(was: &str, now: &str) -> (String, String) {
+    const WIDTH: usize = 60;
+    const BEFORE: usize = 20;
+    let w: Vec<char> = was.chars().collect();
+    let same = w
+        .iter()
+        .zip(now.chars())
+        .take_while(|(a, b)| **a == *b)
+        .count();
+    let from = if same > BEFORE && w.len().max(now.chars().count()) > WIDTH {
+        // From the start of a list item (after a space), in the part both share.
+        let f = same - BEFORE;
+        w[..f].iter().rposition(|c| *c == ' ').map_or(f, |k| k + 1)
     } else {
-        s
-    }
+        0
+    };
+    let cut = |s: &str| {
+        let rest: Vec<char> = s.chars().skip(from).collect();
+        let head = if from > 0 { "..." } else { "" };
+        if rest.len() > WIDTH {
+            format!("{head}{}...", rest[..WIDTH - 3].iter().collect::<String>())
+        } else {
+            format!("{head}{}", rest.iter().collect::<String>())
+        }
+    };
+    (cut(was), cut(now))
 }
 
 /// A plan key whose value differs between two plans ([`Plan::differences`]); shown as
@@ -186,9 +211,9 @@ fn show<T: fmt::Debug>(v: &T) -> String {
 pub struct Change {
     /// The key, as in [`KEYS`].
     pub key: &'static str,
-    /// Its value in the earlier plan.
+    /// Its value in the earlier plan (cut for display when long).
     pub was: String,
-    /// Its value now.
+    /// Its value now (likewise).
     pub now: String,
 }
 
@@ -635,12 +660,16 @@ impl Plan {
     }
 
     /// What differs from `before`, one entry per plan key (`` `samples`: 6 -> 8 `` when
-    /// shown), in the order of [`KEYS`]. Empty when the plans are equal.
+    /// shown), in the order of [`KEYS`]. Empty when the plans are equal. Values are compared
+    /// in full and shown cut around where they differ.
     pub fn differences(&self, before: &Plan) -> Vec<Change> {
         KEYS.iter()
             .filter_map(|&(key, value)| {
                 let (was, now) = (value(before), value(self));
-                (was != now).then_some(Change { key, was, now })
+                (was != now).then(|| {
+                    let (was, now) = shorten(&was, &now);
+                    Change { key, was, now }
+                })
             })
             .collect()
     }
@@ -839,6 +868,44 @@ settle_ms = 0
             assert!(d.iter().any(|c| c.key == key && !c.resumable()), "{d:?}");
         }
         assert!(p.differences(&p).is_empty());
+    }
+
+    #[test]
+    fn long_values_are_compared_in_full_and_shown_where_they_differ() {
+        // Once, values were compared cut to 60 characters: dropping the last separation or
+        // beacon of a long list went unseen, and a resume continued another plan.
+        let all = Plan::parse("p.toml", "separations_in = \"2..30\"\nsamples = 1\n").unwrap();
+        let fewer = Plan::parse(
+            "p.toml",
+            &format!(
+                "separations_in = \"2..29\"\nbeacons = {:?}\nsamples = 1\n",
+                (0..99).collect::<Vec<u8>>()
+            ),
+        )
+        .unwrap();
+        let shown: Vec<String> = fewer
+            .differences(&all)
+            .iter()
+            .map(|c| c.to_string())
+            .collect();
+        assert_eq!(
+            shown,
+            [
+                "`separations_in`: ...26.0, 27.0, 28.0, 29.0, 30.0] -> ...26.0, 27.0, 28.0, 29.0]",
+                "`beacons`: ...93, 94, 95, 96, 97, 98, 99] -> ...93, 94, 95, 96, 97, 98]",
+            ]
+        );
+        // Short values, and long ones differing early, are shown from the start.
+        assert_eq!(
+            shorten("[1, 2]", "[1, 3]"),
+            ("[1, 2]".into(), "[1, 3]".into())
+        );
+        let (a, b) = shorten(&"1".repeat(100), &format!("2{}", "1".repeat(99)));
+        assert_eq!((a.len(), b.len()), (60, 60));
+        assert!(
+            a.starts_with("111") && b.starts_with("211") && a.ends_with("..."),
+            "{a}"
+        );
     }
 
     #[test]
