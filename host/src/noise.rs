@@ -111,13 +111,18 @@ pub struct NoiseReport {
 /// summed degrees of freedom).
 #[derive(Debug, Clone, Serialize)]
 pub struct MagnitudeNoise {
-    /// Points pooled (repeated samples, every sample with a positive magnitude).
+    /// Points pooled (repeated samples, every sample with a positive magnitude below the
+    /// 16-bit ceiling [`MAGNITUDE_CEILING`]: a pinned magnitude has no spread to measure).
     pub points: usize,
     /// Over the file, percent.
     pub percent: f64,
     /// By separation: (separation in, percent, points).
     pub by_separation: Vec<(f64, f64, usize)>,
 }
+
+/// The NorthStar reports magnitudes as 16-bit counts: at this value the magnitude is pinned
+/// (a bright spot), and a point with any pinned sample is left out of the repeatability.
+pub const MAGNITUDE_CEILING: f64 = 65535.0;
 
 struct Pt {
     first: Sample,
@@ -285,7 +290,11 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
         let mags: Option<Vec<f64>> = g
             .rows
             .iter()
-            .map(|&i| ds.samples[i].magnitude.filter(|m| *m > 0.0))
+            .map(|&i| {
+                ds.samples[i]
+                    .magnitude
+                    .filter(|m| *m > 0.0 && *m < MAGNITUDE_CEILING)
+            })
             .collect();
         let ss_mag_rel = mags.map(|m| {
             let mean = m.iter().sum::<f64>() / n as f64;
@@ -624,6 +633,19 @@ mod tests {
         let f = (10.0f64 / 9.0).sqrt();
         assert!((m.by_separation[0].1 - 1.0 * f).abs() < 0.01, "{m:?}");
         assert!((m.by_separation[1].1 - 2.0 * f).abs() < 0.02, "{m:?}");
+        // A point with a magnitude pinned at the 16-bit ceiling is left out: its spread is
+        // clipped, not measured.
+        let all = m.points;
+        let first = ds.samples[0];
+        for s in ds.samples.iter_mut() {
+            if s.separation_in == first.separation_in && s.r == first.r && s.sample == Some(0) {
+                s.magnitude = Some(MAGNITUDE_CEILING);
+            }
+        }
+        assert_eq!(
+            analyze_noise(&ds).unwrap().magnitude.unwrap().points,
+            all - 1
+        );
         ds.samples.iter_mut().for_each(|s| s.magnitude = None);
         assert!(analyze_noise(&ds).unwrap().magnitude.is_none());
     }

@@ -91,3 +91,43 @@ fn realtime_sensor_runs_at_the_plan_rate() {
     // 6 reports at 10 Hz (the first of each point may come at once) plus two settles.
     assert!(s.seconds > 0.4, "{} s: not throttled to 10 Hz", s.seconds);
 }
+
+/// `--sim-magnitude-noise`: the spot magnitudes of the simulated sweep repeat to the given
+/// percent (as `cta noise` measures it), x and y are exactly those of the same run without
+/// it, and the truth records it.
+#[test]
+fn simulated_magnitude_noise_is_measured_by_cta_noise() {
+    let d = TestDir::new("sweep-e2e-magnitude");
+    let plan = write_plan(&d, PLAN);
+    let run = |name: &str, pct: Option<f64>| {
+        let a = SweepArgs {
+            sim_magnitude_noise: pct,
+            ..args(&d.join(name), &plan)
+        };
+        assert_eq!(sweep::sweep(&a).unwrap().ending, Ending::Complete);
+        Dataset::read(&sweep::data_path(&d.join(name).join("run"))).unwrap()
+    };
+    let plain = run("plain", None);
+    let noisy = run("noisy", Some(0.5));
+    assert_eq!(plain.samples.len(), noisy.samples.len());
+    for (a, b) in plain.samples.iter().zip(&noisy.samples) {
+        assert_eq!([a.x, a.y], [b.x, b.y]);
+    }
+    let zero = cta_host::noise::analyze_noise(&plain)
+        .unwrap()
+        .magnitude
+        .unwrap();
+    assert!(zero.percent < 1e-9, "{zero:?}");
+    // ~30 unpinned points x 7 degrees of freedom: the estimate is within ~5 % (1-sigma) of
+    // 0.5 %. Points whose magnitude is pinned at 65535 (close, sensitive) are left out.
+    let m = cta_host::noise::analyze_noise(&noisy)
+        .unwrap()
+        .magnitude
+        .unwrap();
+    assert!((m.percent - 0.5).abs() < 0.08, "{m:?}");
+    let truth = std::fs::read_to_string(d.join("noisy/run/data.truth.json")).unwrap();
+    assert!(
+        truth.contains("\"magnitude_noise_percent\": 0.5"),
+        "{truth}"
+    );
+}

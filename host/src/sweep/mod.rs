@@ -75,6 +75,11 @@ pub struct SweepArgs {
     /// default 10, and on --resume the run's own.
     #[arg(long, value_name = "COUNTS")]
     pub sim_noise: Option<f64>,
+    /// Simulated CTA: spot magnitude noise, percent of the magnitude (1-sigma, 0-25); default
+    /// 0, and on --resume the run's own. The NorthStar's real figure is unmeasured: a what-if
+    /// for `cta noise` -> `cta sensor floor --magnitude-noise`.
+    #[arg(long, value_name = "PERCENT")]
+    pub sim_magnitude_noise: Option<f64>,
     /// Simulated CTA: inject an effect of the analysis vocabulary (repeatable), e.g.
     /// `beacon_tilt=2,45`, `plate_offset=0.05`, `cell_gain=0.03`.
     #[arg(long, value_name = "NAME=VALUE")]
@@ -261,14 +266,19 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                     serde_json::from_value(v).context("journal: unreadable simulation settings")?;
                 let differs = args.sim_seed.is_some_and(|x| x != s.seed)
                     || args.sim_noise.is_some_and(|x| x != s.noise)
+                    || args
+                        .sim_magnitude_noise
+                        .is_some_and(|x| x != s.magnitude_noise)
                     || (!args.sim_effect.is_empty() && args.sim_effect != s.effects);
                 if differs {
                     bail!(
-                        "{} was simulated with seed {}, noise {}, effects {:?}; a resume simulates \
-                         the same (leave out --sim-seed/--sim-noise/--sim-effect)",
+                        "{} was simulated with seed {}, noise {}, magnitude noise {} %, effects \
+                         {:?}; a resume simulates the same (leave out --sim-seed/--sim-noise/\
+                         --sim-magnitude-noise/--sim-effect)",
                         dir.display(),
                         s.seed,
                         s.noise,
+                        s.magnitude_noise,
                         s.effects
                     );
                 }
@@ -435,6 +445,7 @@ fn parse_faults(args: &SweepArgs) -> Result<Faults> {
 fn sim_settings(args: &SweepArgs) -> Result<Option<SimSettings>> {
     if args.beacon.is_some() {
         let sim_only = args.sim_noise.is_some()
+            || args.sim_magnitude_noise.is_some()
             || !args.sim_effect.is_empty()
             || args.sim_seed.is_some()
             || args.sim_realtime
@@ -451,6 +462,7 @@ fn sim_settings(args: &SweepArgs) -> Result<Option<SimSettings>> {
     Ok(Some(SimSettings {
         seed: args.sim_seed.unwrap_or(d.seed),
         noise: args.sim_noise.unwrap_or(d.noise),
+        magnitude_noise: args.sim_magnitude_noise.unwrap_or(d.magnitude_noise),
         effects: args.sim_effect.clone(),
         realtime: args.sim_realtime,
         faults: parse_faults(args)?,

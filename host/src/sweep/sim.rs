@@ -173,6 +173,10 @@ pub struct SimSettings {
     pub seed: u64,
     /// Noise of a strong signal, counts (1-sigma); grows as 1/sqrt(magnitude) below it.
     pub noise: f64,
+    /// Spot magnitude noise, percent of the magnitude (1-sigma); 0 (also in journals written
+    /// before it existed): none.
+    #[serde(default)]
+    pub magnitude_noise: f64,
     /// Effects (`NAME=VALUE`, the analysis vocabulary).
     pub effects: Vec<String>,
     /// Run the detector at the board's rate (10 Hz) instead of unthrottled.
@@ -186,6 +190,7 @@ impl Default for SimSettings {
         SimSettings {
             seed: 1,
             noise: 10.0,
+            magnitude_noise: 0.0,
             effects: Vec::new(),
             realtime: false,
             faults: Faults::default(),
@@ -264,11 +269,18 @@ impl World {
                 let mut rng = StdRng::seed_from_u64(mix(&key));
                 let nx: f64 = rng.sample(StandardNormal);
                 let ny: f64 = rng.sample(StandardNormal);
+                // Drawn after x and y, so it never changes them.
+                let m = if self.settings.magnitude_noise > 0.0 {
+                    let nm: f64 = rng.sample(StandardNormal);
+                    (mag * (1.0 + self.settings.magnitude_noise / 100.0 * nm)).max(0.0)
+                } else {
+                    mag
+                };
                 let _ = spots.push(Spot {
                     id: ch,
                     x: saturate_i16(out[0] + sigma * nx),
                     y: saturate_i16(out[1] + sigma * ny),
-                    magnitude: mag.min(65535.0) as u16,
+                    magnitude: m.min(65535.0) as u16,
                 });
             }
         }
@@ -650,10 +662,18 @@ impl SimCta {
                 settings.noise
             );
         }
+        if !(0.0..=crate::simulate::MAX_MAGNITUDE_NOISE).contains(&settings.magnitude_noise) {
+            bail!(
+                "--sim-magnitude-noise {}: between 0 and {} percent",
+                settings.magnitude_noise,
+                crate::simulate::MAX_MAGNITUDE_NOISE
+            );
+        }
         let config = SimConfig {
             separations: plan.separations.clone(),
             effects,
             noise: settings.noise,
+            magnitude_noise: settings.magnitude_noise,
             seed: settings.seed,
             samples: plan.samples as usize,
             ..SimConfig::default()
