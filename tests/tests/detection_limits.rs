@@ -96,18 +96,6 @@ fn ladder(name: &str) -> Vec<(Effect, Vec<f64>)> {
     }
 }
 
-const EFFECTS: [&str; 9] = [
-    "proximity",
-    "beacon_pattern",
-    "beacon_tilt",
-    "cell_gain",
-    "cell_bias",
-    "face_angle",
-    "saturation",
-    "plate_offset",
-    "separation_error",
-];
-
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -228,7 +216,11 @@ fn detection_limits() {
     let mut smallest: Vec<(String, String)> = Vec::new();
     // The compact matrix: per effect, per rung, "named (other named instead) u(nexplained)".
     let mut matrix: Vec<(String, Vec<String>)> = Vec::new();
-    for name in EFFECTS {
+    // Every effect `analyze` can name; `intensity` is a switch of the pinhole start only.
+    for name in cta_host::effects::VOCABULARY
+        .into_iter()
+        .filter(|n| *n != "intensity")
+    {
         let rungs = ladder(name);
         let mut reliable: Option<String> = None;
         let mut cells = Vec::new();
