@@ -312,7 +312,7 @@ pub struct Provenance {
     pub chi2_dof: f64,
     /// Near-field fit residual RMS, counts (unweighted, point means).
     pub rms_counts: f64,
-    /// Points fitted and points left out (pinned outputs).
+    /// Points fitted.
     pub points: usize,
     /// Points left out because an output was pinned.
     pub pinned_points: usize,
@@ -338,7 +338,7 @@ pub struct SeparationRms {
 pub struct CalibrationReport {
     /// The file written (or that would be written).
     pub file: CalibrationFile,
-    /// Pinhole fit: `H` and its 1-sigma, chi2/dof, warnings.
+    /// Pinhole fit: `H`, counts (its 1-sigma is `fitted.sigma.H`).
     pub pinhole_h: f64,
     /// Pinhole fit warnings.
     pub pinhole_warnings: Vec<String>,
