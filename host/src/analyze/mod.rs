@@ -160,9 +160,45 @@ pub struct Cause {
     pub heldout_rms_after: f64,
     /// Chi-square per degree of freedom after adding it.
     pub chi2_dof_after: f64,
+    /// Candidates of the same round that explain the data about as well: significant on
+    /// their own (`dBIC > 10`) and less than [`RIVAL_DBIC`] below this cause. The data do not
+    /// tell them apart (e.g. `proximity` and `beacon_pattern` at small sizes: host/ANALYZE.md,
+    /// "Detection limits").
+    pub rivals: Vec<Rival>,
+}
+
+/// A candidate whose BIC is within this of a named cause's is reported as its rival: a BIC
+/// difference below 10 is not "very strong" evidence for one model over the other (Kass and
+/// Raftery's scale).
+pub const RIVAL_DBIC: f64 = 10.0;
+
+/// A candidate that explains the data about as well as a named cause ([`Cause::rivals`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct Rival {
+    /// Vocabulary name.
+    pub effect: String,
+    /// Its BIC improvement in the same round.
+    pub dbic: f64,
 }
 
 impl Cause {
+    /// "`X` explains the data about as well ..." when the cause has rivals.
+    pub fn rivals_line(&self) -> Option<String> {
+        if self.rivals.is_empty() {
+            return None;
+        }
+        let list: Vec<String> = self
+            .rivals
+            .iter()
+            .map(|r| format!("{} (dBIC {:.1} vs {:.1})", r.effect, r.dbic, self.dbic))
+            .collect();
+        Some(format!(
+            "but {} explains the data about as well: a BIC difference below {RIVAL_DBIC} does \
+             not tell them apart (host/ANALYZE.md, Detection limits)",
+            list.join(", ")
+        ))
+    }
+
     /// The global (not per-separation) parameters as `name = value PM sigma` strings.
     pub fn global_params(&self, pm: &str) -> Vec<String> {
         self.params
@@ -710,6 +746,25 @@ pub fn analyze(
     let mut causes = Vec::new();
     for st in &sel.steps {
         let (params, sigma) = cause_params(&st.model, st.cand, &st.fit, &data.seps);
+        let round = sel
+            .trials
+            .iter()
+            .find(|t| t.accepted && t.cand == st.cand)
+            .map(|t| t.round);
+        let rivals = sel
+            .trials
+            .iter()
+            .filter(|t| {
+                Some(t.round) == round
+                    && t.cand != st.cand
+                    && t.dbic > 10.0
+                    && t.dbic > st.dbic - RIVAL_DBIC
+            })
+            .map(|t| Rival {
+                effect: t.cand.name().into(),
+                dbic: t.dbic,
+            })
+            .collect();
         causes.push(Cause {
             effect: st.cand.name().into(),
             params,
@@ -720,6 +775,7 @@ pub fn analyze(
             heldout_rms_before: st.cv_before.rms,
             heldout_rms_after: st.cv_after.rms,
             chi2_dof_after: dof_chi2(&st.model, &st.fit),
+            rivals,
         });
     }
     let (causes, tentative) = if unexplained {
@@ -876,6 +932,9 @@ pub fn render_text(a: &Analysis) -> String {
         let shown = c.global_params("+/-");
         if !shown.is_empty() {
             let _ = writeln!(s, "     {}", shown.join(", "));
+        }
+        if let Some(line) = c.rivals_line() {
+            let _ = writeln!(s, "     {line}");
         }
     }
     if !a.ruled_out.is_empty() {

@@ -41,6 +41,13 @@ fn cause_rows(s: &mut String, causes: &[Cause]) {
             c.dbic,
             c.chi2_dof_after
         );
+        if let Some(line) = c.rivals_line() {
+            let _ = write!(
+                s,
+                "<tr><td></td><td colspan=6>{}</td></tr>",
+                html_escape(&line)
+            );
+        }
         let locals: Vec<String> = c
             .params
             .iter()
