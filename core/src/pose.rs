@@ -124,6 +124,13 @@ pub struct NearField {
     /// `1 + gain[1]`. 0 nominal; a calibration file without it reads 0.
     #[serde(default)]
     pub gain: [f32; 2],
+    /// Offset of each cell pair's first cell (the analysis vocabulary's `cell_bias`, on eq
+    /// 63's `S_k`, in its units, 1/in^2): `bias[0]` is added to cell 1's signal, `bias[1]`
+    /// to cell 3's (after the gain): ambient light or dark current the demodulation leaves.
+    /// It matters far from the beacons, where the signals are small (0.001/in^2 on axis at
+    /// 30 in). 0 nominal; a calibration file without it reads 0.
+    #[serde(default)]
+    pub bias: [f32; 2],
 }
 
 impl NearField {
@@ -135,6 +142,7 @@ impl NearField {
             beta: 32768.0,
             pattern_m: 1.0,
             gain: [0.0; 2],
+            bias: [0.0; 2],
         }
     }
 
@@ -146,6 +154,17 @@ impl NearField {
             one,
             one + T::lit(self.gain[1] as f64),
             one,
+        ]
+    }
+
+    /// The per-cell offsets of [`Effects::bias`]: `[bias[0], 0, bias[1], 0]`.
+    pub fn cell_biases<T: Real>(&self) -> [T; 4] {
+        let z = T::zero();
+        [
+            T::lit(self.bias[0] as f64),
+            z,
+            T::lit(self.bias[1] as f64),
+            z,
         ]
     }
 }
@@ -202,6 +221,8 @@ pub enum CalField {
     PatternM,
     /// Near-field cell gains: each within +/-0.5.
     Gain,
+    /// Near-field cell offsets: each within +/-0.01 per square inch.
+    Bias,
 }
 
 impl CalField {
@@ -217,6 +238,7 @@ impl CalField {
             CalField::Beta => "near-field beta (1000 ..= 100000 counts)",
             CalField::PatternM => "near-field pattern exponent m (0 ..= 50)",
             CalField::Gain => "near-field cell gains (each -0.5 ..= 0.5)",
+            CalField::Bias => "near-field cell offsets (each -0.01 ..= 0.01 per in^2)",
         }
     }
 }
@@ -345,6 +367,10 @@ impl Calibration {
             }
             if !nf.gain.iter().all(|&g| in_range(g, -0.5, 0.5)) {
                 return bad(CalField::Gain);
+            }
+            // 0.01/in^2 is a beacon's on-axis signal at 10 in: ten times the signal at 30 in.
+            if !nf.bias.iter().all(|&b| in_range(b, -0.01, 0.01)) {
+                return bad(CalField::Bias);
             }
         }
         Ok(())
@@ -550,6 +576,7 @@ impl<T: Real> PoseSolver<T> {
                     m: T::lit(nf.pattern_m as f64),
                 },
                 gain: nf.cell_gains(),
+                bias: nf.cell_biases(),
                 ..Effects::default()
             };
             // The LEDs' boresight is set per pass from the attitude (rows): none here.
@@ -1181,16 +1208,24 @@ mod tests {
                 field: CalField::Gain
             })
         );
+        cal = Calibration::table3();
+        cal.near_field.as_mut().unwrap().bias = [0.02, 0.0];
+        assert_eq!(
+            cal.validate(),
+            Err(ConfigError::CalibrationOutOfRange {
+                field: CalField::Bias
+            })
+        );
     }
 
-    /// The calibration's cell gains reach the near-field model: frames of a head whose cell 1
-    /// reads 3 % high and cell 3 2 % low are solved to rounding level with those gains in the
-    /// calibration, and miss by far more without them.
-    #[test]
-    fn cell_gains_reach_the_solver() {
-        let mut cal = Calibration::table3();
-        cal.near_field.as_mut().unwrap().gain = [0.03, -0.02];
-        let nf = cal.near_field.unwrap();
+    /// Solve a noise-free frame at `t` of a head whose cells have `truth`'s gains and
+    /// offsets, once with `truth` as the calibration and once with the nominal one: the
+    /// position errors, inches.
+    fn cells_with_and_without(truth: NearField, t: Vector3<f64>) -> (f64, f64) {
+        let cal = Calibration {
+            near_field: Some(truth),
+            ..Calibration::table3()
+        };
         let em = Emulator::new(
             Head::northstar(),
             HeadPose {
@@ -1198,12 +1233,13 @@ mod tests {
                 p: v3(&cal.p),
             },
             Effects {
-                gain: nf.cell_gains(),
+                gain: truth.cell_gains(),
+                bias: truth.cell_biases(),
                 ..Effects::default()
             },
         );
         let con = cta_constellation();
-        let (t, q) = target();
+        let (_, q) = target();
         let spots = simulate_spots(&em, &con, &t, &q, |_| 0.0);
         let settings = SolverSettings {
             model: ModelKind::NearField,
@@ -1216,11 +1252,39 @@ mod tests {
             assert_eq!(sol.status, PoseStatus::Ok, "{sol:?}");
             (sol.position - t).norm()
         };
-        let with = error(&cal);
-        let without = error(&Calibration::table3());
+        (error(&cal), error(&Calibration::table3()))
+    }
+
+    /// The calibration's cell gains reach the near-field model: frames of a head whose cell 1
+    /// reads 3 % high and cell 3 2 % low are solved to rounding level with those gains in the
+    /// calibration, and miss by far more without them.
+    #[test]
+    fn cell_gains_reach_the_solver() {
+        let truth = NearField {
+            gain: [0.03, -0.02],
+            ..NearField::nominal()
+        };
+        let (with, without) = cells_with_and_without(truth, target().0);
         assert!(with < 2e-4, "{with}");
         assert!(
             without > 50.0 * with && without > 0.01,
+            "{without} vs {with}"
+        );
+    }
+
+    /// The calibration's cell offsets reach the near-field model: at 20 in, where a beacon's
+    /// signal is about 0.0025/in^2, offsets of 2e-5 and -1e-5/in^2 (under 1 % of it) are
+    /// solved to rounding level with them in the calibration, and miss by far more without.
+    #[test]
+    fn cell_biases_reach_the_solver() {
+        let truth = NearField {
+            bias: [2e-5, -1e-5],
+            ..NearField::nominal()
+        };
+        let (with, without) = cells_with_and_without(truth, Vector3::new(0.3, -0.2, 20.0));
+        assert!(with < 2e-3, "{with}");
+        assert!(
+            without > 20.0 * with && without > 0.01,
             "{without} vs {with}"
         );
     }

@@ -119,6 +119,7 @@ pub fn physics(cal: &Calibration) -> Emulator<f64> {
             m: nf.pattern_m as f64,
         },
         gain: nf.cell_gains(),
+        bias: nf.cell_biases(),
         ..Effects::default()
     };
     Emulator::new(

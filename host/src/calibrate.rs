@@ -7,14 +7,16 @@
 //! 1. **Pinhole** (eq 65, `d, p, H`; [`crate::fit::fit`]) on the far separations (25 and 30
 //!    in when the file has them, else its two largest): the chip's `pinhole` model and the
 //!    near-field fit's start.
-//! 2. **Near-field** (eqs 60-63, `d, p`, the face angle `a`, the cell offset `s` and the
-//!    cell gains `gx, gy` of [`NearField::gain`], with the calibration's `beta` and beacon
-//!    pattern held) on every point of every separation, by
+//! 2. **Near-field** (eqs 60-63, `d, p`, the face angle `a`, the cell offset `s`, the cell
+//!    gains `gx, gy` of [`NearField::gain`] and the cell offsets `bx, by` of
+//!    [`NearField::bias`], with the calibration's `beta` and beacon pattern held) on every
+//!    point of every separation, by
 //!    GLSDC with a central-difference Jacobian ([`NearFieldFit`]). Points are the means of
 //!    their repeated samples, each weighted by `n / sigma^2` with `sigma` the one-sample
 //!    noise pooled per separation and axis (weights are absolute, so chi2/dof is 1 when the
 //!    model explains the data to the noise). Points with a pinned output (a coordinate at
-//!    +/-32767) carry no position information and are left out.
+//!    +/-32767 in any sample, or its mean within 3 sigma of it) carry no position
+//!    information and are left out.
 //!
 //! The calibration's `noise` (the chip's per-coordinate 1-sigma) is the one-sample noise
 //! pooled over the file (or `--noise`). The residual RMS per separation of both models is
@@ -38,6 +40,10 @@ use crate::analyze::data::PINNED;
 use crate::fit::{self, Weights};
 use crate::measurement::{fmt_list, parse_separations, Dataset};
 
+/// Near-field chi2/dof above which the report warns that the data hold structure the chip's
+/// model cannot represent.
+pub const CHI2_WARN: f64 = 1.2;
+
 /// What `--out` files carry in `fitted` (and how an earlier one is recognised).
 pub const WRITER: &str = "cta calibrate";
 
@@ -54,36 +60,42 @@ pub struct NfObs {
 }
 
 /// The eq 60-63 calibration fit: 8 parameters (`d1..3` in, `p1..3` MRP, `a` in degrees, `s`
-/// in), or 10 with the cell gains `gx, gy` ([`NearField::gain`]), central-difference
-/// Jacobian, the physics of `base` (its `beta` and beacon pattern) with these parameters.
+/// in), or 12 with the cell gains `gx, gy` ([`NearField::gain`]) and offsets `bx, by`
+/// (1/in^2, [`NearField::bias`]), central-difference Jacobian, the physics of `base` (its
+/// `beta` and beacon pattern) with these parameters.
 pub struct NearFieldFit<'a> {
     /// The points.
     pub obs: &'a [NfObs],
-    /// The physics whose `beta` and beacon pattern (and, unless fitted, cell gains) are held.
+    /// The physics whose `beta` and beacon pattern (and, unless fitted, cell gains and
+    /// offsets) are held.
     pub base: Emulator<f64>,
-    /// Fit the cell gains too (10 parameters).
-    pub gains: bool,
+    /// Fit the cell gains and offsets too (12 parameters).
+    pub cells: bool,
 }
 
-/// Parameter names of [`NearFieldFit`], in order (the first 8 without the gains).
-pub const NF_NAMES: [&str; 10] = ["d1", "d2", "d3", "p1", "p2", "p3", "a", "s", "gx", "gy"];
+/// Parameters of [`NearFieldFit`] with the cells' gains and offsets.
+pub const NF_PARAMS: usize = 12;
+
+/// Parameter names of [`NearFieldFit`], in order (the first 8 without the cells).
+pub const NF_NAMES: [&str; NF_PARAMS] = [
+    "d1", "d2", "d3", "p1", "p2", "p3", "a", "s", "gx", "gy", "bx", "by",
+];
 
 impl NearFieldFit<'_> {
     fn n(&self) -> usize {
-        if self.gains {
-            10
+        if self.cells {
+            NF_PARAMS
         } else {
             8
         }
     }
 
-    /// The emulator at parameter vector `x` (8 or 10 values).
+    /// The emulator at parameter vector `x` (8 or 12 values).
     pub fn model(&self, x: &[f64]) -> Emulator<f64> {
         let mut effects = self.base.effects;
-        if let [.., gx, gy] = x[..] {
-            if x.len() == 10 {
-                effects.gain = [1.0 + gx, 1.0, 1.0 + gy, 1.0];
-            }
+        if let [gx, gy, bx, by] = x[8..] {
+            effects.gain = [1.0 + gx, 1.0, 1.0 + gy, 1.0];
+            effects.bias = [bx, 0.0, by, 0.0];
         }
         Emulator::new(
             Head {
@@ -115,7 +127,10 @@ impl glsdc::Problem<f64> for NearFieldFit<'_> {
         jac: bool,
         sink: &mut dyn FnMut(f64, f64, &[f64]),
     ) -> Result<(), glsdc::ModelError> {
-        const STEP: [f64; 10] = [1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-4, 1e-5, 1e-5, 1e-5];
+        // The offsets' step is small against the signals at 30 in (0.001/in^2).
+        const STEP: [f64; NF_PARAMS] = [
+            1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-4, 1e-5, 1e-5, 1e-5, 1e-8, 1e-8,
+        ];
         let n = self.n();
         let base = self.model(x.as_slice());
         let pert: Vec<(Emulator<f64>, Emulator<f64>)> = if jac {
@@ -131,7 +146,7 @@ impl glsdc::Problem<f64> for NearFieldFit<'_> {
         } else {
             Vec::new()
         };
-        let mut j = [[0.0; 10]; 2];
+        let mut j = [[0.0; NF_PARAMS]; 2];
         for o in self.obs {
             let p = base.output(&o.r).ok_or(glsdc::ModelError::NonFinite)?;
             for (k, (a, b)) in pert.iter().enumerate() {
@@ -158,13 +173,13 @@ impl glsdc::Problem<f64> for NearFieldFit<'_> {
 /// A near-field calibration fit.
 #[derive(Debug, Clone)]
 pub struct NearFieldSolution {
-    /// `start` with the fitted `d, p, a, s` (and gains).
+    /// `start` with the fitted `d, p, a, s` (and the cells' gains and offsets).
     pub calibration: Calibration,
-    /// 1-sigma of `d1..3, p1..3, a (deg), s` (and `gx, gy`; 0 when not fitted).
-    pub sigma: [f64; 10],
-    /// The fitted parameters in f64 (the calibration holds them in f32); `start`'s gains
-    /// when they were not fitted.
-    pub x: [f64; 10],
+    /// 1-sigma of `d1..3, p1..3, a (deg), s` (and `gx, gy, bx, by`; 0 when not fitted).
+    pub sigma: [f64; NF_PARAMS],
+    /// The fitted parameters in f64 (the calibration holds them in f32); `start`'s gains and
+    /// offsets when they were not fitted.
+    pub x: [f64; NF_PARAMS],
     /// Chi-square per degree of freedom (absolute weights).
     pub chi2_dof: f64,
     /// Iterations.
@@ -173,18 +188,20 @@ pub struct NearFieldSolution {
     pub condition: f64,
 }
 
-/// Fit `d, p, a, s` (and with `gains` the cell gains) of the eq 60-63 model to `obs`
-/// (weights absolute), starting from `start`'s `d, p` and near-field parameters (nominal
-/// when it has none); `start`'s `beta`, beacon pattern, `H` and `noise` are kept.
+/// Fit `d, p, a, s` (and with `cells` the cells' gains and offsets) of the eq 60-63 model
+/// to `obs` (weights absolute), starting from `start`'s `d, p` and near-field parameters
+/// (nominal when it has none); `start`'s `beta`, beacon pattern, `H` and `noise` are kept.
 pub fn fit_near_field(
     obs: &[NfObs],
     start: &Calibration,
-    gains: bool,
+    cells: bool,
 ) -> Result<NearFieldSolution> {
     let nominal = start.near_field.unwrap_or(NearField::nominal());
     let f = |a: [f32; 3]| a.map(f64::from);
     let (d, p) = (f(start.d), f(start.p));
-    let g = nominal.gain.map(f64::from);
+    let [gx, gy] = nominal.gain.map(f64::from);
+    let [bx, by] = nominal.bias.map(f64::from);
+    let g = [gx, gy, bx, by];
     let mut x0 = vec![
         d[0],
         d[1],
@@ -195,23 +212,32 @@ pub fn fit_near_field(
         nominal.alpha_deg as f64,
         nominal.s as f64,
     ];
-    if gains {
+    if cells {
         x0.extend(g);
     }
     let problem = NearFieldFit {
         obs,
         base: cta_firmware_sensor::sim::physics(start),
-        gains,
+        cells,
     };
     let x0 = DVector::from_vec(x0);
     let settings = Settings {
         weights_absolute: true,
         ..Settings::default()
     };
-    let sol = glsdc::solve(&problem, x0, &settings)
-        .map_err(|e| anyhow!("near-field calibration fit failed: {e:?}"))?;
-    let mut x = [0.0; 10];
-    let mut sigma = [0.0; 10];
+    let sol = glsdc::solve(&problem, x0, &settings).map_err(|e| {
+        let why = match e {
+            glsdc::Error::Model(glsdc::ModelError::NonFinite) => {
+                "the model has no output for some beacon (both cells of a pair in shadow) \
+                     at the start or a step of the fit"
+                    .to_string()
+            }
+            e => format!("{e:?}"),
+        };
+        anyhow!("near-field calibration fit failed: {why}")
+    })?;
+    let mut x = [0.0; NF_PARAMS];
+    let mut sigma = [0.0; NF_PARAMS];
     x[8..].copy_from_slice(&g);
     for k in 0..sol.x.len() {
         x[k] = sol.x[k];
@@ -226,6 +252,7 @@ pub fn fit_near_field(
                 alpha_deg: c(6),
                 s: c(7),
                 gain: [c(8), c(9)],
+                bias: [c(10), c(11)],
                 ..nominal
             }),
             ..*start
@@ -244,8 +271,8 @@ pub fn fit_near_field(
     long_about = "Fit the sensor board's calibration to a measured (or simulated) CTA sweep and write \
 the JSON file `cta sensor load-calibration` stores in the board's flash.\n\n\
 Two fits: the pinhole model (eq 65: d, p, H) on the far separations, then the near-field model \
-(eqs 60-63: d, p, face angle a, cell offset s, cell gains gx, gy) on every separation, started \
-from it. Repeated samples are averaged per point and weighted by their noise, pooled per separation and axis. The \
+(eqs 60-63: d, p, face angle a, cell offset s, cell gains gx, gy, cell offsets bx, by) on every \
+separation, started from it. Repeated samples are averaged per point and weighted by their noise, pooled per separation and axis. The \
 report gives every parameter with its 1-sigma, the residual RMS per separation of both models (what \
 the near-field model gains on this sensor), and warns when the data hold structure the chip's \
 model cannot represent (then run `cta analyze` on the same file).\n\n\
@@ -306,7 +333,8 @@ pub struct Provenance {
     pub separations: Vec<f64>,
     /// Separations of the pinhole fit, inches.
     pub pinhole_separations: Vec<f64>,
-    /// 1-sigma by parameter (`d1..3` in, `p1..3`, `a` deg, `s` in, `H` counts).
+    /// 1-sigma by parameter (`d1..3` in, `p1..3`, `a` deg, `s` in, `gx, gy`, `bx, by` /in^2,
+    /// `H` counts).
     pub sigma: BTreeMap<String, f64>,
     /// Near-field fit chi-square per degree of freedom.
     pub chi2_dof: f64,
@@ -451,6 +479,17 @@ pub fn calibrate(
     if !(pattern_m.is_finite() && (0.0..=50.0).contains(&pattern_m)) {
         bail!("--pattern-m {pattern_m}: the board takes 0 to 50");
     }
+    // A point whose mean lies within 3 sigma of the rail had its true output at or past it
+    // (a cell in shadow) and only its noise kept some samples inside: it is left out with
+    // the pinned ones. (With a cell offset, a pair in shadow reads the rail, where the
+    // model without the offset has no output at all.)
+    let at_rail = |p: &Pt| {
+        let margin = 3.0 * noise / (p.n as f64).sqrt();
+        p.mean.iter().any(|m| m.abs() >= PINNED - margin)
+    };
+    let before = pts.len();
+    pts.retain(|p| !at_rail(p));
+    pinned += before - pts.len();
     if pts.len() < 8 {
         bail!(
             "{}: {} usable points ({pinned} pinned), the near-field fit needs at least 8",
@@ -514,8 +553,47 @@ pub fn calibrate(
         }),
     };
 
-    // 2. Near field.
-    let nf = fit_near_field(&obs, &start, true)?;
+    // 2. Near field, from the pinhole fit (REFERENCE.md). When that start fails or leaves
+    // chi2/dof above the warning line, the fit is tried again from the nominal head pose
+    // (Table 3's d, p) and the better one kept: far-range structure the pinhole model
+    // cannot hold (a cell offset of 10 % of the 30 in signal) can pull its d inches off, to a
+    // start where beacons close in fall in a cell's shadow.
+    let mut warnings = Vec::new();
+    let nf = match fit_near_field(&obs, &start, true) {
+        Ok(nf) if nf.chi2_dof <= CHI2_WARN => nf,
+        first => {
+            let nominal = Calibration {
+                d: Calibration::table3().d,
+                p: Calibration::table3().p,
+                ..start
+            };
+            let d = |c: &Calibration| c.d.map(|v| format!("{v:.3}")).join(", ");
+            let first_said = match &first {
+                Ok(nf) => format!("it reached chi2/dof {:.2} only", nf.chi2_dof),
+                Err(e) => e.to_string(),
+            };
+            match (first, fit_near_field(&obs, &nominal, true)) {
+                (Ok(a), Ok(b)) if a.chi2_dof <= b.chi2_dof => a,
+                (_, Ok(b)) => {
+                    warnings.push(format!(
+                        "the near-field fit started from the nominal head pose (d = {} in): \
+                         from the pinhole fit's (d = {} in): {first_said}",
+                        d(&nominal),
+                        d(&start)
+                    ));
+                    b
+                }
+                (Ok(a), Err(_)) => a,
+                (Err(e), Err(e2)) => bail!(
+                    "{e}; from the nominal head pose (d = {} in) too: {e2}. The data do not \
+                     look like a NorthStar on the CTA (check the file's columns, units and \
+                     --pattern-m; `cta analyze {}` shows what the models miss)",
+                    d(&nominal),
+                    ds.path.display()
+                ),
+            }
+        }
+    };
     let cal = nf.calibration;
     cal.validate().map_err(|e| {
         anyhow!(
@@ -528,7 +606,7 @@ pub fn calibrate(
     let fitted = NearFieldFit {
         obs: &obs,
         base: cta_firmware_sensor::sim::physics(&start),
-        gains: true,
+        cells: true,
     }
     .model(&nf.x);
     let mut by: BTreeMap<u64, (usize, f64, f64, usize, f64)> = BTreeMap::new();
@@ -562,11 +640,10 @@ pub fn calibrate(
         / total_n as f64)
         .sqrt();
 
-    let mut warnings = Vec::new();
-    if nf.chi2_dof > 1.2 {
+    if nf.chi2_dof > CHI2_WARN {
         warnings.push(format!(
             "chi2/dof {:.2}: the residuals are {:.1}x the noise, so the data hold structure the \
-             chip's near-field model (d, p, a, s, cell gains) cannot represent, and the 1-sigma above are \
+             chip's near-field model (d, p, a, s, cell gains and offsets) cannot represent, and the 1-sigma above are \
              too small by about that factor. `cta analyze {}` names what it is.",
             nf.chi2_dof,
             nf.chi2_dof.sqrt(),
@@ -575,8 +652,8 @@ pub fn calibrate(
     }
     if pinned > 0 {
         warnings.push(format!(
-            "{pinned} points left out: an output pinned at +/-32767 (a cell in shadow or \
-             saturated) carries no position information"
+            "{pinned} points left out: an output pinned at +/-32767, or its mean within 3 sigma \
+             of it (a cell in shadow or saturated), carries no position information"
         ));
     }
     for b in &by_separation {
@@ -736,6 +813,16 @@ fn print_report(rep: &CalibrationReport, out: Option<&Path>) {
         "    gy = {:>10.6} ± {:.2e}       (cell 3 gain - 1; 0 nominal)",
         nf.gain[1],
         s("gy")
+    );
+    println!(
+        "    bx = {:>10.3e} ± {:.2e} /in2  (cell 1 offset; 0 nominal)",
+        nf.bias[0],
+        s("bx")
+    );
+    println!(
+        "    by = {:>10.3e} ± {:.2e} /in2  (cell 3 offset; 0 nominal)",
+        nf.bias[1],
+        s("by")
     );
     println!(
         "    held: beta = {}, beacon pattern m = {}; noise = {:.2} counts ({})",

@@ -360,7 +360,8 @@ fn demo_force_replaces_only_an_earlier_demo() {
 /// `cta calibrate` closes the loop from a sweep to the board: on a simulated sweep of a
 /// head at a non-default place, it recovers d, p, the face angle and the cell offset within
 /// 4 sigma, the noise within 5 %, chi2/dof near 1, and the board stores the file it writes.
-/// A hidden effect the chip's model cannot represent is flagged, pointing at `cta analyze`.
+/// Cell gains and offsets are fitted; a hidden effect the chip's model cannot represent is
+/// flagged, pointing at `cta analyze`.
 #[test]
 fn calibrate_writes_what_the_board_loads() {
     let d = tmpdir("cal");
@@ -448,13 +449,37 @@ fn calibrate_writes_what_the_board_loads() {
     }
     assert!(f["fitted"]["chi2_dof"].as_f64().unwrap() < 1.15);
 
-    // Ambient light on two cells (cell_bias): the chip's model cannot represent it, so the
-    // calibration says so and names the file to analyze.
+    // Ambient light on two cells (cell_bias), 10 % of a beacon's signal at 30 in on cell 1:
+    // the chip's model holds it, so it is fitted. It pulls the pinhole fit at 25-30 in
+    // inches off (d1 ~4 in), a start from which the near-field fit fails: the fit is started
+    // again from the nominal head pose, and says so.
     let bias = d.join("bias.csv");
-    sim(&bias, &["--effect", "cell_bias=1e-5,-1e-5"]);
+    sim(&bias, &["--effect", "cell_bias=1e-4,-5e-5"]);
     let r = json(&cta(&["calibrate", s(&bias), "--json"]));
+    let f = &r["file"];
+    let sigma = |n: &str| f["fitted"]["sigma"][n].as_f64().unwrap();
+    for (k, (n, t)) in [("bx", 1e-4), ("by", -5e-5)].into_iter().enumerate() {
+        let b = f["near_field"]["bias"][k].as_f64().unwrap();
+        assert!((b - t).abs() < 4.0 * sigma(n), "{n} = {b}, truth {t}");
+    }
+    for (k, (n, t)) in [("d1", 0.55), ("d2", 0.12), ("d3", 0.07)]
+        .into_iter()
+        .enumerate()
+    {
+        let v = f["d"][k].as_f64().unwrap();
+        assert!((v - t).abs() < 4.0 * sigma(n), "{n} = {v}, truth {t}");
+    }
+    assert!(f["fitted"]["chi2_dof"].as_f64().unwrap() < 1.15, "{r}");
     let w = r["warnings"].to_string();
-    assert!(w.contains("cta analyze") && w.contains("bias.csv"), "{w}");
+    assert!(w.contains("from the nominal head pose"), "{w}");
+
+    // Face angles that differ between the pairs (31 and 30 deg): the chip's model has one,
+    // so the calibration says it cannot represent the data and names the file to analyze.
+    let faces = d.join("faces.csv");
+    sim(&faces, &["--effect", "face_angle=1,0"]);
+    let r = json(&cta(&["calibrate", s(&faces), "--json"]));
+    let w = r["warnings"].to_string();
+    assert!(w.contains("cta analyze") && w.contains("faces.csv"), "{w}");
     assert!(r["file"]["fitted"]["chi2_dof"].as_f64().unwrap() > 2.0);
 
     // A narrower LED pattern than assumed (45 deg half angle) is NOT flagged: the cell

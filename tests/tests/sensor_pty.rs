@@ -212,10 +212,11 @@ fn garbage_on_both_links_is_survived() {
 }
 
 /// The lab's whole path on the simulated CTA: a sweep of a head mounted off its nominal place
-/// with mismatched cells (`cta simulate --effect cell_gain=...`), `cta calibrate`, the
-/// calibration loaded into the board, poses solved on the board. The fitted calibration puts
-/// the pose on the noise floor; the nominal (Table 3) calibration, which is what the board
-/// would hold without the sweep, misses by the mounting error and the gains.
+/// with mismatched cells (`cta simulate --effect cell_gain=... --effect cell_bias=...`),
+/// `cta calibrate`, the calibration loaded into the board, poses solved on the board. The
+/// fitted calibration puts the pose on the noise floor; the nominal (Table 3) calibration, which is what the board
+/// would hold without the sweep, misses by the mounting error and the cells' gains and
+/// offsets.
 #[test]
 fn a_calibration_fitted_to_a_sweep_solves_poses() {
     use cta_host::calibrate::calibrate;
@@ -225,6 +226,7 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
         p: [0.002, -0.001, 0.003],
         near_field: Some(cta_core::pose::NearField {
             gain: [0.02, -0.01],
+            bias: [3e-5, -2e-5],
             ..cta_core::pose::NearField::nominal()
         }),
         ..Calibration::table3()
@@ -236,7 +238,10 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
             d: f(truth.d),
             p: f(truth.p),
         },
-        effects: vec![cta_host::effects::Effect::CellGain(0.02, -0.01)],
+        effects: vec![
+            cta_host::effects::Effect::CellGain(0.02, -0.01),
+            cta_host::effects::Effect::CellBias(3e-5, -2e-5),
+        ],
         noise: 32.8,
         samples: 4,
         seed: 11,
@@ -250,6 +255,11 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
     assert!(
         (gain[0] - 0.02).abs() < 3e-4 && (gain[1] + 0.01).abs() < 3e-4,
         "{gain:?}"
+    );
+    let bias = fitted.near_field.unwrap().bias;
+    assert!(
+        (bias[0] - 3e-5).abs() < 1e-6 && (bias[1] + 2e-5).abs() < 1e-6,
+        "{bias:?}"
     );
 
     let t = Vector3::new(0.2, -0.1, 6.0);
