@@ -111,7 +111,8 @@ pub struct Constellation {
 /// The near-field part of the sensor calibration (the eq 60-63 physics).
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
 pub struct NearField {
-    /// Cell face angle `a`, degrees (30 nominal).
+    /// Cell face angle `a`, degrees (30 nominal): the X pair's (cells 1, 2), and the Y
+    /// pair's unless [`Self::alpha_y_deg`] is given.
     pub alpha_deg: f32,
     /// Cell-centre offset `s`, inches (0.175 nominal).
     pub s: f32,
@@ -131,6 +132,11 @@ pub struct NearField {
     /// 30 in). 0 nominal; a calibration file without it reads 0.
     #[serde(default)]
     pub bias: [f32; 2],
+    /// The Y pair's (cells 3, 4) face angle, degrees, when it differs from the X pair's (the
+    /// analysis vocabulary's `face_angle=DX,DY`: a pyramid whose faces were not cut alike).
+    /// `None` (and a calibration file without it): `alpha_deg`.
+    #[serde(default)]
+    pub alpha_y_deg: Option<f32>,
 }
 
 impl NearField {
@@ -143,7 +149,13 @@ impl NearField {
             pattern_m: 1.0,
             gain: [0.0; 2],
             bias: [0.0; 2],
+            alpha_y_deg: None,
         }
+    }
+
+    /// The face angles of the X and Y pairs, degrees.
+    pub fn face_angles_deg(&self) -> [f32; 2] {
+        [self.alpha_deg, self.alpha_y_deg.unwrap_or(self.alpha_deg)]
     }
 
     /// The per-cell gains of [`Effects::gain`]: `[1 + gain[0], 1, 1 + gain[1], 1]`.
@@ -233,7 +245,7 @@ impl CalField {
             CalField::P => "p (MRP, finite, |p| <= 1)",
             CalField::H => "H (1000 ..= 200000 counts)",
             CalField::Noise => "noise (0.01 ..= 10000 counts)",
-            CalField::Alpha => "near-field face angle (5 ..= 85 deg)",
+            CalField::Alpha => "near-field face angles (each 5 ..= 85 deg)",
             CalField::S => "near-field cell offset s (0 ..= 2 in)",
             CalField::Beta => "near-field beta (1000 ..= 100000 counts)",
             CalField::PatternM => "near-field pattern exponent m (0 ..= 50)",
@@ -353,7 +365,7 @@ impl Calibration {
             return bad(CalField::Noise);
         }
         if let Some(nf) = &self.near_field {
-            if !in_range(nf.alpha_deg, 5.0, 85.0) {
+            if !nf.face_angles_deg().iter().all(|&a| in_range(a, 5.0, 85.0)) {
                 return bad(CalField::Alpha);
             }
             if !in_range(nf.s, 0.0, 2.0) {
@@ -564,10 +576,10 @@ impl<T: Real> PoseSolver<T> {
         let params = Params::from_pose(&head_pose, T::lit(cal.h as f64));
         if settings.model == ModelKind::NearField {
             let nf = cal.near_field.unwrap_or(NearField::nominal());
-            let a = rad(T::lit(nf.alpha_deg as f64));
+            let [ax, ay] = nf.face_angles_deg().map(|a| rad(T::lit(a as f64)));
             let head = Head {
-                alpha_x: a,
-                alpha_y: a,
+                alpha_x: ax,
+                alpha_y: ay,
                 s: T::lit(nf.s as f64),
                 beta: T::lit(nf.beta as f64),
             };
@@ -1209,6 +1221,14 @@ mod tests {
             })
         );
         cal = Calibration::table3();
+        cal.near_field.as_mut().unwrap().alpha_y_deg = Some(4.0);
+        assert_eq!(
+            cal.validate(),
+            Err(ConfigError::CalibrationOutOfRange {
+                field: CalField::Alpha
+            })
+        );
+        cal = Calibration::table3();
         cal.near_field.as_mut().unwrap().bias = [0.02, 0.0];
         assert_eq!(
             cal.validate(),
@@ -1218,16 +1238,21 @@ mod tests {
         );
     }
 
-    /// Solve a noise-free frame at `t` of a head whose cells have `truth`'s gains and
-    /// offsets, once with `truth` as the calibration and once with the nominal one: the
+    /// Solve a noise-free frame at `t` of a head whose cells have `truth`'s face angles,
+    /// gains and offsets, once with `truth` as the calibration and once with the nominal one: the
     /// position errors, inches.
     fn cells_with_and_without(truth: NearField, t: Vector3<f64>) -> (f64, f64) {
         let cal = Calibration {
             near_field: Some(truth),
             ..Calibration::table3()
         };
+        let [ax, ay] = truth.face_angles_deg().map(|a| rad(a as f64));
         let em = Emulator::new(
-            Head::northstar(),
+            Head {
+                alpha_x: ax,
+                alpha_y: ay,
+                ..Head::northstar()
+            },
             HeadPose {
                 d: v3(&cal.d),
                 p: v3(&cal.p),
@@ -1285,6 +1310,23 @@ mod tests {
         assert!(with < 2e-3, "{with}");
         assert!(
             without > 20.0 * with && without > 0.01,
+            "{without} vs {with}"
+        );
+    }
+
+    /// The Y pair's own face angle reaches the near-field model: a head whose Y pair is cut at
+    /// 31 deg (the X pair at 30) is solved to rounding level with it in the calibration, and
+    /// misses by far more without it.
+    #[test]
+    fn pair_face_angles_reach_the_solver() {
+        let truth = NearField {
+            alpha_y_deg: Some(31.0),
+            ..NearField::nominal()
+        };
+        let (with, without) = cells_with_and_without(truth, target().0);
+        assert!(with < 2e-4, "{with}");
+        assert!(
+            without > 50.0 * with && without > 0.01,
             "{without} vs {with}"
         );
     }

@@ -106,10 +106,10 @@ pub fn physics(cal: &Calibration) -> Emulator<f64> {
     let nf = cal
         .near_field
         .unwrap_or(cta_core::pose::NearField::nominal());
-    let a = (nf.alpha_deg as f64).to_radians();
+    let [ax, ay] = nf.face_angles_deg().map(|a| (a as f64).to_radians());
     let head = Head {
-        alpha_x: a,
-        alpha_y: a,
+        alpha_x: ax,
+        alpha_y: ay,
         s: nf.s as f64,
         beta: nf.beta as f64,
     };

@@ -59,48 +59,52 @@ pub struct NfObs {
     pub w: [f64; 2],
 }
 
-/// The eq 60-63 calibration fit: 8 parameters (`d1..3` in, `p1..3` MRP, `a` in degrees, `s`
-/// in), or 12 with the cell gains `gx, gy` ([`NearField::gain`]) and offsets `bx, by`
-/// (1/in^2, [`NearField::bias`]), central-difference Jacobian, the physics of `base` (its
-/// `beta` and beacon pattern) with these parameters.
+/// The eq 60-63 calibration fit: 8 parameters (`d1..3` in, `p1..3` MRP, the face angle `a`
+/// in degrees, `s` in), or 13 with the cell gains `gx, gy` ([`NearField::gain`]), offsets
+/// `bx, by` (1/in^2, [`NearField::bias`]) and the Y pair's own face angle `ay` (degrees,
+/// [`NearField::alpha_y_deg`]; `a` is then the X pair's), central-difference Jacobian, the
+/// physics of `base` (its `beta` and beacon pattern) with these parameters.
 pub struct NearFieldFit<'a> {
     /// The points.
     pub obs: &'a [NfObs],
     /// The physics whose `beta` and beacon pattern (and, unless fitted, cell gains and
     /// offsets) are held.
     pub base: Emulator<f64>,
-    /// Fit the cell gains and offsets too (12 parameters).
-    pub cells: bool,
+    /// Fit the cells' gains and offsets and the Y pair's own face angle too (13
+    /// parameters); else one face angle for both pairs.
+    pub extended: bool,
 }
 
-/// Parameters of [`NearFieldFit`] with the cells' gains and offsets.
-pub const NF_PARAMS: usize = 12;
+/// Parameters of the extended [`NearFieldFit`].
+pub const NF_PARAMS: usize = 13;
 
-/// Parameter names of [`NearFieldFit`], in order (the first 8 without the cells).
+/// Parameter names of [`NearFieldFit`], in order (the first 8 when not extended).
 pub const NF_NAMES: [&str; NF_PARAMS] = [
-    "d1", "d2", "d3", "p1", "p2", "p3", "a", "s", "gx", "gy", "bx", "by",
+    "d1", "d2", "d3", "p1", "p2", "p3", "a", "s", "gx", "gy", "bx", "by", "ay",
 ];
 
 impl NearFieldFit<'_> {
     fn n(&self) -> usize {
-        if self.cells {
+        if self.extended {
             NF_PARAMS
         } else {
             8
         }
     }
 
-    /// The emulator at parameter vector `x` (8 or 12 values).
+    /// The emulator at parameter vector `x` (8 or 13 values).
     pub fn model(&self, x: &[f64]) -> Emulator<f64> {
         let mut effects = self.base.effects;
-        if let [gx, gy, bx, by] = x[8..] {
+        let mut ay = x[6];
+        if let [gx, gy, bx, by, a] = x[8..] {
             effects.gain = [1.0 + gx, 1.0, 1.0 + gy, 1.0];
             effects.bias = [bx, 0.0, by, 0.0];
+            ay = a;
         }
         Emulator::new(
             Head {
                 alpha_x: x[6].to_radians(),
-                alpha_y: x[6].to_radians(),
+                alpha_y: ay.to_radians(),
                 s: x[7],
                 ..self.base.head
             },
@@ -129,7 +133,7 @@ impl glsdc::Problem<f64> for NearFieldFit<'_> {
     ) -> Result<(), glsdc::ModelError> {
         // The offsets' step is small against the signals at 30 in (0.001/in^2).
         const STEP: [f64; NF_PARAMS] = [
-            1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-4, 1e-5, 1e-5, 1e-5, 1e-8, 1e-8,
+            1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-4, 1e-5, 1e-5, 1e-5, 1e-8, 1e-8, 1e-4,
         ];
         let n = self.n();
         let base = self.model(x.as_slice());
@@ -173,12 +177,13 @@ impl glsdc::Problem<f64> for NearFieldFit<'_> {
 /// A near-field calibration fit.
 #[derive(Debug, Clone)]
 pub struct NearFieldSolution {
-    /// `start` with the fitted `d, p, a, s` (and the cells' gains and offsets).
+    /// `start` with the fitted `d, p, a, s` (and the cells' gains and offsets and the Y
+    /// pair's face angle).
     pub calibration: Calibration,
-    /// 1-sigma of `d1..3, p1..3, a (deg), s` (and `gx, gy, bx, by`; 0 when not fitted).
+    /// 1-sigma of `d1..3, p1..3, a (deg), s` (and `gx, gy, bx, by, ay`; 0 when not fitted).
     pub sigma: [f64; NF_PARAMS],
-    /// The fitted parameters in f64 (the calibration holds them in f32); `start`'s gains and
-    /// offsets when they were not fitted.
+    /// The fitted parameters in f64 (the calibration holds them in f32); when not extended,
+    /// `start`'s gains and offsets, and `ay = a`.
     pub x: [f64; NF_PARAMS],
     /// Chi-square per degree of freedom (absolute weights).
     pub chi2_dof: f64,
@@ -188,37 +193,30 @@ pub struct NearFieldSolution {
     pub condition: f64,
 }
 
-/// Fit `d, p, a, s` (and with `cells` the cells' gains and offsets) of the eq 60-63 model
-/// to `obs` (weights absolute), starting from `start`'s `d, p` and near-field parameters
-/// (nominal when it has none); `start`'s `beta`, beacon pattern, `H` and `noise` are kept.
+/// Fit `d, p, a, s` (and when `extended` the cells' gains and offsets and the Y pair's own
+/// face angle) of the eq 60-63 model to `obs` (weights absolute), starting from `start`'s
+/// `d, p` and near-field parameters (nominal when it has none); `start`'s `beta`, beacon
+/// pattern, `H` and `noise` are kept. Not extended, both pairs share the face angle.
 pub fn fit_near_field(
     obs: &[NfObs],
     start: &Calibration,
-    cells: bool,
+    extended: bool,
 ) -> Result<NearFieldSolution> {
     let nominal = start.near_field.unwrap_or(NearField::nominal());
     let f = |a: [f32; 3]| a.map(f64::from);
     let (d, p) = (f(start.d), f(start.p));
     let [gx, gy] = nominal.gain.map(f64::from);
     let [bx, by] = nominal.bias.map(f64::from);
-    let g = [gx, gy, bx, by];
-    let mut x0 = vec![
-        d[0],
-        d[1],
-        d[2],
-        p[0],
-        p[1],
-        p[2],
-        nominal.alpha_deg as f64,
-        nominal.s as f64,
-    ];
-    if cells {
+    let [ax, ay] = nominal.face_angles_deg().map(f64::from);
+    let g = [gx, gy, bx, by, ay];
+    let mut x0 = vec![d[0], d[1], d[2], p[0], p[1], p[2], ax, nominal.s as f64];
+    if extended {
         x0.extend(g);
     }
     let problem = NearFieldFit {
         obs,
         base: cta_firmware_sensor::sim::physics(start),
-        cells,
+        extended,
     };
     let x0 = DVector::from_vec(x0);
     let settings = Settings {
@@ -243,6 +241,9 @@ pub fn fit_near_field(
         x[k] = sol.x[k];
         sigma[k] = sol.sigma[k];
     }
+    if !extended {
+        x[12] = x[6];
+    }
     let c = |k: usize| x[k] as f32;
     Ok(NearFieldSolution {
         calibration: Calibration {
@@ -253,6 +254,7 @@ pub fn fit_near_field(
                 s: c(7),
                 gain: [c(8), c(9)],
                 bias: [c(10), c(11)],
+                alpha_y_deg: extended.then(|| c(12)),
                 ..nominal
             }),
             ..*start
@@ -271,8 +273,8 @@ pub fn fit_near_field(
     long_about = "Fit the sensor board's calibration to a measured (or simulated) CTA sweep and write \
 the JSON file `cta sensor load-calibration` stores in the board's flash.\n\n\
 Two fits: the pinhole model (eq 65: d, p, H) on the far separations, then the near-field model \
-(eqs 60-63: d, p, face angle a, cell offset s, cell gains gx, gy, cell offsets bx, by) on every \
-separation, started from it. Repeated samples are averaged per point and weighted by their noise, pooled per separation and axis. The \
+(eqs 60-63: d, p, the face angles of both pairs, cell offset s, cell gains gx, gy, cell offsets \
+bx, by) on every separation, started from it. Repeated samples are averaged per point and weighted by their noise, pooled per separation and axis. The \
 report gives every parameter with its 1-sigma, the residual RMS per separation of both models (what \
 the near-field model gains on this sensor), and warns when the data hold structure the chip's \
 model cannot represent (then run `cta analyze` on the same file).\n\n\
@@ -333,8 +335,8 @@ pub struct Provenance {
     pub separations: Vec<f64>,
     /// Separations of the pinhole fit, inches.
     pub pinhole_separations: Vec<f64>,
-    /// 1-sigma by parameter (`d1..3` in, `p1..3`, `a` deg, `s` in, `gx, gy`, `bx, by` /in^2,
-    /// `H` counts).
+    /// 1-sigma by parameter (`d1..3` in, `p1..3`, `a` and `ay` deg, `s` in, `gx, gy`,
+    /// `bx, by` /in^2, `H` counts).
     pub sigma: BTreeMap<String, f64>,
     /// Near-field fit chi-square per degree of freedom.
     pub chi2_dof: f64,
@@ -572,8 +574,12 @@ pub fn calibrate(
                 Ok(nf) => format!("it reached chi2/dof {:.2} only", nf.chi2_dof),
                 Err(e) => e.to_string(),
             };
+            // The restart is kept only when its chi-square is lower by more than 10 (strong
+            // evidence, as `cta analyze` counts it): both often reach the same minimum of
+            // data the model cannot hold.
+            let dof = (2 * obs.len()).saturating_sub(NF_PARAMS).max(1) as f64;
             match (first, fit_near_field(&obs, &nominal, true)) {
-                (Ok(a), Ok(b)) if a.chi2_dof <= b.chi2_dof => a,
+                (Ok(a), Ok(b)) if (a.chi2_dof - b.chi2_dof) * dof <= 10.0 => a,
                 (_, Ok(b)) => {
                     warnings.push(format!(
                         "the near-field fit started from the nominal head pose (d = {} in): \
@@ -606,7 +612,7 @@ pub fn calibrate(
     let fitted = NearFieldFit {
         obs: &obs,
         base: cta_firmware_sensor::sim::physics(&start),
-        cells: true,
+        extended: true,
     }
     .model(&nf.x);
     let mut by: BTreeMap<u64, (usize, f64, f64, usize, f64)> = BTreeMap::new();
@@ -643,7 +649,7 @@ pub fn calibrate(
     if nf.chi2_dof > CHI2_WARN {
         warnings.push(format!(
             "chi2/dof {:.2}: the residuals are {:.1}x the noise, so the data hold structure the \
-             chip's near-field model (d, p, a, s, cell gains and offsets) cannot represent, and the 1-sigma above are \
+             chip's near-field model (d, p, face angles, s, cell gains and offsets) cannot represent, and the 1-sigma above are \
              too small by about that factor. `cta analyze {}` names what it is.",
             nf.chi2_dof,
             nf.chi2_dof.sqrt(),
@@ -795,9 +801,14 @@ fn print_report(rep: &CalibrationReport, out: Option<&Path>) {
         println!("    {n} = {:>10.6} ± {:.2e}", c.p[k], s(n));
     }
     println!(
-        "    a  = {:>10.4} ± {:.2e} deg   (face angle; 30 nominal)",
+        "    a  = {:>10.4} ± {:.2e} deg   (face angle, X pair; 30 nominal)",
         nf.alpha_deg,
         s("a")
+    );
+    println!(
+        "    ay = {:>10.4} ± {:.2e} deg   (face angle, Y pair; 30 nominal)",
+        nf.face_angles_deg()[1],
+        s("ay")
     );
     println!(
         "    s  = {:>10.5} ± {:.2e} in    (cell offset; 0.175 nominal)",

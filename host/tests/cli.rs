@@ -360,8 +360,8 @@ fn demo_force_replaces_only_an_earlier_demo() {
 /// `cta calibrate` closes the loop from a sweep to the board: on a simulated sweep of a
 /// head at a non-default place, it recovers d, p, the face angle and the cell offset within
 /// 4 sigma, the noise within 5 %, chi2/dof near 1, and the board stores the file it writes.
-/// Cell gains and offsets are fitted; a hidden effect the chip's model cannot represent is
-/// flagged, pointing at `cta analyze`.
+/// Cell gains and offsets and the pairs' face angles are fitted; a hidden effect the chip's
+/// model cannot represent is flagged, pointing at `cta analyze`.
 #[test]
 fn calibrate_writes_what_the_board_loads() {
     let d = tmpdir("cal");
@@ -473,13 +473,27 @@ fn calibrate_writes_what_the_board_loads() {
     let w = r["warnings"].to_string();
     assert!(w.contains("from the nominal head pose"), "{w}");
 
-    // Face angles that differ between the pairs (31 and 30 deg): the chip's model has one,
-    // so the calibration says it cannot represent the data and names the file to analyze.
+    // Face angles that differ between the pairs (31 and 30 deg): fitted.
     let faces = d.join("faces.csv");
     sim(&faces, &["--effect", "face_angle=1,0"]);
     let r = json(&cta(&["calibrate", s(&faces), "--json"]));
+    let f = &r["file"];
+    let sigma = |n: &str| f["fitted"]["sigma"][n].as_f64().unwrap();
+    for (n, key, t) in [("a", "alpha_deg", 31.0), ("ay", "alpha_y_deg", 30.0)] {
+        let v = f["near_field"][key].as_f64().unwrap();
+        assert!((v - t).abs() < 4.0 * sigma(n), "{n} = {v}, truth {t}");
+    }
+    assert!(f["fitted"]["chi2_dof"].as_f64().unwrap() < 1.15, "{r}");
+
+    // Cells that saturate close in (at 0.2/in^2): the chip's model cannot hold it, so the
+    // calibration says so and names the file to analyze; the restart from the nominal head
+    // pose reaches the same minimum and is not reported.
+    let sat = d.join("sat.csv");
+    sim(&sat, &["--effect", "saturation=0.2"]);
+    let r = json(&cta(&["calibrate", s(&sat), "--json"]));
     let w = r["warnings"].to_string();
-    assert!(w.contains("cta analyze") && w.contains("faces.csv"), "{w}");
+    assert!(w.contains("cta analyze") && w.contains("sat.csv"), "{w}");
+    assert!(!w.contains("nominal head pose"), "{w}");
     assert!(r["file"]["fitted"]["chi2_dof"].as_f64().unwrap() > 2.0);
 
     // A narrower LED pattern than assumed (45 deg half angle) is NOT flagged: the cell

@@ -212,11 +212,11 @@ fn garbage_on_both_links_is_survived() {
 }
 
 /// The lab's whole path on the simulated CTA: a sweep of a head mounted off its nominal place
-/// with mismatched cells (`cta simulate --effect cell_gain=... --effect cell_bias=...`),
-/// `cta calibrate`, the calibration loaded into the board, poses solved on the board. The
-/// fitted calibration puts the pose on the noise floor; the nominal (Table 3) calibration, which is what the board
-/// would hold without the sweep, misses by the mounting error and the cells' gains and
-/// offsets.
+/// with mismatched cells and pairs (`cta simulate --effect cell_gain=... --effect
+/// cell_bias=... --effect face_angle=...`), `cta calibrate`, the calibration loaded into the
+/// board, poses solved on the board. The fitted calibration puts the pose on the noise floor;
+/// the nominal (Table 3) calibration, which is what the board would hold without the sweep,
+/// misses by the mounting error and the cells' and pairs' differences.
 #[test]
 fn a_calibration_fitted_to_a_sweep_solves_poses() {
     use cta_host::calibrate::calibrate;
@@ -227,6 +227,7 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
         near_field: Some(cta_core::pose::NearField {
             gain: [0.02, -0.01],
             bias: [3e-5, -2e-5],
+            alpha_y_deg: Some(30.4),
             ..cta_core::pose::NearField::nominal()
         }),
         ..Calibration::table3()
@@ -241,6 +242,7 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
         effects: vec![
             cta_host::effects::Effect::CellGain(0.02, -0.01),
             cta_host::effects::Effect::CellBias(3e-5, -2e-5),
+            cta_host::effects::Effect::FaceAngle(0.0, 0.4),
         ],
         noise: 32.8,
         samples: 4,
@@ -261,6 +263,8 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
         (bias[0] - 3e-5).abs() < 1e-6 && (bias[1] + 2e-5).abs() < 1e-6,
         "{bias:?}"
     );
+    let ay = fitted.near_field.unwrap().alpha_y_deg.unwrap();
+    assert!((ay - 30.4).abs() < 0.02, "{ay}");
 
     let t = Vector3::new(0.2, -0.1, 6.0);
     let q = mrp::from_axis_angle(&Vector3::new(0.2, 0.3, 1.0), 2f64.to_radians());
