@@ -203,7 +203,14 @@ fn a_changed_plan_is_refused_naming_the_keys() {
     crash_after(&run, 20);
     let plan = run.join("plan.toml");
     for (from, to, key) in [
-        ("samples = 4", "samples = 6", "`samples`: 4 -> 6"),
+        // `timing.max_reports` is left at its default, which follows `samples`: not a change
+        // of its own.
+        (
+            "samples = 4",
+            "samples = 6",
+            "): `samples`: 4 -> 6; `timing.max_reports`: 16 -> 24 (its default follows \
+             `samples`). A resume",
+        ),
         (
             "beacons = [0, 19, 45, 80, 99]",
             "beacons = [0, 19, 45, 80]",
@@ -223,6 +230,12 @@ fn a_changed_plan_is_refused_naming_the_keys() {
             "no_signal_reports = 5",
             "no_signal_reports = 7",
             "`timing.no_signal_reports`: 5 -> 7",
+        ),
+        (
+            "no_signal_reports = 5",
+            "no_signal_reports = 30",
+            "): `timing.no_signal_reports`: 5 -> 30; `timing.max_reports`: 16 -> 30 (its \
+             default follows `timing.no_signal_reports`). A resume",
         ),
         (
             "no_signal_reports = 5",

@@ -170,6 +170,22 @@ pub const KEYS: [(&str, KeyValue); 18] = [
     ("timing.give_up_s", |p| show(&p.give_up_s)),
 ];
 
+/// Plan keys whose default is computed from other keys: the key, the keys its default
+/// follows, and that default for a plan. When such a key is left at its default, a change of
+/// the keys it follows changes it too: [`Plan::differences`] then shows it as following them
+/// ([`Change::follows`]), not as a change of its own.
+pub const DERIVED: [(&str, &[&str], KeyValue); 1] = [(
+    "timing.max_reports",
+    &["samples", "timing.no_signal_reports"],
+    |p| show(&default_max_reports(p.samples, p.no_signal_reports)),
+)];
+
+/// `[timing] max_reports` when the plan does not set it: four reports per sample asked, and
+/// never fewer than `no_signal_reports` (so a point can be found without signal).
+pub fn default_max_reports(samples: u32, no_signal_reports: u32) -> u32 {
+    4u32.saturating_mul(samples).max(no_signal_reports)
+}
+
 /// A value as [`Plan::differences`] compares it: its `Debug` form.
 fn show<T: fmt::Debug>(v: &T) -> String {
     format!("{v:?}")
@@ -206,7 +222,8 @@ fn shorten(was: &str, now: &str) -> (String, String) {
 }
 
 /// A plan key whose value differs between two plans ([`Plan::differences`]); shown as
-/// `` `samples`: 6 -> 8 ``.
+/// `` `samples`: 6 -> 8 ``, or, for a key left at a default that follows changed keys,
+/// `` `timing.max_reports`: 24 -> 32 (its default follows `samples`) ``.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Change {
     /// The key, as in [`KEYS`].
@@ -215,6 +232,9 @@ pub struct Change {
     pub was: String,
     /// Its value now (likewise).
     pub now: String,
+    /// Empty when the value itself was changed; otherwise the changed keys its default
+    /// follows ([`DERIVED`]): it is at its default in both plans, and changed only with them.
+    pub follows: Vec<&'static str>,
 }
 
 impl Change {
@@ -226,7 +246,12 @@ impl Change {
 
 impl fmt::Display for Change {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "`{}`: {} -> {}", self.key, self.was, self.now)
+        write!(f, "`{}`: {} -> {}", self.key, self.was, self.now)?;
+        if !self.follows.is_empty() {
+            let keys: Vec<String> = self.follows.iter().map(|k| format!("`{k}`")).collect();
+            write!(f, " (its default follows {})", keys.join(" and "))?;
+        }
+        Ok(())
     }
 }
 
@@ -596,7 +621,7 @@ impl Plan {
         let max_reports = opt(
             &key("max_reports"),
             &t.max_reports,
-            (4 * samples as i64).max(no_signal_reports as i64),
+            default_max_reports(samples, no_signal_reports) as i64,
             1,
             10_000_000,
         )? as u32;
@@ -661,14 +686,38 @@ impl Plan {
 
     /// What differs from `before`, one entry per plan key (`` `samples`: 6 -> 8 `` when
     /// shown), in the order of [`KEYS`]. Empty when the plans are equal. Values are compared
-    /// in full and shown cut around where they differ.
+    /// in full and shown cut around where they differ. A key of [`DERIVED`] that is at its
+    /// default in both plans changed only because keys its default follows changed: its entry
+    /// names them ([`Change::follows`]).
     pub fn differences(&self, before: &Plan) -> Vec<Change> {
+        let value_of = |key: &str, p: &Plan| {
+            KEYS.iter()
+                .find(|(k, _)| *k == key)
+                .map(|(_, value)| value(p))
+        };
         KEYS.iter()
             .filter_map(|&(key, value)| {
                 let (was, now) = (value(before), value(self));
                 (was != now).then(|| {
+                    let follows = DERIVED
+                        .iter()
+                        .find(|(k, _, _)| *k == key)
+                        .filter(|(_, _, default)| was == default(before) && now == default(self))
+                        .map(|(_, sources, _)| {
+                            sources
+                                .iter()
+                                .copied()
+                                .filter(|s| value_of(s, before) != value_of(s, self))
+                                .collect()
+                        })
+                        .unwrap_or_default();
                     let (was, now) = shorten(&was, &now);
-                    Change { key, was, now }
+                    Change {
+                        key,
+                        was,
+                        now,
+                        follows,
+                    }
                 })
             })
             .collect()
@@ -868,6 +917,64 @@ settle_ms = 0
             assert!(d.iter().any(|c| c.key == key && !c.resumable()), "{d:?}");
         }
         assert!(p.differences(&p).is_empty());
+    }
+
+    #[test]
+    fn a_default_that_follows_a_changed_key_is_shown_as_following_it() {
+        // `timing.max_reports` left at its default follows `samples` (and `no_signal_reports`):
+        // a changed `samples` is not also a change the user made to `max_reports`.
+        for (key, sources, _) in DERIVED {
+            for k in std::iter::once(key).chain(sources.iter().copied()) {
+                assert!(KEYS.iter().any(|(kk, _)| *kk == k), "{k}");
+            }
+        }
+        let p = Plan::parse("p.toml", SHORT).unwrap();
+        assert_eq!(p.max_reports, default_max_reports(5, 20));
+        let shown = |changed: &str| -> Vec<String> {
+            Plan::parse("p.toml", changed)
+                .unwrap()
+                .differences(&p)
+                .iter()
+                .map(|c| c.to_string())
+                .collect()
+        };
+        let samples = |n: u32| SHORT.replace("samples = 5", &format!("samples = {n}"));
+        assert_eq!(
+            shown(&samples(6)),
+            [
+                "`samples`: 5 -> 6",
+                "`timing.max_reports`: 20 -> 24 (its default follows `samples`)"
+            ]
+        );
+        assert_eq!(
+            shown(&format!("{SHORT}[timing]\nno_signal_reports = 30\n")),
+            [
+                "`timing.no_signal_reports`: 20 -> 30",
+                "`timing.max_reports`: 20 -> 30 (its default follows `timing.no_signal_reports`)"
+            ]
+        );
+        assert_eq!(
+            shown(&format!(
+                "{}[timing]\nno_signal_reports = 30\n",
+                samples(10)
+            ))[2],
+            "`timing.max_reports`: 20 -> 40 (its default follows `samples` and \
+             `timing.no_signal_reports`)"
+        );
+        // Set in the file, it is the user's own change, shown as such ...
+        assert_eq!(
+            shown(&format!("{}[timing]\nmax_reports = 50\n", samples(6))),
+            ["`samples`: 5 -> 6", "`timing.max_reports`: 20 -> 50"]
+        );
+        // ... or no change at all when it keeps its value.
+        assert_eq!(
+            shown(&format!("{}[timing]\nmax_reports = 20\n", samples(6))),
+            ["`samples`: 5 -> 6"]
+        );
+        // A following key is still not one a resume may change.
+        let d = Plan::parse("p.toml", &samples(6)).unwrap().differences(&p);
+        assert_eq!(d[1].follows, ["samples"]);
+        assert!(!d[1].resumable());
     }
 
     #[test]
