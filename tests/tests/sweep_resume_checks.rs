@@ -373,3 +373,148 @@ fn a_timing_change_with_another_is_refused_naming_the_other() {
     assert_eq!(resume(&run).unwrap().ending, Ending::Complete);
     assert!(last_session(&run).contains("`timing.retries`: 2 -> 5"));
 }
+
+/// `cta sweep --resume RUN --plan FILE`.
+fn resume_with(run: &Path, plan: &Path) -> Result<sweep::Summary, String> {
+    sweep::sweep(&SweepArgs {
+        no_sync: true,
+        plan: Some(plan.to_path_buf()),
+        ..resume_args(run)
+    })
+    .map_err(|e| format!("{e:#}"))
+}
+
+#[test]
+fn a_given_plan_with_a_timing_change_resumes_as_an_edited_one_and_becomes_the_runs_plan() {
+    let (dir, run) = complete_run("given-timing");
+    let full = read(&run.join("data.csv"));
+    let plan = run.join("plan.toml");
+    // The run's own plan as another file: a plain resume, nothing replaced or said.
+    crash_after(&run, 20);
+    let same = dir.join("same.toml");
+    std::fs::write(&same, PLAN).unwrap();
+    assert_eq!(resume_with(&run, &same).unwrap().ending, Ending::Complete);
+    let session = last_session(&run);
+    assert!(
+        !session.contains("timing changed") && !session.contains("replaced by"),
+        "{session}"
+    );
+    assert_eq!(read(&plan), PLAN);
+
+    // Longer timing in another file: accepted with the note an edit of plan.toml gets.
+    crash_after(&run, 20);
+    let new = dir.join("longer.toml");
+    let text = with_timing("retries = 4\ngive_up_s = 120");
+    std::fs::write(&new, &text).unwrap();
+    assert_eq!(resume_with(&run, &new).unwrap().ending, Ending::Complete);
+    let session = last_session(&run);
+    let note = format!(
+        "{}: timing changed since the last session (as recorded in journal.jsonl): \
+         `timing.retries`: 2 -> 4; `timing.give_up_s`: 3600.0 -> 120.0; these govern only \
+         waiting and retrying",
+        new.display()
+    );
+    assert!(session.contains(&note), "{note}\n{session}");
+    assert!(
+        session.contains(&format!(
+            "plan.toml: replaced by {} (--plan), the plan this session continues with",
+            new.display()
+        )) && session.contains("\"retries\":4"),
+        "{session}"
+    );
+    assert_eq!(read(&run.join("data.csv")), full);
+    // The run directory records the plan used: plan.toml is the given file, the manifest
+    // shows it, and the next resume, from plan.toml, finds nothing changed.
+    assert_eq!(read(&plan), text);
+    let m = read(&run.join("manifest.json"));
+    assert!(m.contains("\"retries\": 4"), "{m}");
+    resume(&run).unwrap();
+    let session = last_session(&run);
+    assert!(
+        !session.contains("timing changed") && session.contains("\"retries\":4"),
+        "{session}"
+    );
+}
+
+#[test]
+fn a_given_plan_with_another_change_is_refused_as_an_edited_one() {
+    let (dir, run) = complete_run("given-refused");
+    crash_after(&run, 20);
+    let plan = run.join("plan.toml");
+    let jp = run.join("journal.jsonl");
+    let changed = with_timing("retries = 5").replace("samples = 4", "samples = 6");
+    let new = dir.join("more-samples.toml");
+    std::fs::write(&new, &changed).unwrap();
+    let (data, journal) = (read(&run.join("data.csv")), read(&jp));
+    let e = resume_with(&run, &new).unwrap_err();
+    let (said, remedy) = e.split_once("nothing was changed: ").unwrap();
+    assert!(
+        said.starts_with(&format!(
+            "{}: the plan was changed since the run started (as recorded in {}): `samples`: \
+             4 -> 6; `timing.max_reports`: 16 -> 24 (its default follows `samples`). ",
+            new.display(),
+            jp.display()
+        )) && said.contains("(the change of `timing.retries` alone would be accepted)"),
+        "{e}"
+    );
+    assert!(
+        remedy.starts_with(&format!(
+            "resume with the run's own {} (leave out --plan), or start a new run with --out",
+            plan.display()
+        )),
+        "{e}"
+    );
+    assert!(!e.contains("`timing.retries`: 2 -> 5"), "{e}");
+    assert_eq!(read(&run.join("data.csv")), data, "not touched");
+    assert_eq!(read(&jp), journal, "not touched");
+    assert_eq!(read(&plan), PLAN, "not replaced");
+    // The same change made in plan.toml is refused with the same words, but for the file.
+    std::fs::write(&plan, &changed).unwrap();
+    let edited = resume(&run).unwrap_err();
+    let (edited_said, _) = edited.split_once("nothing was changed: ").unwrap();
+    assert_eq!(
+        edited_said.replacen(&plan.display().to_string(), &new.display().to_string(), 1),
+        said
+    );
+    assert_eq!(read(&jp), journal, "not touched");
+}
+
+#[test]
+fn without_a_journalled_plan_a_given_plan_is_checked_against_plan_toml() {
+    // A journal of an older version records no plan: a given file is then compared with the
+    // run's own plan.toml, with the same rules.
+    let (dir, run) = complete_run("given-old-journal");
+    crash_after(&run, 20);
+    let jp = run.join("journal.jsonl");
+    let old: String = read(&jp)
+        .lines()
+        .map(
+            |l| match (l.find(",\"plan\":{"), l.find("},\"from_point\"")) {
+                (Some(a), Some(b)) => format!("{}{}\n", &l[..a], &l[b + 1..]),
+                _ => format!("{l}\n"),
+            },
+        )
+        .collect();
+    assert!(!old.contains("\"plan\""), "{old}");
+    std::fs::write(&jp, &old).unwrap();
+    let new = dir.join("new.toml");
+    std::fs::write(&new, PLAN.replace("samples = 4", "samples = 5")).unwrap();
+    let e = resume_with(&run, &new).unwrap_err();
+    assert!(
+        e.starts_with(&format!(
+            "{}: the plan was changed since the run started (as recorded in {}): `samples`: 4 -> 5",
+            new.display(),
+            run.join("plan.toml").display()
+        )),
+        "{e}"
+    );
+    assert_eq!(read(&jp), old, "not touched");
+    std::fs::write(&new, with_timing("retries = 3")).unwrap();
+    assert_eq!(resume_with(&run, &new).unwrap().ending, Ending::Complete);
+    assert!(
+        last_session(&run).contains("`timing.retries`: 2 -> 3"),
+        "{}",
+        last_session(&run)
+    );
+    assert_eq!(read(&run.join("plan.toml")), with_timing("retries = 3"));
+}

@@ -50,7 +50,10 @@ itself. Example:\n  cta sweep --plan host/plans/short.toml --out run1 --sim-nois
 cta sweep --resume run1\n  cta sweep --plan plan.toml --out lab1 --beacon /dev/ttyUSB0 --sensor /dev/ttyUSB1"
 )]
 pub struct SweepArgs {
-    /// The plan (TOML; see host/SWEEP.md). Not needed with --resume (the run keeps its copy).
+    /// The plan (TOML; see host/SWEEP.md). Not needed with --resume (the run keeps its copy,
+    /// RUN_DIR/plan.toml); given with --resume, it may differ from the run's plan only in the
+    /// keys an edit of RUN_DIR/plan.toml may change (timeouts, retries, heartbeat, reconnection
+    /// timing), and then replaces RUN_DIR/plan.toml.
     #[arg(long, value_name = "PLAN.toml")]
     pub plan: Option<PathBuf>,
     /// Run directory to create (data.csv, journal.jsonl, manifest.json, plan.toml).
@@ -233,23 +236,26 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                 store::JOURNAL
             );
         }
-        let plan = Plan::load(&plan_path)?;
-        let store = RunDir::open(dir, sync, &plan)?;
-        if let Some(p) = &args.plan {
-            let given = std::fs::read_to_string(p)
-                .with_context(|| format!("{}: cannot read", p.display()))?;
-            let kept = std::fs::read_to_string(&plan_path)?;
-            if given != kept {
-                bail!(
-                    "{} differs from the run's plan ({}); a resume continues the run's own plan \
-                     (leave out --plan; to change its timeouts, retries, heartbeat or \
-                     reconnection timing, edit them in {})",
-                    p.display(),
-                    plan_path.display(),
-                    plan_path.display()
-                );
+        // The run's own plan.toml, or the plan file given: checked the same way against the
+        // plan the last session ran with (only timing may change); a given file then becomes
+        // the run's plan.toml.
+        let store = match &args.plan {
+            None => {
+                let plan = Plan::load(&plan_path)?;
+                RunDir::open(dir, sync, &plan).map(|s| (s, plan))
             }
-        }
+            Some(p) => {
+                let text = std::fs::read_to_string(p)
+                    .with_context(|| format!("{}: cannot read the plan", p.display()))?;
+                let plan = Plan::parse(&p.display().to_string(), &text)?;
+                let given = store::GivenPlan {
+                    path: p,
+                    text: &text,
+                };
+                RunDir::resume(dir, sync, &plan, Some(given)).map(|s| (s, plan))
+            }
+        };
+        let (store, plan) = store?;
         let first_sim = store.events.iter().find_map(|e| match e {
             Event::Session { sim, .. } => Some(sim.clone()),
             _ => None,

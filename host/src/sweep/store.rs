@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! RUN_DIR/plan.toml      the plan, as given (a resume reads it from here; its timing keys
-//!                        may be edited between sessions)
+//!                        may be edited between sessions, or changed by a resume's --plan)
 //! RUN_DIR/data.csv       the measurements (host/MEASUREMENTS.md), appended per point
 //! RUN_DIR/journal.jsonl  one JSON event per line: sessions, operator entries, points, faults
 //! RUN_DIR/manifest.json  the run's metadata, rewritten from the journal at every session
@@ -86,8 +86,8 @@ pub enum Event {
         boards: serde_json::Value,
         /// Simulation settings (`None` for real boards).
         sim: Option<serde_json::Value>,
-        /// The plan in use (validated; [`Plan`]'s fields): a resume compares `plan.toml` with
-        /// the last session's, accepts changed timing keys ([`RESUME_MAY_CHANGE`]) with a note
+        /// The plan in use (validated; [`Plan`]'s fields): a resume compares `plan.toml` (or
+        /// the file given with `--plan`) with the last session's, accepts changed timing keys ([`RESUME_MAY_CHANGE`]) with a note
         /// and refuses any other change, so every session's plan says what the first one's
         /// did but for timing. Absent in journals of older versions.
         #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -382,13 +382,28 @@ impl RunDir {
         })
     }
 
-    /// Reopen `dir` to continue it with `plan` (read from its `plan.toml`): reads the journal
-    /// (dropping a torn last line), checks the plan is the one the run started with (only the
-    /// timing keys of [`RESUME_MAY_CHANGE`] may differ from the last session's plan, each
-    /// change said in a note) and the committed data are intact, cuts `data.csv` back to the
-    /// last committed point, and positions both files for appending. Nothing is modified when a
-    /// check fails.
+    /// Reopen `dir` to continue it with `plan` read from its own `plan.toml`: [`RunDir::resume`]
+    /// without a plan file given.
     pub fn open(dir: &Path, sync: bool, plan: &Plan) -> Result<RunDir> {
+        RunDir::resume(dir, sync, plan, None)
+    }
+
+    /// Reopen `dir` to continue it with `plan`: reads the journal (dropping a torn last line),
+    /// checks the plan is the one the run started with (only the timing keys of
+    /// [`RESUME_MAY_CHANGE`] may differ from the last session's plan, each change said in a
+    /// note) and the committed data are intact, cuts `data.csv` back to the last committed
+    /// point, and positions both files for appending. Nothing is modified when a check fails.
+    ///
+    /// `plan` is read from the run's `plan.toml`, or from `given` (`--resume RUN --plan FILE`):
+    /// the same checks and notes, naming that file; then, when its text differs from the run's
+    /// `plan.toml`, it replaces it, so the run directory holds the plan the run continues with,
+    /// as it does after `plan.toml` was edited in place.
+    pub fn resume(
+        dir: &Path,
+        sync: bool,
+        plan: &Plan,
+        given: Option<GivenPlan<'_>>,
+    ) -> Result<RunDir> {
         let jp = dir.join(JOURNAL);
         let dp = dir.join(DATA);
         if !jp.exists() || !dp.exists() {
@@ -440,11 +455,25 @@ impl RunDir {
             Event::Session { plan: Some(p), .. } => Some(p),
             _ => None,
         });
-        match last {
-            Some(v) => {
-                let pp = dir.join(PLAN);
-                let was: Plan = serde_json::from_value(v.clone())
-                    .with_context(|| format!("{}: unreadable plan in a session", jp.display()))?;
+        let pp = dir.join(PLAN);
+        // What the plan is compared with: the last session's, or, in a journal of an older
+        // version that records none, the run's own plan.toml when another file is given.
+        let reference = match (last, given) {
+            (Some(v), _) => Some((
+                serde_json::from_value::<Plan>(v.clone())
+                    .with_context(|| format!("{}: unreadable plan in a session", jp.display()))?,
+                jp.display().to_string(),
+            )),
+            (None, Some(_)) => Some((Plan::load(&pp)?, pp.display().to_string())),
+            (None, None) => None,
+        };
+        // The file the plan was read from, in full (errors) and as said in notes.
+        let (file, short) = match given {
+            Some(g) => (g.path.display().to_string(), g.path.display().to_string()),
+            None => (pp.display().to_string(), PLAN.to_string()),
+        };
+        match reference {
+            Some((was, recorded)) => {
                 // Through the same JSON text as the journalled one, so floats compare exactly.
                 let now: Plan = serde_json::from_str(&serde_json::to_string(plan)?)?;
                 let (timing, refused): (Vec<Change>, Vec<Change>) = now
@@ -465,14 +494,12 @@ impl RunDir {
                 };
                 if !refused.is_empty() {
                     bail!(
-                        "{}: the plan was changed since the run started (as recorded in {}): {}. A \
-                         resume continues the plan the run started with, whose point numbers the \
-                         data use, measuring and recording the points as before: only the keys \
-                         that govern waiting and retrying ({}) may change{}; not resuming, \
-                         nothing was changed: restore {PLAN}, or start a new run with --out for \
-                         the new plan",
-                        pp.display(),
-                        jp.display(),
+                        "{file}: the plan was changed since the run started (as recorded in \
+                         {recorded}): {}. A resume continues the plan the run started with, whose \
+                         point numbers the data use, measuring and recording the points as \
+                         before: only the keys that govern waiting and retrying ({}) may \
+                         change{}; not resuming, nothing was changed: {}, or start a new run \
+                         with --out for the new plan",
                         list(&refused),
                         RESUME_MAY_CHANGE.join(", "),
                         if timing.is_empty() {
@@ -480,14 +507,22 @@ impl RunDir {
                         } else {
                             format!(" (the change of {} alone would be accepted)", keys(&timing))
                         },
+                        match given {
+                            Some(_) => format!(
+                                "resume with the run's own {} (leave out --plan)",
+                                pp.display()
+                            ),
+                            None => format!("restore {PLAN}"),
+                        },
                     );
                 }
                 if !timing.is_empty() {
                     notes.push(format!(
-                        "{PLAN}: timing changed since the last session (as recorded in \
-                         {JOURNAL}): {}; these govern only waiting and retrying, not what is \
-                         measured or recorded: the run continues with the new values, journalled \
-                         with this session's plan",
+                        "{short}: timing changed since the last session (as recorded in {}): \
+                         {}; these govern only waiting and retrying, not what is measured or \
+                         recorded: the run continues with the new values, journalled with this \
+                         session's plan",
+                        if last.is_some() { JOURNAL } else { PLAN },
                         list(&timing)
                     ));
                 }
@@ -574,6 +609,18 @@ impl RunDir {
                 },
                 last_point.map_or(0, |(i, _)| i + 1)
             ));
+        }
+        // Every check passed: from here on the run directory is changed. A plan given as
+        // another file becomes the run's plan.toml (as an edit in place would have), so the
+        // next resume reads the plan this session continues with.
+        if let Some(g) = given {
+            if std::fs::read_to_string(&pp).ok().as_deref() != Some(g.text) {
+                write_atomically(&pp, g.text.as_bytes(), sync)?;
+                notes.push(format!(
+                    "{PLAN}: replaced by {} (--plan), the plan this session continues with",
+                    g.path.display()
+                ));
+            }
         }
         let mut journal = OpenOptions::new()
             .write(true)
@@ -756,24 +803,46 @@ impl RunDir {
 
     /// Write `manifest.json` (atomically: temp file + rename) from `value`.
     pub fn write_manifest(&self, value: &serde_json::Value) -> Result<()> {
-        let tmp = self.dir.join(".manifest.json.tmp");
-        let mp = self.dir.join(MANIFEST);
-        (|| {
-            let mut f = File::create(&tmp)?;
-            f.write_all(serde_json::to_string_pretty(value)?.as_bytes())?;
-            f.write_all(b"\n")?;
-            if self.sync {
-                f.sync_all()?;
-            }
-            std::fs::rename(&tmp, &mp)
-        })()
-        .with_context(|| format!("{}: cannot write (through {})", mp.display(), tmp.display()))
+        let mut text = serde_json::to_string_pretty(value)?;
+        text.push('\n');
+        write_atomically(&self.dir.join(MANIFEST), text.as_bytes(), self.sync)
     }
 
     /// Path of the measurement file.
     pub fn data_path(&self) -> PathBuf {
         self.dir.join(DATA)
     }
+}
+
+/// The plan file given with `cta sweep --resume RUN --plan FILE` ([`RunDir::resume`]).
+#[derive(Debug, Clone, Copy)]
+pub struct GivenPlan<'a> {
+    /// The file.
+    pub path: &'a Path,
+    /// Its text, as parsed into the plan.
+    pub text: &'a str,
+}
+
+/// Write `path` whole or not at all: through `.NAME.tmp` in the same directory, synced when
+/// `sync`, renamed into place.
+fn write_atomically(path: &Path, bytes: &[u8], sync: bool) -> Result<()> {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let tmp = path.with_file_name(format!(".{name}.tmp"));
+    (|| {
+        let mut f = File::create(&tmp)?;
+        f.write_all(bytes)?;
+        if sync {
+            f.sync_all()?;
+        }
+        std::fs::rename(&tmp, path)
+    })()
+    .with_context(|| {
+        format!(
+            "{}: cannot write (through {})",
+            path.display(),
+            tmp.display()
+        )
+    })
 }
 
 impl Drop for RunDir {
