@@ -598,9 +598,12 @@ pub fn sim_config(a: &SimulateArgs) -> Result<SimConfig> {
 /// Run `cta simulate`.
 pub fn simulate(a: &SimulateArgs) -> Result<()> {
     let cfg = sim_config(a)?;
-    check_simulate_out(&a.out, a.force)?;
+    // Refuse an --out that may not be replaced before simulating (write_files checks it
+    // again, with the same words, when it writes).
+    crate::simulate::check_out(&a.out, a.force).map_err(|e| anyhow!("{e}"))?;
     let (ds, truth) = cfg.try_run().map_err(|e| anyhow!("{e}"))?;
-    let tp = crate::simulate::write_files(&a.out, &ds, &truth).map_err(|e| anyhow!("{e}"))?;
+    let tp =
+        crate::simulate::write_files(&a.out, &ds, &truth, a.force).map_err(|e| anyhow!("{e}"))?;
     eprintln!(
         "wrote {} reports ({} separations x {} beacons x {} samples, {} points outside the field of view) to {} (truth: {})",
         ds.samples.len(),
@@ -612,35 +615,6 @@ pub fn simulate(a: &SimulateArgs) -> Result<()> {
         tp.display()
     );
     Ok(())
-}
-
-/// `--out` may replace an earlier simulation (its first line names `cta ... simulate`);
-/// anything else (a sweep's data, a measurement file from a rig) only with `--force`.
-fn check_simulate_out(out: &Path, force: bool) -> Result<()> {
-    use std::io::BufRead;
-    if out.is_dir() {
-        bail!(
-            "--out {}: is a folder; give a file name (e.g. {}/sim.csv)",
-            out.display(),
-            out.display()
-        );
-    }
-    if force || !out.exists() {
-        return Ok(());
-    }
-    let mut first = String::new();
-    std::fs::File::open(out)
-        .map(std::io::BufReader::new)
-        .and_then(|mut r| r.read_line(&mut first))
-        .with_context(|| format!("{}", out.display()))?;
-    if first.starts_with("# cta ") && first.contains(" simulate ") {
-        return Ok(());
-    }
-    bail!(
-        "--out {}: exists and is not an earlier `cta simulate` output (first line: `{}`): pass --force to replace it",
-        out.display(),
-        first.trim().chars().take(80).collect::<String>()
-    )
 }
 
 // ---------------------------------------------------------------------------------------

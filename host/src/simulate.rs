@@ -409,10 +409,13 @@ fn span(seps: &[f64]) -> String {
     }
 }
 
-/// Write a simulation to `out` (CSV) and its truth to `FILE.truth.json`, each through a
-/// `.partial` file renamed into place only when complete. On any error both partial files
-/// are removed and the error names the path. Returns the truth path.
-pub fn write_files(out: &Path, ds: &Dataset, truth: &Truth) -> Result<PathBuf, String> {
+/// Whether a simulation may be written to `out`: not a directory; a new file, or an earlier
+/// `cta simulate` output (its first line names `cta ... simulate`), which is replaced; any
+/// other existing file (a sweep's data, a measurement file from a rig) only with `force`.
+/// [`write_files`] checks it before writing anything; a caller that wants to refuse before
+/// simulating (as `cta simulate` does) calls it first. Nothing is modified.
+pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
+    use std::io::BufRead;
     if out.is_dir() {
         return Err(format!(
             "{}: is a directory; give a file name, e.g. {}",
@@ -420,6 +423,42 @@ pub fn write_files(out: &Path, ds: &Dataset, truth: &Truth) -> Result<PathBuf, S
             out.join("sim.csv").display()
         ));
     }
+    if force || !out.exists() {
+        return Ok(());
+    }
+    let mut first = String::new();
+    std::fs::File::open(out)
+        .map(std::io::BufReader::new)
+        .and_then(|mut r| r.read_line(&mut first))
+        .map_err(|e| {
+            format!(
+                "{}: exists and cannot be read ({e}), so it is not known to be an earlier `cta \
+                 simulate` output; not replaced: give another file name, or --force to replace it",
+                out.display()
+            )
+        })?;
+    if first.starts_with("# cta ") && first.contains(" simulate ") {
+        return Ok(());
+    }
+    Err(format!(
+        "{}: exists and is not an earlier `cta simulate` output (first line: `{}`); not \
+         replaced: give another file name, or --force to replace it",
+        out.display(),
+        first.trim().chars().take(80).collect::<String>()
+    ))
+}
+
+/// Write a simulation to `out` (CSV) and its truth to `FILE.truth.json`, each through a
+/// `.partial` file renamed into place only when complete. `out` must pass [`check_out`] with
+/// `force` (otherwise nothing is written). On any error both partial files are removed and the
+/// error names the path. Returns the truth path.
+pub fn write_files(
+    out: &Path,
+    ds: &Dataset,
+    truth: &Truth,
+    force: bool,
+) -> Result<PathBuf, String> {
+    check_out(out, force)?;
     let tp = Truth::path_for(out);
     let tmp = out.with_extension("csv.partial");
     let tmp_truth = tp.with_extension("json.partial");
@@ -689,7 +728,7 @@ mod tests {
                 .count()
         };
         // --out is a directory.
-        let e = write_files(&d, &ds, &truth).unwrap_err();
+        let e = write_files(&d, &ds, &truth, false).unwrap_err();
         assert!(
             e.contains(&d.display().to_string()) && e.contains("is a directory"),
             "{e}"
@@ -697,19 +736,55 @@ mod tests {
         // The truth cannot be put in place: both partial files are removed.
         let out = d.join("x.csv");
         std::fs::create_dir_all(d.join("x.truth.json").join("sub")).unwrap();
-        let e = write_files(&out, &ds, &truth).unwrap_err();
+        let e = write_files(&out, &ds, &truth, false).unwrap_err();
         assert!(e.contains("x.truth.json"), "{e}");
         assert_eq!(partials(&d), 0);
         assert!(!out.exists());
         // A directory that does not exist.
-        let e = write_files(&d.join("no").join("y.csv"), &ds, &truth).unwrap_err();
+        let e = write_files(&d.join("no").join("y.csv"), &ds, &truth, false).unwrap_err();
         assert!(e.contains("y.csv"), "{e}");
         // Success: both files, readable, no partial.
-        let tp = write_files(&d.join("ok.csv"), &ds, &truth).unwrap();
+        let tp = write_files(&d.join("ok.csv"), &ds, &truth, false).unwrap();
         assert_eq!(partials(&d), 0);
         assert_eq!(Dataset::read(&d.join("ok.csv")).unwrap().samples.len(), 100);
         assert!(Truth::load_for(&d.join("ok.csv")).unwrap().is_ok());
         assert_eq!(tp, d.join("ok.truth.json"));
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
+    fn write_files_replaces_only_an_earlier_simulation() {
+        // The guard is in the library: a caller other than `cta simulate` cannot replace a
+        // sweep's data either.
+        let d = tmpdir("replace");
+        let cfg = SimConfig {
+            separations: vec![20.0],
+            ..Default::default()
+        };
+        let (ds, truth) = cfg.try_run().unwrap();
+        let data = d.join("data.csv");
+        let text = "# cta 0.1.0 sweep: plan `x`\nseparation_in,beacon_x_in,beacon_y_in\n";
+        std::fs::write(&data, text).unwrap();
+        let e = write_files(&data, &ds, &truth, false).unwrap_err();
+        assert_eq!(
+            e,
+            format!(
+                "{}: exists and is not an earlier `cta simulate` output (first line: `# cta \
+                 0.1.0 sweep: plan `x``); not replaced: give another file name, or --force to \
+                 replace it",
+                data.display()
+            )
+        );
+        assert_eq!(std::fs::read_to_string(&data).unwrap(), text, "untouched");
+        assert!(!d.join("data.truth.json").exists() && !d.join("data.csv.partial").exists());
+        assert_eq!(check_out(&data, false).unwrap_err(), e);
+        // An earlier simulation is replaced; anything else with `force`.
+        let sim = d.join("sim.csv");
+        write_files(&sim, &ds, &truth, false).unwrap();
+        check_out(&sim, false).unwrap();
+        write_files(&sim, &ds, &truth, false).unwrap();
+        write_files(&data, &ds, &truth, true).unwrap();
+        assert_eq!(Dataset::read(&data).unwrap().samples.len(), 100);
         std::fs::remove_dir_all(&d).ok();
     }
 

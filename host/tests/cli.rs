@@ -279,17 +279,46 @@ fn outputs_never_replace_other_kinds_of_file() {
     let keep = |what: &str| {
         assert_eq!(std::fs::read_to_string(&data).unwrap(), text, "{what}");
     };
-    // simulate --out: an earlier simulation is replaced, anything else only with --force.
+    // simulate --out: an earlier simulation is replaced, anything else only with --force;
+    // the message names the file and the way on.
     fails_with(
         &cta(&["simulate", "--out", s(&data), "--separations", "20"]),
-        "is not an earlier `cta simulate` output",
+        &format!(
+            "{}: exists and is not an earlier `cta simulate` output (first line: `# cta 0.1.0 \
+             sweep: plan `x``); not replaced: give another file name, or --force to replace it",
+            data.display()
+        ),
     );
     keep("simulate");
+    // Refused before simulating: a simulation that would fail (nothing to write) is not run.
+    fails_with(
+        &cta(&[
+            "simulate",
+            "--out",
+            s(&data),
+            "--separations",
+            "2",
+            "--d",
+            "1000,0,0.062",
+        ]),
+        "is not an earlier `cta simulate` output",
+    );
+    keep("simulate, refused first");
+    assert!(!d.join("data.csv.partial").exists() && !d.join("data.truth.json").exists());
     let sim = d.join("sim.csv");
     for _ in 0..2 {
         let o = cta(&["simulate", "--out", s(&sim), "--separations", "20,25"]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
+    // A folder is refused, with a file name to use instead.
+    fails_with(
+        &cta(&["simulate", "--out", s(&d), "--separations", "20"]),
+        &format!(
+            "{}: is a directory; give a file name, e.g. {}",
+            d.display(),
+            d.join("sim.csv").display()
+        ),
+    );
     // fit --save: never the measurement file; an earlier fit is replaced.
     fails_with(
         &cta(&["fit", s(&sim), "--save", s(&sim)]),
