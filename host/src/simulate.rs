@@ -423,7 +423,27 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
             out.join("sim.csv").display()
         ));
     }
-    if force || !out.exists() {
+    if force {
+        return Ok(());
+    }
+    // The truth sidecar is replaced too: an existing one must be a simulation's as well.
+    let tp = Truth::path_for(out);
+    if tp.exists() {
+        let generator = std::fs::read_to_string(&tp)
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .and_then(|v| v["generator"].as_str().map(str::to_string));
+        if !generator.is_some_and(|g| g.starts_with("cta ") && g.ends_with(" simulate")) {
+            return Err(format!(
+                "{}: exists and is not the truth of an earlier `cta simulate` output, and \
+                 writing {} would replace it; not replaced: give another file name, or --force \
+                 to replace it",
+                tp.display(),
+                out.display()
+            ));
+        }
+    }
+    if !out.exists() {
         return Ok(());
     }
     let mut first = String::new();
@@ -785,6 +805,17 @@ mod tests {
         write_files(&sim, &ds, &truth, false).unwrap();
         write_files(&data, &ds, &truth, true).unwrap();
         assert_eq!(Dataset::read(&data).unwrap().samples.len(), 100);
+        // A new file name whose truth sidecar exists and is something else: refused, the
+        // sidecar untouched.
+        let other = d.join("new.truth.json");
+        std::fs::write(&other, "{\"notes\": 1}").unwrap();
+        let e = write_files(&d.join("new.csv"), &ds, &truth, false).unwrap_err();
+        assert!(
+            e.contains("new.truth.json") && e.contains("not the truth"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read_to_string(&other).unwrap(), "{\"notes\": 1}");
+        assert!(!d.join("new.csv").exists());
         std::fs::remove_dir_all(&d).ok();
     }
 
