@@ -308,6 +308,10 @@ pub struct CalibrateArgs {
     /// half-intensity angle), held in the fit and written to the calibration.
     #[arg(long = "pattern-m", value_name = "M", default_value_t = 1.0)]
     pub pattern_m: f64,
+    /// Draw the residual RMS per separation of both models against the noise (SVG): where
+    /// the near-field model pays on this sensor, and where it still misses.
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<PathBuf>,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -738,6 +742,9 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
     if let Some(out) = &a.out {
         check_out(out, &a.file, a.force)?;
     }
+    if let Some(p) = &a.plot {
+        crate::plot::refuse_to_replace_non_svg(p)?;
+    }
     if let Some(v) = a.noise {
         if !(v.is_finite() && v > 0.0) {
             bail!("--noise {v}: a positive number of counts");
@@ -764,12 +771,61 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
             .and_then(|()| std::fs::rename(&tmp, out))
             .with_context(|| format!("cannot write {}", out.display()))?;
     }
+    if let Some(p) = &a.plot {
+        plot(&rep, p)?;
+    }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&rep)?);
         return Ok(());
     }
     print_report(&rep, a.out.as_deref());
     Ok(())
+}
+
+/// The residual RMS per separation of both models and the noise's, on a log scale.
+fn plot(rep: &CalibrationReport, path: &Path) -> Result<()> {
+    use crate::plot::{write_svg, Panel, Series};
+    let by = &rep.by_separation;
+    let series = vec![
+        Series::new(
+            "pinhole (eq 65)",
+            by.iter()
+                .filter_map(|b| b.pinhole_counts.map(|v| (b.separation_in, v)))
+                .collect(),
+        ),
+        Series::new(
+            "near-field (eqs 60-63), the chip's model",
+            by.iter()
+                .map(|b| (b.separation_in, b.near_field_counts))
+                .collect(),
+        ),
+        Series::dashed(
+            "noise (RMS error of a point mean)",
+            by.iter()
+                .map(|b| (b.separation_in, b.noise_counts))
+                .collect(),
+        ),
+    ];
+    let f = &rep.file.fitted;
+    write_svg(
+        path,
+        &format!(
+            "Calibration residuals, {}: chi2/dof {:.2}",
+            Path::new(&f.source)
+                .file_name()
+                .map_or(f.source.clone(), |n| n.to_string_lossy().into_owned()),
+            f.chi2_dof
+        ),
+        &[Panel {
+            title: "residual RMS of the point means per separation".into(),
+            x_desc: "separation (in)".into(),
+            y_desc: "RMS (counts)".into(),
+            log_x: false,
+            log_y: true,
+            series,
+        }],
+        1,
+    )
 }
 
 fn print_report(rep: &CalibrationReport, out: Option<&Path>) {

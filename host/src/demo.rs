@@ -46,7 +46,7 @@ fn parse_args<A: clap::Args>(args: &[&str]) -> Result<A> {
 }
 
 /// What the demo writes into its folder: `--force` deletes a folder holding only these.
-const DEMO_ENTRIES: [&str; 8] = [
+const DEMO_ENTRIES: [&str; 9] = [
     "nearfield.svg",
     "uncertainty.svg",
     "plan.toml",
@@ -54,6 +54,7 @@ const DEMO_ENTRIES: [&str; 8] = [
     "fit.json",
     "figure57.svg",
     "cal.json",
+    "calibration.svg",
     "report",
 ];
 
@@ -165,6 +166,8 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         path_str(&data)?,
         "--out",
         path_str(&cal)?,
+        "--plot",
+        path_str(&p("calibration.svg"))?,
     ])?)?;
     println!("\n== 7. What the simulation gets wrong, why, and the gain of the extended model");
     let report = p("report");
@@ -176,7 +179,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     crate::analyze::run(&analyze)?;
     println!(
         "\nDemo output in {}: nearfield.svg, uncertainty.svg, run/ (sweep data, manifest, truth), fit.json, \
-         figure57.svg, cal.json (for `cta sensor load-calibration`), and the analysis report: open {}",
+         figure57.svg, cal.json (for `cta sensor load-calibration`) and calibration.svg, and the analysis report: open {}",
         a.out.display(),
         report.join("index.html").display()
     );

@@ -236,6 +236,7 @@ fn demo_runs_end_to_end() {
         "fit.json",
         "figure57.svg",
         "cal.json",
+        "calibration.svg",
         "run/data.csv",
         "report/index.html",
     ] {
@@ -461,10 +462,16 @@ fn calibrate_writes_what_the_board_loads() {
     // The board stores it; the file is replaced by a later calibration.
     let o = cta(&["sensor", "--sim", "load-calibration", s(&cal)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = cta(&["calibrate", s(&csv), "--out", s(&cal)]);
+    let svg = d.join("cal.svg");
+    let o = cta(&["calibrate", s(&csv), "--out", s(&cal), "--plot", s(&svg)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("load-calibration"), "{text}");
+    let plot = std::fs::read_to_string(&svg).unwrap();
+    assert!(
+        plot.contains("<svg") && plot.contains("near-field"),
+        "{plot}"
+    );
 
     // A cell gain mismatch: the chip's model holds it, so it is fitted.
     let gain = d.join("gain.csv");
@@ -546,6 +553,10 @@ fn calibrate_writes_what_the_board_loads() {
     fails_with(
         &cta(&["calibrate", s(&csv), "--out", s(&csv)]),
         "is the measurement file",
+    );
+    fails_with(
+        &cta(&["calibrate", s(&csv), "--plot", s(&csv)]),
+        "is not an SVG plot",
     );
     let truth = d.join("sweep.truth.json");
     fails_with(
