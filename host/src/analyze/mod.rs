@@ -18,6 +18,7 @@
 
 pub mod data;
 pub mod diag;
+pub mod digits;
 pub mod model;
 pub mod report;
 pub mod select;
@@ -25,6 +26,7 @@ pub mod select;
 use crate::measurement::{parse_separations, Dataset};
 use anyhow::Context;
 use data::{Data, Weights};
+pub use digits::{pm, pm_parts};
 use model::{Base, Cand, FitResult, Model};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -199,13 +201,14 @@ impl Cause {
         ))
     }
 
-    /// The global (not per-separation) parameters as `name = value PM sigma` strings.
-    pub fn global_params(&self, pm: &str) -> Vec<String> {
+    /// The global (not per-separation) parameters as `name = value PM sigma` strings
+    /// ([`digits`]: the value to the decimal place of its 1-sigma's second digit).
+    pub fn global_params(&self, pmark: &str) -> Vec<String> {
         self.params
             .iter()
             .filter(|(n, _)| !n.contains('@'))
             .map(|(n, v)| match self.sigma.get(n) {
-                Some(sg) => format!("{n} = {} {pm} {}", g(*v), g(*sg)),
+                Some(sg) => format!("{n} = {}", pm(*v, *sg, pmark)),
                 None => format!("{n} = {}", g(*v)),
             })
             .collect()
@@ -998,31 +1001,10 @@ pub fn render_text(a: &Analysis) -> String {
     }
     let _ = writeln!(s, "\nfinal parameters:");
     for p in &a.params_after {
-        let _ = writeln!(s, "  {:<26} {:>14} +/- {}", p.name, g(p.value), g(p.sigma));
+        let (v, sg) = pm_parts(p.value, p.sigma);
+        let _ = writeln!(s, "  {:<26} {v:>14} +/- {sg}", p.name);
     }
     s
-}
-
-/// `value PM sigma` with sigma to 2 significant digits and the value to the same decimal
-/// place (fixed-point between 1e-3 and 1e5, else each in exponent form).
-pub fn pm(v: f64, s: f64, pm: &str) -> String {
-    if !(s > 0.0 && s.is_finite() && v.is_finite()) {
-        return format!("{} {pm} {}", g(v), g(s));
-    }
-    let es = s.log10().floor() as i32;
-    let big = v.abs().max(s);
-    if (1e-3..1e5).contains(&big) {
-        let d = (1 - es).max(0) as usize;
-        format!("{v:.d$} {pm} {s:.d$}")
-    } else {
-        let ev = if v == 0.0 {
-            es
-        } else {
-            v.abs().log10().floor() as i32
-        };
-        let d = (1 + ev - es).max(0) as usize;
-        format!("{v:.d$e} {pm} {s:.1e}")
-    }
 }
 
 /// The unit of a candidate's parameter as printed (` in`, ` deg`, ...; empty for ratios and

@@ -9,7 +9,7 @@
 //! curve (angle-error spread versus separation) before and after; the final parameter table;
 //! and the residual diagnostics.
 
-use super::{g, Analysis, Cause};
+use super::{g, pm, pm_parts, Analysis, Cause};
 use crate::noise::html_escape;
 use crate::plot::{render_svg, Panel, Series};
 use plotters::prelude::*;
@@ -52,12 +52,9 @@ fn cause_rows(s: &mut String, causes: &[Cause]) {
             .params
             .iter()
             .filter(|(n, _)| n.contains('@'))
-            .map(|(n, v)| {
-                format!(
-                    "{n} = {} &plusmn; {}",
-                    g(*v),
-                    g(*c.sigma.get(n).unwrap_or(&f64::NAN))
-                )
+            .map(|(n, v)| match c.sigma.get(n) {
+                Some(sg) => format!("{n} = {}", pm(*v, *sg, "&plusmn;")),
+                None => format!("{n} = {}", g(*v)),
             })
             .collect();
         if !locals.is_empty() {
@@ -351,13 +348,8 @@ pub fn render(a: &Analysis) -> Result<String, String> {
 fn param_table(s: &mut String, params: &[super::Param]) {
     s.push_str("<table><tr><th>parameter</th><th>value</th><th>1-sigma</th></tr>");
     for p in params {
-        let _ = write!(
-            s,
-            "<tr><td>{}</td><td>{}</td><td>{}</td></tr>",
-            p.name,
-            g(p.value),
-            g(p.sigma)
-        );
+        let (v, sg) = pm_parts(p.value, p.sigma);
+        let _ = write!(s, "<tr><td>{}</td><td>{v}</td><td>{sg}</td></tr>", p.name);
     }
     s.push_str("</table>");
 }
