@@ -39,7 +39,8 @@ impl Base {
             Base::Pinhole => "pinhole",
         }
     }
-    fn names(self) -> &'static [&'static str] {
+    /// Names of the starting model's parameters (the first entries of every model's vector).
+    pub fn names(self) -> &'static [&'static str] {
         match self {
             Base::Thesis => &["d1", "d2", "d3", "p1", "p2", "p3"],
             Base::Pinhole => &["d1", "d2", "d3", "p1", "p2", "p3", "H"],

@@ -1,15 +1,16 @@
 //! The self-contained HTML report of `cta analyze --report DIR`: one `index.html` with
 //! inline SVG plots (plotters' SVG backend) and no external resources.
 //!
-//! Contents: the verdict; the named causes with parameters, 1-sigma and held-out gain; the
-//! candidates ruled out on top of the final model with their estimates +/- 1-sigma; the
-//! evidence (every candidate of every round with its estimates, chi-square and BIC
-//! improvement and held-out RMS); residual quiver maps per separation before and after; held-out RMS
-//! versus separation; chi-square per residual versus off-boresight angle; the Figure 57
-//! curve (angle-error spread versus separation) before and after; the final parameter table;
-//! and the residual diagnostics.
+//! Contents: the verdict; the named causes with parameters, 1-sigma, strong correlations and
+//! held-out gain; the candidates ruled out on top of the final model with their estimates
+//! +/- 1-sigma and strong correlations; the evidence (every candidate of every round with its
+//! estimates, chi-square and BIC improvement and held-out RMS); residual quiver maps per
+//! separation before and after; held-out RMS versus separation; chi-square per residual
+//! versus off-boresight angle; the Figure 57 curve (angle-error spread versus separation)
+//! before and after; the final parameter table; and the residual diagnostics. Every
+//! value +/- 1-sigma is rounded as `analyze::digits` says.
 
-use super::{g, pm, pm_parts, Analysis, Cause};
+use super::{correlation_lines, g, pm, pm_parts, Analysis, Cause, Correlation};
 use crate::noise::html_escape;
 use crate::plot::{render_svg, Panel, Series};
 use plotters::prelude::*;
@@ -24,16 +25,26 @@ pub fn write(dir: &Path, a: &Analysis) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The correlation lines of a candidate as HTML to append to its estimates cell (empty when
+/// there are none).
+fn correlation_html(own: &[Correlation], base: &[Correlation]) -> String {
+    correlation_lines(own, base)
+        .iter()
+        .map(|l| format!("<br><i>{}</i>", html_escape(l)))
+        .collect()
+}
+
 fn cause_rows(s: &mut String, causes: &[Cause]) {
     for (k, c) in causes.iter().enumerate() {
         let params = c.global_params("&plusmn;");
         let _ = write!(
             s,
-            "<tr><td>{}</td><td><b>{}</b></td><td>{}</td><td>{:.1} &rarr; {:.1} (gain {:.1})</td>\
+            "<tr><td>{}</td><td><b>{}</b></td><td>{}{}</td><td>{:.1} &rarr; {:.1} (gain {:.1})</td>\
              <td>{:.0}</td><td>{:.0}</td><td>{:.3}</td></tr>",
             k + 1,
             c.effect,
             params.join("<br>"),
+            correlation_html(&c.correlations, &c.base_correlations),
             c.heldout_rms_before,
             c.heldout_rms_after,
             c.gain_rms_counts,
@@ -86,7 +97,9 @@ fn ruled_out(s: &mut String, a: &Analysis) {
         "<h2>Ruled out</h2><p>Candidates tried on top of the final model and not accepted, with \
          their estimates &plusmn; 1-sigma (GLSDC covariance; delta method for derived \
          quantities): the data still allow an effect of about the estimate &plusmn; 2 sigma, \
-         measured from the no-effect value. Per-separation effects: the RMS of the \
+         measured from the no-effect value. The 1-sigma are marginal: correlations between a \
+         candidate's parameters of 0.5 or more in magnitude, and with a starting-model \
+         parameter of 0.9 or more, are listed under its estimates. Per-separation effects: the RMS of the \
          per-separation estimates against the RMS that noise alone would give.{}</p><table><tr>\
          <th>candidate</th><th>estimates (1-sigma)</th><th>&Delta;BIC</th><th>note</th></tr>",
         if a.unexplained {
@@ -99,9 +112,10 @@ fn ruled_out(s: &mut String, a: &Analysis) {
         let est = r.estimates("+/-");
         let _ = write!(
             s,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            "<tr><td>{}</td><td>{}{}</td><td>{}</td><td>{}</td></tr>",
             r.effect,
             html_escape(&est).replace("+/-", "&plusmn;"),
+            correlation_html(&r.correlations, &r.base_correlations),
             if r.fitted {
                 format!("{:.1}", r.dbic)
             } else {
@@ -201,13 +215,14 @@ pub fn render(a: &Analysis) -> Result<String, String> {
     for t in &a.trials {
         let _ = write!(
             s,
-            "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.1}</td><td>{:.1}</td><td>{}</td>\
+            "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{}{}</td><td>{:.1}</td><td>{:.1}</td><td>{}</td>\
              <td>{}</td></tr>",
             if t.accepted { " class=acc" } else { "" },
             t.round,
             t.effect,
             t.k,
             html_escape(&t.estimates("+/-")).replace("+/-", "&plusmn;"),
+            correlation_html(&t.correlations, &t.base_correlations),
             t.dchi2,
             t.dbic,
             t.heldout_rms.map(|v| format!("{v:.2}")).unwrap_or_default(),
