@@ -9,12 +9,13 @@
 //! 3. Forward selection over the effect vocabulary ([`model`], [`select`]): each candidate is
 //!    a parametric extension; the best by information criterion that also predicts held-out
 //!    separations better is added, until nothing significant remains.
-//! 4. Report the causes with their parameters and 1-sigma, the held-out gain, chi-square per
+//! 4. Report the causes with their parameters, 1-sigma and strong correlations
+//!    ([`Correlation`]; values rounded as [`digits`] says), the held-out gain, chi-square per
 //!    degree of freedom and the angle-error spread per separation before and after; say
 //!    "unexplained structure remains" (and where) when the best extension still leaves
 //!    chi-square per degree of freedom clearly above 1. For every candidate tried on top of
-//!    the final model and not accepted, report its estimates +/- 1-sigma (how tightly the
-//!    data rule it out, [`RuledOut`]).
+//!    the final model and not accepted, report its estimates +/- 1-sigma and strong
+//!    correlations (how tightly the data rule it out, [`RuledOut`]).
 
 pub mod data;
 pub mod diag;
@@ -59,6 +60,10 @@ VERDICTS:
                       named with confidence; the output shows where the residuals are
   ruled out           every candidate tried on top of the final model and not accepted, with
                       its estimate +/- 1-sigma: the data still allow about estimate +/- 2 sigma
+  correlation: DX,DY +0.71  under a candidate's estimates: two of its parameters correlate
+                      (|rho| >= 0.5), so their 1-sigma alone mislead; `with the starting
+                      model`: |rho| >= 0.9 with d, p or H. Every value +/- 1-sigma is rounded
+                      to the 2nd significant digit of the 1-sigma (JSON: full precision)
 
 EXAMPLE:
   cta simulate --out tilt.csv --separations 2..30 --noise 32.8 --samples 5 --effect beacon_tilt=3,45
