@@ -224,6 +224,10 @@ fn demo_runs_end_to_end() {
         String::from_utf8_lossy(&o.stderr)
     );
     assert!(stdout.contains("named: cell_gain"), "{stdout}");
+    assert!(
+        stdout.contains("on the sensor board: the board's calibration holds it (gx, gy)"),
+        "{stdout}"
+    );
     // The board's calibration holds the hidden cell gain (cell_gain=0.02,-0.01).
     let cal: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("cal.json")).unwrap()).unwrap();

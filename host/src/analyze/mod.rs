@@ -180,6 +180,45 @@ pub struct Cause {
     /// tell them apart (e.g. `proximity` and `beacon_pattern` at small sizes: host/ANALYZE.md,
     /// "Detection limits").
     pub rivals: Vec<Rival>,
+    /// What the sensor board can do with it ([`board_note`]).
+    pub board: String,
+}
+
+/// What the sensor board's pose solver can do with a named effect: whether its calibration
+/// (`cta calibrate`, firmware-sensor) or its constellation holds it, or it stays outside the
+/// chip's model (host/CALIBRATE.md).
+pub fn board_note(effect: &str) -> String {
+    match effect {
+        "cell_gain" => "the board's calibration holds it (gx, gy): `cta calibrate` fits it",
+        "cell_bias" => "the board's calibration holds it (bx, by): `cta calibrate` fits it",
+        "face_angle" => {
+            "the board's calibration holds it (the pairs' face angles a, ay): `cta calibrate` \
+             fits it"
+        }
+        "proximity" => {
+            "the board's calibration holds it (the cell offset s): `cta calibrate` fits it"
+        }
+        "intensity" => "the board's near-field model includes it (eq 63's inverse square)",
+        "beacon_pattern" => {
+            "the board's calibration holds the LEDs' pattern exponent, but `cta calibrate` \
+             cannot tell it from s and d3: give `--pattern-m` from the LED datasheet \
+             (host/CALIBRATE.md)"
+        }
+        "beacon_tilt" => {
+            "the board holds it in the constellation's LED boresight (`cta sensor template \
+             constellation`), not in the calibration"
+        }
+        "saturation" => {
+            "outside the board's model: its poses use saturated spots as they are; keep the \
+             beacons outside the range where the cells clip"
+        }
+        "plate_offset" | "separation_error" => {
+            "an error of the apparatus, not of the sensor: nothing for the board to hold; the \
+             sensor's calibration from these data absorbs part of it"
+        }
+        _ => "outside the board's model",
+    }
+    .to_string()
 }
 
 /// Correlations between a candidate's own parameters are shown from this magnitude on.
@@ -967,6 +1006,7 @@ pub fn analyze(
             correlations,
             base_correlations,
             rivals,
+            board: board_note(st.cand.name()),
         });
     }
     let (causes, tentative) = if unexplained {
@@ -1135,6 +1175,7 @@ pub fn render_text(a: &Analysis) -> String {
         if let Some(line) = c.rivals_line() {
             let _ = writeln!(s, "     {line}");
         }
+        let _ = writeln!(s, "     on the sensor board: {}", c.board);
     }
     if !a.ruled_out.is_empty() {
         let _ = writeln!(
@@ -1537,5 +1578,25 @@ mod tests {
             Cand::BeaconTilt.report(Base::Thesis, v)
         });
         assert!(p.correlations().is_empty());
+    }
+
+    /// Every effect `analyze` can name says what the sensor board does with it; those its
+    /// calibration holds name the field `cta calibrate` writes.
+    #[test]
+    fn every_nameable_effect_says_what_the_board_does_with_it() {
+        let generic = crate::analyze::board_note("not an effect");
+        for name in crate::effects::VOCABULARY {
+            assert_ne!(crate::analyze::board_note(name), generic, "{name}");
+        }
+        for (name, field) in [
+            ("cell_gain", "gx, gy"),
+            ("cell_bias", "bx, by"),
+            ("face_angle", "a, ay"),
+            ("proximity", "cell offset s"),
+        ] {
+            let n = crate::analyze::board_note(name);
+            assert!(n.contains("holds it") && n.contains(field), "{name}: {n}");
+        }
+        assert!(crate::analyze::board_note("saturation").starts_with("outside the board's model"));
     }
 }

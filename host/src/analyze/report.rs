@@ -59,6 +59,11 @@ fn cause_rows(s: &mut String, causes: &[Cause]) {
                 html_escape(&line)
             );
         }
+        let _ = write!(
+            s,
+            "<tr><td></td><td colspan=6>On the sensor board: {}</td></tr>",
+            html_escape(&c.board)
+        );
         let locals: Vec<String> = c
             .params
             .iter()
