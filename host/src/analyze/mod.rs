@@ -152,7 +152,8 @@ impl Default for Options {
 pub struct Cause {
     /// Vocabulary name.
     pub effect: String,
-    /// Fitted parameters (physical units; per-separation ones as `x@Sin`).
+    /// Fitted parameters in the final model, with every named cause (physical units;
+    /// per-separation ones as `x@Sin`). The gains below are those of the step that added it.
     pub params: BTreeMap<String, f64>,
     /// Their 1-sigma.
     pub sigma: BTreeMap<String, f64>,
@@ -972,8 +973,12 @@ pub fn analyze(
     let unexplained = final_chi2 > UNEXPLAINED_CHI2_DOF;
     let mut causes = Vec::new();
     for st in &sel.steps {
+        // The parameters as the final model (every named cause together) has them: the step
+        // that added a cause fitted it without the causes named after it, which it may have
+        // stood in for (from `pinhole`, `proximity` alone reads S = 0.84 in on thesis data,
+        // 0.176 once `intensity` and `beacon_pattern` are in).
         let (params, sigma, correlations, base_correlations) =
-            cause_params(&st.model, st.cand, &st.fit, &data.seps);
+            cause_params(fm, st.cand, ff, &data.seps);
         let round = sel
             .trials
             .iter()
@@ -1598,5 +1603,42 @@ mod tests {
             assert!(n.contains("holds it") && n.contains(field), "{name}: {n}");
         }
         assert!(crate::analyze::board_note("saturation").starts_with("outside the board's model"));
+    }
+
+    /// A named cause's parameters are the final model's: from `pinhole` on thesis data,
+    /// `proximity` is named first and, fitted alone, stands in for `intensity` (S ~0.84 in);
+    /// the cause reports the S of the final model, which holds `intensity` too, near the
+    /// thesis's 0.175 in, and equal to the final parameter `proximity.S`.
+    #[test]
+    fn a_cause_reports_its_parameters_in_the_final_model() {
+        let (ds, _) = SimConfig {
+            effects: Vec::new(),
+            samples: 10,
+            ..sim("cell_gain=0", 24)
+        }
+        .run();
+        let opts = Options {
+            from: Base::Pinhole,
+            ..Options::default()
+        };
+        let a = analyze(&ds, &opts, &|_: &str| {}).unwrap();
+        let names: Vec<&str> = a.causes.iter().map(|c| c.effect.as_str()).collect();
+        assert!(
+            names.first() == Some(&"proximity") && names.contains(&"intensity"),
+            "{}",
+            a.verdict
+        );
+        let c = &a.causes[0];
+        let (s, sigma) = (c.params["S"], c.sigma["S"]);
+        assert!(
+            (s - 0.175).abs() < 5.0 * sigma && sigma < 0.01,
+            "S = {s} +/- {sigma}"
+        );
+        let fin = a
+            .params_after
+            .iter()
+            .find(|p| p.name == "proximity.S")
+            .expect("proximity.S in the final parameters");
+        assert!((fin.value - s).abs() < 1e-12, "{} vs {s}", fin.value);
     }
 }
