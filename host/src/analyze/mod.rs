@@ -302,9 +302,12 @@ impl Cause {
         self.params
             .iter()
             .filter(|(n, _)| !n.contains('@'))
-            .map(|(n, v)| match self.sigma.get(n) {
-                Some(sg) => format!("{n} = {}", pm(*v, *sg, pmark)),
-                None => format!("{n} = {}", g(*v)),
+            .map(|(n, v)| {
+                let u = unit(&self.effect, n);
+                match self.sigma.get(n) {
+                    Some(sg) => format!("{n} = {}{u}", pm(*v, *sg, pmark)),
+                    None => format!("{n} = {}{u}", g(*v)),
+                }
             })
             .collect()
     }
