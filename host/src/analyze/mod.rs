@@ -619,10 +619,13 @@ impl Propagated<'_> {
     }
 
     /// Every (quantity, starting-model parameter) pair whose correlation is at least
-    /// [`BASE_CORRELATION_MIN`] in magnitude.
+    /// [`BASE_CORRELATION_MIN`] in magnitude. With one underlying parameter
+    /// (`beacon_pattern`'s H_deg and m) the quantities are transforms of it: only the first is
+    /// listed.
     fn base_correlations(&self) -> Vec<Correlation> {
         let mut out = Vec::new();
-        for (i, q) in self.q.iter().enumerate() {
+        let shown = if self.raw < 2 { 1 } else { self.q.len() };
+        for (i, q) in self.q.iter().enumerate().take(shown) {
             for (name, var, cross) in &self.base {
                 let Some(r) = rho(cross[i], self.cov[(i, i)], *var) else {
                     continue;
@@ -1611,7 +1614,8 @@ mod tests {
     /// A named cause's parameters are the final model's: from `pinhole` on thesis data,
     /// `proximity` is named first and, fitted alone, stands in for `intensity` (S ~0.84 in);
     /// the cause reports the S of the final model, which holds `intensity` too, near the
-    /// thesis's 0.175 in, and equal to the final parameter `proximity.S`.
+    /// thesis's 0.175 in, and equal to the final parameter `proximity.S`. `beacon_pattern`,
+    /// named too, lists its tie to d3 once.
     #[test]
     fn a_cause_reports_its_parameters_in_the_final_model() {
         let (ds, _) = SimConfig {
@@ -1643,5 +1647,14 @@ mod tests {
             .find(|p| p.name == "proximity.S")
             .expect("proximity.S in the final parameters");
         assert!((fin.value - s).abs() < 1e-12, "{} vs {s}", fin.value);
+        // beacon_pattern's H_deg and m are one parameter: its strong tie to d3 is listed
+        // once, for H_deg.
+        let bp = a
+            .causes
+            .iter()
+            .find(|c| c.effect == "beacon_pattern")
+            .expect("beacon_pattern named");
+        let base: Vec<&str> = bp.base_correlations.iter().map(|r| r.a.as_str()).collect();
+        assert_eq!(base, ["H_deg"], "{:?}", bp.base_correlations);
     }
 }
