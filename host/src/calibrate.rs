@@ -191,7 +191,14 @@ pub struct NearFieldSolution {
     pub iterations: usize,
     /// Condition number of the scaled, weighted Jacobian.
     pub condition: f64,
+    /// Pairs of fitted parameters whose estimates correlate at [`STRONG_CORRELATION`] or
+    /// more in magnitude: `(a, b, rho)`.
+    pub correlations: Vec<(String, String, f64)>,
 }
+
+/// Correlations of fitted parameters from this magnitude on are reported: their 1-sigma
+/// alone then mislead (each is known far better once the other is).
+pub const STRONG_CORRELATION: f64 = 0.8;
 
 /// Fit `d, p, a, s` (and when `extended` the cells' gains and offsets and the Y pair's own
 /// face angle) of the eq 60-63 model to `obs` (weights absolute), starting from `start`'s
@@ -264,7 +271,28 @@ pub fn fit_near_field(
         chi2_dof: sol.variance_factor,
         iterations: sol.iterations,
         condition: sol.condition,
+        correlations: strong_correlations(&sol.covariance),
     })
+}
+
+/// The pairs of [`NF_NAMES`] whose correlation in `cov` is at least [`STRONG_CORRELATION`]
+/// in magnitude.
+fn strong_correlations(cov: &nalgebra::DMatrix<f64>) -> Vec<(String, String, f64)> {
+    let n = cov.nrows();
+    let mut out = Vec::new();
+    for i in 0..n {
+        for j in i + 1..n {
+            let d = (cov[(i, i)] * cov[(j, j)]).sqrt();
+            if !(d > 0.0) {
+                continue;
+            }
+            let rho = cov[(i, j)] / d;
+            if rho.abs() >= STRONG_CORRELATION {
+                out.push((NF_NAMES[i].to_string(), NF_NAMES[j].to_string(), rho));
+            }
+        }
+    }
+    out
 }
 
 /// `cta calibrate`: fit the sensor board's calibration to a measured sweep.
@@ -350,6 +378,10 @@ pub struct Provenance {
     pub points: usize,
     /// Points left out because an output was pinned.
     pub pinned_points: usize,
+    /// Near-field parameters whose estimates correlate at 0.8 or more in magnitude:
+    /// `[a, b, rho]` (absent in files written before it).
+    #[serde(default)]
+    pub correlations: Vec<(String, String, f64)>,
 }
 
 /// Residual RMS of both models at one separation.
@@ -694,6 +726,7 @@ pub fn calibrate(
                 rms_counts: rms,
                 points: pts.len(),
                 pinned_points: pinned,
+                correlations: nf.correlations.clone(),
             },
         },
         pinhole_h: xp.h(),
@@ -899,6 +932,16 @@ fn print_report(rep: &CalibrationReport, out: Option<&Path>) {
         "  chi2/dof {:.3}, residual RMS {:.2} counts, {} iterations, condition {:.2e}",
         f.chi2_dof, f.rms_counts, rep.iterations, rep.condition
     );
+    if !f.correlations.is_empty() {
+        println!(
+            "  strongly correlated (each 1-sigma above is marginal): {}",
+            f.correlations
+                .iter()
+                .map(|(a, b, r)| format!("{a},{b} {r:+.2}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     println!("\n sep(in)  points   RMS pinhole  near-field   noise (counts, point means)");
     for b in &rep.by_separation {
         println!(
@@ -922,5 +965,34 @@ fn print_report(rep: &CalibrationReport, out: Option<&Path>) {
             p.display()
         ),
         None => println!("\n(not written: give --out CAL.json)"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Only pairs at or beyond [`STRONG_CORRELATION`] are reported, by name, with their sign;
+    /// a zero variance (a parameter not fitted) gives none.
+    #[test]
+    fn strong_correlations_are_named_with_their_sign() {
+        let mut cov = nalgebra::DMatrix::<f64>::identity(NF_PARAMS, NF_PARAMS);
+        cov[(0, 0)] = 4.0;
+        // d1,p1: -0.95 with d1's variance 4.
+        cov[(0, 3)] = -0.95 * 2.0;
+        cov[(3, 0)] = -0.95 * 2.0;
+        // a,ay: +0.84; s,gx: 0.5 (below the line).
+        cov[(6, 12)] = 0.84;
+        cov[(12, 6)] = 0.84;
+        cov[(7, 8)] = 0.5;
+        cov[(8, 7)] = 0.5;
+        // by not fitted: variance 0, its covariance with bx ignored.
+        cov[(11, 11)] = 0.0;
+        cov[(10, 11)] = 0.3;
+        cov[(11, 10)] = 0.3;
+        let c = strong_correlations(&cov);
+        let names: Vec<(&str, &str)> = c.iter().map(|(a, b, _)| (a.as_str(), b.as_str())).collect();
+        assert_eq!(names, [("d1", "p1"), ("a", "ay")], "{c:?}");
+        assert!((c[0].2 + 0.95).abs() < 1e-12 && (c[1].2 - 0.84).abs() < 1e-12);
     }
 }
