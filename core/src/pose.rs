@@ -1239,9 +1239,10 @@ mod tests {
     }
 
     /// Solve a noise-free frame at `t` of a head whose cells have `truth`'s face angles,
-    /// gains and offsets, once with `truth` as the calibration and once with the nominal one: the
-    /// position errors, inches.
-    fn cells_with_and_without(truth: NearField, t: Vector3<f64>) -> (f64, f64) {
+    /// gains and offsets, once with `truth` as the calibration and once with the nominal one:
+    /// the position error with it must stay below `with_max` inches, the one without must be
+    /// over 0.01 in and `factor` times larger.
+    fn reaches_the_solver(truth: NearField, t: Vector3<f64>, with_max: f64, factor: f64) {
         let cal = Calibration {
             near_field: Some(truth),
             ..Calibration::table3()
@@ -1277,7 +1278,12 @@ mod tests {
             assert_eq!(sol.status, PoseStatus::Ok, "{sol:?}");
             (sol.position - t).norm()
         };
-        (error(&cal), error(&Calibration::table3()))
+        let (with, without) = (error(&cal), error(&Calibration::table3()));
+        assert!(with < with_max, "{with}");
+        assert!(
+            without > factor * with && without > 0.01,
+            "{without} vs {with}"
+        );
     }
 
     /// The calibration's cell gains reach the near-field model: frames of a head whose cell 1
@@ -1289,12 +1295,7 @@ mod tests {
             gain: [0.03, -0.02],
             ..NearField::nominal()
         };
-        let (with, without) = cells_with_and_without(truth, target().0);
-        assert!(with < 2e-4, "{with}");
-        assert!(
-            without > 50.0 * with && without > 0.01,
-            "{without} vs {with}"
-        );
+        reaches_the_solver(truth, target().0, 2e-4, 50.0);
     }
 
     /// The calibration's cell offsets reach the near-field model: at 20 in, where a beacon's
@@ -1306,12 +1307,7 @@ mod tests {
             bias: [2e-5, -1e-5],
             ..NearField::nominal()
         };
-        let (with, without) = cells_with_and_without(truth, Vector3::new(0.3, -0.2, 20.0));
-        assert!(with < 2e-3, "{with}");
-        assert!(
-            without > 20.0 * with && without > 0.01,
-            "{without} vs {with}"
-        );
+        reaches_the_solver(truth, Vector3::new(0.3, -0.2, 20.0), 2e-3, 20.0);
     }
 
     /// The Y pair's own face angle reaches the near-field model: a head whose Y pair is cut at
@@ -1323,12 +1319,7 @@ mod tests {
             alpha_y_deg: Some(31.0),
             ..NearField::nominal()
         };
-        let (with, without) = cells_with_and_without(truth, target().0);
-        assert!(with < 2e-4, "{with}");
-        assert!(
-            without > 50.0 * with && without > 0.01,
-            "{without} vs {with}"
-        );
+        reaches_the_solver(truth, target().0, 2e-4, 50.0);
     }
 
     #[test]
