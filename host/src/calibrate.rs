@@ -742,31 +742,20 @@ pub fn calibrate(
 /// `--out` may replace an earlier calibration written by `cta calibrate`; never the
 /// measurement file, and anything else only with `--force`.
 fn check_out(out: &Path, data: &Path, force: bool) -> Result<()> {
-    if out.is_dir() {
-        bail!(
-            "--out {}: is a folder; give a file name (e.g. cal.json)",
-            out.display()
-        );
-    }
-    if !out.exists() {
-        return Ok(());
-    }
-    if let (Ok(a), Ok(b)) = (out.canonicalize(), data.canonicalize()) {
-        if a == b {
-            bail!("--out {}: is the measurement file", out.display());
-        }
-    }
-    let earlier = std::fs::read_to_string(out)
-        .ok()
-        .and_then(|s| serde_json::from_str::<CalibrationFile>(&s).ok())
-        .is_some_and(|f| f.fitted.by.starts_with(WRITER));
-    if force || earlier {
-        return Ok(());
-    }
-    bail!(
-        "--out {}: exists and is not an earlier `cta calibrate` calibration: pass --force to \
-         replace it",
-        out.display()
+    let earlier = |p: &Path| {
+        std::fs::read_to_string(p)
+            .ok()
+            .and_then(|s| serde_json::from_str::<CalibrationFile>(&s).ok())
+            .is_some_and(|f| f.fitted.by.starts_with(WRITER))
+    };
+    crate::measurement::check_derived_output(
+        "--out",
+        out,
+        data,
+        "cal.json",
+        "an earlier `cta calibrate` calibration",
+        earlier,
+        force,
     )
 }
 

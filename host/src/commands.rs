@@ -658,31 +658,14 @@ pub fn load(file: &Path, separations: Option<&str>) -> Result<Dataset> {
 /// `--save` may replace an earlier saved fit; never the measurement file, and anything else
 /// only with `--force`.
 fn check_fit_save(save: &Path, data: &Path, force: bool) -> Result<()> {
-    if save.is_dir() {
-        bail!(
-            "--save {}: is a folder; give a file name (e.g. fit.json)",
-            save.display()
-        );
-    }
-    if !save.exists() {
-        return Ok(());
-    }
-    let same = match (save.canonicalize(), data.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    };
-    if same {
-        bail!(
-            "--save {}: is the measurement file being fitted",
-            save.display()
-        );
-    }
-    if force || FitReport::load(save).is_ok() {
-        return Ok(());
-    }
-    bail!(
-        "--save {}: exists and is not an earlier saved fit: pass --force to replace it",
-        save.display()
+    crate::measurement::check_derived_output(
+        "--save",
+        save,
+        data,
+        "fit.json",
+        "an earlier saved fit",
+        |p| FitReport::load(p).is_ok(),
+        force,
     )
 }
 

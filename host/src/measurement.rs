@@ -834,6 +834,42 @@ fn suggest_step(a: f64, b: f64) -> f64 {
     }
 }
 
+/// Whether a file derived from the measurement file `data` (a saved fit, a calibration) may
+/// be written to `out`, given on the command line as `flag`: never a folder or `data` itself;
+/// an existing file only when `earlier` recognises it as this command's own output (`what`
+/// names that in the refusal), or with `force`. Nothing is modified.
+pub fn check_derived_output(
+    flag: &str,
+    out: &Path,
+    data: &Path,
+    example: &str,
+    what: &str,
+    earlier: impl Fn(&Path) -> bool,
+    force: bool,
+) -> anyhow::Result<()> {
+    if out.is_dir() {
+        anyhow::bail!(
+            "{flag} {}: is a folder; give a file name (e.g. {example})",
+            out.display()
+        );
+    }
+    if !out.exists() {
+        return Ok(());
+    }
+    if let (Ok(a), Ok(b)) = (out.canonicalize(), data.canonicalize()) {
+        if a == b {
+            anyhow::bail!("{flag} {}: is the measurement file", out.display());
+        }
+    }
+    if force || earlier(out) {
+        return Ok(());
+    }
+    anyhow::bail!(
+        "{flag} {}: exists and is not {what}: pass --force to replace it",
+        out.display()
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

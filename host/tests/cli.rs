@@ -327,7 +327,7 @@ fn outputs_never_replace_other_kinds_of_file() {
     // fit --save: never the measurement file; an earlier fit is replaced.
     fails_with(
         &cta(&["fit", s(&sim), "--save", s(&sim)]),
-        "is the measurement file being fitted",
+        "is the measurement file",
     );
     fails_with(
         &cta(&["fit", s(&sim), "--save", s(&data)]),
