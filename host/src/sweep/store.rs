@@ -87,9 +87,10 @@ pub enum Event {
         /// Simulation settings (`None` for real boards).
         sim: Option<serde_json::Value>,
         /// The plan in use (validated; [`Plan`]'s fields): a resume compares `plan.toml` (or
-        /// the file given with `--plan`) with the last session's, accepts changed timing keys ([`RESUME_MAY_CHANGE`]) with a note
-        /// and refuses any other change, so every session's plan says what the first one's
-        /// did but for timing. Absent in journals of older versions.
+        /// the file given with `--plan`) with the last session's, accepts changed timing keys
+        /// ([`RESUME_MAY_CHANGE`]) with a note and refuses any other change, so every
+        /// session's plan says what the first one's did but for timing. Absent in journals of
+        /// older versions.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         plan: Option<serde_json::Value>,
         /// First point of this session.
