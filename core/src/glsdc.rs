@@ -7,7 +7,9 @@
 //! - the normal equations accumulated row by row, so a problem never stores its Jacobian
 //!   (20,000 residuals cost 7x7 memory; on the chip, 6x6);
 //! - Jacobi column scaling (so millimetres, milliradians and counts-per-unit parameters mix);
-//! - a damped (Levenberg) step whenever a Gauss-Newton step raises the cost;
+//! - a damped (Levenberg) step whenever a Gauss-Newton step raises the cost, and damping
+//!   kept or raised while accepted steps gain much less than they predict (the gain ratio
+//!   rule of Fletcher, 1971: below 1/4 more damping, above 3/4 less);
 //! - stopping on a small step, a small cost change, or an iteration cap;
 //! - optionally ([`solve_with`]), the last linearisation carried to the next solve of a
 //!   tracked problem, for a first step that costs no model evaluation (the residuals at
@@ -835,46 +837,47 @@ where
         let gs = g.component_mul(&l.scale);
         // Stops are decided only from a linearisation at the current point.
         let current = l.x == x;
-        // Gauss-Newton first, Levenberg damping when the cost rises.
+        // The Gauss-Newton step. Gauss-Newton predicts sum w r^2 to fall by g^T dx; below
+        // the tolerances the step is taken without evaluating the model at its end (it is
+        // far inside the linear regime, so the prediction is the cost there, and `ss` scales
+        // with it) and the solve stops. This is checked whatever the damping: in a flat,
+        // curved valley (the pose at 30 in) the full step can overshoot while damped steps
+        // crawl on, each gaining a few hundredths of the noise, to the iteration cap.
+        let mut gauss_newton = l.ch.as_ref().map(|ch| ch.solve(&gs));
+        if let (Some(ds), true) = (&gauss_newton, current) {
+            let predicted = gs.dot(ds);
+            if predicted <= settings.final_step_tol || predicted <= settings.cost_tol * wss {
+                let wn = (wss - predicted).max(T::zero());
+                if wss > T::zero() {
+                    ss *= wn / wss;
+                }
+                wss = wn;
+                x += ds.component_mul(&l.scale);
+                stop = Some(Stop::SmallPredictedDecrease);
+                break;
+            }
+        }
+        // Gauss-Newton first, Levenberg damping when the cost rises or an accepted step gains
+        // much less than it predicts.
         let mut accepted = false;
         let mut relinearise = false;
         for _ in 0..settings.max_damping {
-            let damped;
-            let factor = if lambda == T::zero() {
-                l.ch.as_ref()
+            let ds = if lambda == T::zero() {
+                gauss_newton.take()
             } else {
                 let mut a = l.ns.clone();
                 for i in 0..n {
                     a[(i, i)] += lambda;
                 }
-                damped = Chol::new(&a);
-                damped.as_ref()
+                Chol::new(&a).map(|ch| ch.solve(&gs))
             };
-            let step = match factor {
-                Some(ch) => {
-                    let ds = ch.solve(&gs);
-                    let step = ds.component_mul(&l.scale);
-                    if lambda == T::zero() && current {
-                        // Gauss-Newton predicts sum w r^2 to fall by g^T dx. Below the
-                        // tolerances the step is taken without evaluating the model at its
-                        // end: it is far inside the linear regime, so the prediction is
-                        // the cost there (and `ss` scales with it).
-                        let predicted = gs.dot(&ds);
-                        if predicted <= settings.final_step_tol
-                            || predicted <= settings.cost_tol * wss
-                        {
-                            let wn = (wss - predicted).max(T::zero());
-                            if wss > T::zero() {
-                                ss *= wn / wss;
-                            }
-                            wss = wn;
-                            x += step;
-                            stop = Some(Stop::SmallPredictedDecrease);
-                            accepted = true;
-                            break;
-                        }
-                    }
-                    step
+            // The fall of sum w r^2 the (damped) step predicts: with (A + lambda I) ds = g,
+            // 2 g.ds - ds.A.ds = g.ds + lambda |ds|^2.
+            let predicted;
+            let step = match ds {
+                Some(ds) => {
+                    predicted = gs.dot(&ds) + lambda * ds.norm_squared();
+                    ds.component_mul(&l.scale)
                 }
                 None => {
                     lambda = if lambda == T::zero() {
@@ -917,7 +920,20 @@ where
                     wss = wn;
                     ss = sn;
                     accepted = true;
-                    lambda = if lambda <= T::lit(1e-7) {
+                    // Fletcher's gain ratio: a step that gains less than a quarter of its
+                    // prediction met a curved valley (GN overshoots across it and zig-zags:
+                    // the pose at 30 in, then 20 iterations and NotConverged), so the next
+                    // is damped more; one that gains three quarters or more, less.
+                    let gain = (prev - wss) / predicted;
+                    lambda = if gain < T::lit(0.25) {
+                        if lambda == T::zero() {
+                            T::lit(1e-3)
+                        } else {
+                            lambda * T::lit(10.0)
+                        }
+                    } else if gain < T::lit(0.75) {
+                        lambda
+                    } else if lambda <= T::lit(1e-7) {
                         T::zero()
                     } else {
                         lambda / T::lit(10.0)

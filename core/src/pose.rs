@@ -1496,12 +1496,15 @@ mod tests {
     }
 
     /// At 30 in the one-array target's attitude is barely observed (floor ~4 deg): the cost
-    /// valley is flat and Gauss-Newton creeps along it, each step predicted to gain a little
-    /// more than 0.01 chi-square. About 1 frame in 400 ran out of its 20 iterations within a
-    /// fraction of a sigma of the minimum and was reported Diverged (7 pinhole and 8
-    /// near-field of these 3000). Stopping when a step actually gains less than 0.01 leaves
-    /// 0 and 2: creeps whose steps each gain 0.02-0.2 (raising the cap to 30 iterations still
-    /// leaves one). At most 1 in 1000 may remain.
+    /// valley is flat and curved on the scale of one sigma, and Gauss-Newton zig-zags
+    /// across it (successive steps of ~2 deg in opposite directions, each gaining a few
+    /// hundredths of chi-square). About 1 frame in 400 once ran out of its 20 iterations
+    /// within a fraction of a sigma of the minimum and was reported Diverged (7 pinhole and 8
+    /// near-field of these 3000); stopping on a step that gains less than 0.01 left 0 and 2.
+    /// Now the Gauss-Newton step's predicted gain is checked whatever the damping, and a step
+    /// that gains less than a quarter of its prediction keeps the damping on (the gain ratio
+    /// rule, in `glsdc`): none fails, and no frame needs more than 12 iterations (9 and 10 here; 17-20
+    /// before).
     #[test]
     fn flat_valley_at_30_in_converges() {
         let em = truth_emulator();
@@ -1509,6 +1512,7 @@ mod tests {
         let mut uniform = uniform_from(0x9e37_79b9);
         let sigma = 0.001 * crate::emulator::BETA;
         let mut failed = [0usize; 2];
+        let mut most = [0u8; 2];
         for _ in 0..3000 {
             let t = Vector3::new(uniform(), uniform(), 30.0);
             let axis = Vector3::new(uniform(), uniform(), uniform());
@@ -1524,12 +1528,19 @@ mod tests {
                     ..SolverSettings::default()
                 };
                 let mut s = PoseSolver::<f32>::new(&Calibration::table3(), &con, set).unwrap();
-                failed[k] += usize::from(s.solve(&spots).status != PoseStatus::Ok);
+                let sol = s.solve(&spots);
+                failed[k] += usize::from(sol.status != PoseStatus::Ok);
+                most[k] = most[k].max(sol.iterations);
             }
         }
+        assert_eq!(
+            failed,
+            [0, 0],
+            "frames not solved of 3000 (pinhole, near-field)"
+        );
         assert!(
-            failed.iter().all(|&f| f <= 3),
-            "frames not solved of 3000 (pinhole, near-field): {failed:?}"
+            most.iter().all(|&m| m <= 12),
+            "most iterations (pinhole, near-field): {most:?}"
         );
     }
 
