@@ -1073,7 +1073,12 @@ impl AccuracyTable {
     /// floor at 30 in; plus, where the per-frame attitude claim fails, whether the near-field
     /// pose is itself on the noise floor there (then no model could do better).
     pub fn claims(&self) -> Vec<Claim> {
-        let near: Vec<&AccuracyRow> = self.rows.iter().filter(|r| r.range <= 10.0).collect();
+        // The 2-10 in (a range below 2 in, if run, is shown but not judged).
+        let near: Vec<&AccuracyRow> = self
+            .rows
+            .iter()
+            .filter(|r| (2.0..=10.0).contains(&r.range))
+            .collect();
         let ratio_claim = |name: &str, f: &dyn Fn(&AccuracyRow) -> (f64, f64)| {
             let ratios: Vec<(f64, f64)> = near
                 .iter()
@@ -1091,7 +1096,9 @@ impl AccuracyTable {
             Claim {
                 name: format!("{name}: pinhole / near-field >= 5 at 2-10 in"),
                 holds: bad.is_empty() && !near.is_empty(),
-                detail: if bad.is_empty() {
+                detail: if near.is_empty() {
+                    "not measured: no range of 2-10 in among --ranges".to_string()
+                } else if bad.is_empty() {
                     format!("smallest ratio {worst:.1}x")
                 } else {
                     format!("below 5x at {}", bad.join(", "))
@@ -1570,6 +1577,32 @@ mod tests {
             text.contains("Claims") && text.contains("Systematic error"),
             "{text}"
         );
+    }
+
+    /// Claims over 2-10 in are not judged from other ranges: without one they say so (not
+    /// "smallest ratio infx"), and a range below 2 in does not count.
+    #[test]
+    fn claims_need_a_range_of_2_to_10_in() {
+        let run = |ranges: Vec<f64>| {
+            let args = AccuracyArgs {
+                trials: 2,
+                ranges,
+                ..AccuracyArgs::default()
+            };
+            accuracy_table(&args).unwrap().claims()
+        };
+        let claims = run(vec![20.0, 30.0]);
+        let c = claims
+            .iter()
+            .find(|c| c.name.starts_with("position, one frame"))
+            .unwrap();
+        assert!(!c.holds && c.detail.starts_with("not measured"), "{c:?}");
+        let claims = run(vec![1.5, 30.0]);
+        let c = claims
+            .iter()
+            .find(|c| c.name.starts_with("position, systematic"))
+            .unwrap();
+        assert!(!c.holds && c.detail.starts_with("not measured"), "{c:?}");
     }
 
     #[test]
