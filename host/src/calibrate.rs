@@ -864,55 +864,33 @@ fn print_report(rep: &CalibrationReport, out: Option<&Path>) {
         "Sensor calibration from {} ({} points at {seps}; {} left out)",
         f.source, f.points, f.pinned_points
     );
+    // Each estimate to the digits its 1-sigma resolves (`cta analyze`'s convention).
+    let pm = |v: f32, n: &str| crate::analyze::digits::pm_parts(f64::from(v), f.sigma[n]);
+    let (h, hs) = crate::analyze::digits::pm_parts(rep.pinhole_h, f.sigma["H"]);
     println!(
-        "  pinhole (eq 65) at {} in: H = {:.1} ± {:.1} counts",
+        "  pinhole (eq 65) at {} in: H = {h} ± {hs} counts",
         fmt_list(&f.pinhole_separations),
-        rep.pinhole_h,
-        f.sigma["H"]
     );
     println!("  near-field (eqs 60-63), started from it:");
-    let s = |n: &str| f.sigma[n];
+    let row = |n: &str, v: f32, unit: &str, what: &str| {
+        let (v, s) = pm(v, n);
+        let line = format!("    {n:<2} = {v:>12} ± {s:<9} {unit:<5} {what}");
+        println!("{}", line.trim_end());
+    };
     for (k, n) in ["d1", "d2", "d3"].iter().enumerate() {
-        println!("    {n} = {:>10.6} ± {:.2e} in", c.d[k], s(n));
+        row(n, c.d[k], "in", "");
     }
     for (k, n) in ["p1", "p2", "p3"].iter().enumerate() {
-        println!("    {n} = {:>10.6} ± {:.2e}", c.p[k], s(n));
+        row(n, c.p[k], "", "");
     }
-    println!(
-        "    a  = {:>10.4} ± {:.2e} deg   (face angle, X pair; 30 nominal)",
-        nf.alpha_deg,
-        s("a")
-    );
-    println!(
-        "    ay = {:>10.4} ± {:.2e} deg   (face angle, Y pair; 30 nominal)",
-        nf.face_angles_deg()[1],
-        s("ay")
-    );
-    println!(
-        "    s  = {:>10.5} ± {:.2e} in    (cell offset; 0.175 nominal)",
-        nf.s,
-        s("s")
-    );
-    println!(
-        "    gx = {:>10.6} ± {:.2e}       (cell 1 gain - 1; 0 nominal)",
-        nf.gain[0],
-        s("gx")
-    );
-    println!(
-        "    gy = {:>10.6} ± {:.2e}       (cell 3 gain - 1; 0 nominal)",
-        nf.gain[1],
-        s("gy")
-    );
-    println!(
-        "    bx = {:>10.3e} ± {:.2e} /in2  (cell 1 offset; 0 nominal)",
-        nf.bias[0],
-        s("bx")
-    );
-    println!(
-        "    by = {:>10.3e} ± {:.2e} /in2  (cell 3 offset; 0 nominal)",
-        nf.bias[1],
-        s("by")
-    );
+    let ay = nf.face_angles_deg()[1];
+    row("a", nf.alpha_deg, "deg", "(face angle, X pair; 30 nominal)");
+    row("ay", ay, "deg", "(face angle, Y pair; 30 nominal)");
+    row("s", nf.s, "in", "(cell offset; 0.175 nominal)");
+    row("gx", nf.gain[0], "", "(cell 1 gain - 1; 0 nominal)");
+    row("gy", nf.gain[1], "", "(cell 3 gain - 1; 0 nominal)");
+    row("bx", nf.bias[0], "/in2", "(cell 1 offset; 0 nominal)");
+    row("by", nf.bias[1], "/in2", "(cell 3 offset; 0 nominal)");
     println!(
         "    held: beta = {}, beacon pattern m = {}; noise = {:.2} counts ({})",
         nf.beta, nf.pattern_m, c.noise, rep.noise_source

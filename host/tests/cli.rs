@@ -471,6 +471,17 @@ fn calibrate_writes_what_the_board_loads() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("load-calibration"), "{text}");
+    // Each estimate to the digits its 1-sigma resolves, as `cta analyze` prints them.
+    let row = |n: &str| {
+        let line = text
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("{n} ")))
+            .unwrap_or_else(|| panic!("no {n} line in {text}"));
+        (line.to_string(), f["fitted"]["sigma"][n].as_f64().unwrap())
+    };
+    let (line, s_d1) = row("d1");
+    let (v, sd) = cta_host::analyze::digits::pm_parts(f["d"][0].as_f64().unwrap(), s_d1);
+    assert!(line.contains(&format!("{v} ± {sd}")), "{line}");
     let plot = std::fs::read_to_string(&svg).unwrap();
     assert!(
         plot.contains("<svg") && plot.contains("near-field"),
