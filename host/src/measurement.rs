@@ -865,7 +865,8 @@ pub fn check_derived_output(
         return Ok(());
     }
     anyhow::bail!(
-        "{flag} {}: exists and is not {what}: pass --force to replace it",
+        "{flag} {}: exists and is not {what}; not replaced: give another file name, or \
+         --force to replace it",
         out.display()
     )
 }

@@ -418,7 +418,7 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
     use std::io::BufRead;
     if out.is_dir() {
         return Err(format!(
-            "{}: is a directory; give a file name, e.g. {}",
+            "--out {}: is a folder; give a file name (e.g. {})",
             out.display(),
             out.join("sim.csv").display()
         ));
@@ -435,9 +435,9 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
             .and_then(|v| v["generator"].as_str().map(str::to_string));
         if !generator.is_some_and(|g| g.starts_with("cta ") && g.ends_with(" simulate")) {
             return Err(format!(
-                "{}: exists and is not the truth of an earlier `cta simulate` output, and \
-                 writing {} would replace it; not replaced: give another file name, or --force \
-                 to replace it",
+                "--out {1}: {0} exists and is not the truth of an earlier `cta simulate` \
+                 output, and writing {1} would replace it; not replaced: give another file name, \
+                 or --force to replace it",
                 tp.display(),
                 out.display()
             ));
@@ -452,8 +452,9 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
         .and_then(|mut r| r.read_line(&mut first))
         .map_err(|e| {
             format!(
-                "{}: exists and cannot be read ({e}), so it is not known to be an earlier `cta \
-                 simulate` output; not replaced: give another file name, or --force to replace it",
+                "--out {}: exists and cannot be read ({e}), so it is not known to be an \
+                 earlier `cta simulate` output; not replaced: give another file name, or --force \
+                 to replace it",
                 out.display()
             )
         })?;
@@ -461,7 +462,7 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
         return Ok(());
     }
     Err(format!(
-        "{}: exists and is not an earlier `cta simulate` output (first line: `{}`); not \
+        "--out {}: exists and is not an earlier `cta simulate` output (first line: `{}`); not \
          replaced: give another file name, or --force to replace it",
         out.display(),
         first.trim().chars().take(80).collect::<String>()
@@ -750,7 +751,7 @@ mod tests {
         // --out is a directory.
         let e = write_files(&d, &ds, &truth, false).unwrap_err();
         assert!(
-            e.contains(&d.display().to_string()) && e.contains("is a directory"),
+            e.contains(&d.display().to_string()) && e.contains("is a folder"),
             "{e}"
         );
         // The truth cannot be put in place: both partial files are removed.
@@ -789,7 +790,7 @@ mod tests {
         assert_eq!(
             e,
             format!(
-                "{}: exists and is not an earlier `cta simulate` output (first line: `# cta \
+                "--out {}: exists and is not an earlier `cta simulate` output (first line: `# cta \
                  0.1.0 sweep: plan `x``); not replaced: give another file name, or --force to \
                  replace it",
                 data.display()

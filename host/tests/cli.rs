@@ -289,7 +289,7 @@ fn outputs_never_replace_other_kinds_of_file() {
     fails_with(
         &cta(&["simulate", "--out", s(&data), "--separations", "20"]),
         &format!(
-            "{}: exists and is not an earlier `cta simulate` output (first line: `# cta 0.1.0 \
+            "--out {}: exists and is not an earlier `cta simulate` output (first line: `# cta 0.1.0 \
              sweep: plan `x``); not replaced: give another file name, or --force to replace it",
             data.display()
         ),
@@ -319,7 +319,7 @@ fn outputs_never_replace_other_kinds_of_file() {
     fails_with(
         &cta(&["simulate", "--out", s(&d), "--separations", "20"]),
         &format!(
-            "{}: is a directory; give a file name, e.g. {}",
+            "--out {}: is a folder; give a file name (e.g. {})",
             d.display(),
             d.join("sim.csv").display()
         ),
