@@ -41,8 +41,9 @@ enum Cmd {
     /// against the truth when the data carries it.
     Evaluate(commands::EvaluateArgs),
     /// The sensor board's calibration from a measured sweep: the pinhole (eq 65) and
-    /// near-field (eqs 60-63: d, p, face angle, cell offset) fits, the residual RMS of both
-    /// per separation, and the JSON file `cta sensor load-calibration` stores in flash.
+    /// near-field (eqs 60-63: d, p, face angles, cell offset, cell gains and offsets) fits,
+    /// the residual RMS of both per separation (flagging where the model misses), and the
+    /// JSON file `cta sensor load-calibration` stores in flash.
     Calibrate(cta_host::calibrate::CalibrateArgs),
     /// The main job on the built-in simulated CTA (no hardware): near-field errors,
     /// uncertainty, a simulated characterization with a hidden effect, calibration and

@@ -471,6 +471,11 @@ fn calibrate_writes_what_the_board_loads() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("load-calibration"), "{text}");
+    // Clean data: nothing flagged, and a note on what the 1-sigma assume.
+    assert!(
+        !text.contains("misses") && text.contains("note: the 1-sigma"),
+        "{text}"
+    );
     // Each estimate to the digits its 1-sigma resolves, as `cta analyze` prints them.
     let row = |n: &str| {
         let line = text
@@ -523,6 +528,25 @@ fn calibrate_writes_what_the_board_loads() {
     assert!(f["fitted"]["chi2_dof"].as_f64().unwrap() < 1.15, "{r}");
     let w = r["warnings"].to_string();
     assert!(w.contains("from the nominal head pose"), "{w}");
+
+    // A plate tilted 5 deg: absorbed by d and p (d1 off by ~40 sigma) except close in, so
+    // chi2/dof stays under the warning line; the 2 in separation is flagged on its own.
+    let tilt = d.join("tilt.csv");
+    sim(&tilt, &["--effect", "beacon_tilt=5,45"]);
+    let r = json(&cta(&["calibrate", s(&tilt), "--json"]));
+    let f = &r["file"];
+    assert!(f["fitted"]["chi2_dof"].as_f64().unwrap() < 1.2, "{r}");
+    let z = |k: usize| r["by_separation"][k]["near_field_z"].as_f64().unwrap();
+    assert!(z(0) > 5.0, "{r}");
+    assert!((1..15).all(|k| z(k) < 5.0), "{r}");
+    let w = r["warnings"].to_string();
+    assert!(w.contains("misses the data at 2 in"), "{w}");
+    let o = cta(&["calibrate", s(&tilt)]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("<- near-field misses") && !text.contains("note: the 1-sigma"),
+        "{text}"
+    );
 
     // Face angles that differ between the pairs (31 and 30 deg): fitted.
     let faces = d.join("faces.csv");
