@@ -216,8 +216,9 @@ pub enum SensorCommand {
     },
     /// Pose mode: print every pose the board solves.
     ///
-    /// Columns: board sequence number and time; position (in); attitude as roll, pitch, yaw
-    /// (deg, the rotation vector of the MRP); their 1-sigma ("-" when the board has none);
+    /// Columns: board sequence number and time; position (in); attitude as the rotation
+    /// vector rx, ry, rz (deg: the axis times the angle, from the MRP; not Euler angles,
+    /// though close to them below a few degrees); their 1-sigma ("-" when the board has none);
     /// residual RMS (counts); GLSDC iterations; beacons used; the solve time on the board
     /// (us); whether the solve started cold; status.
     Pose {
@@ -228,7 +229,7 @@ pub enum SensorCommand {
         #[arg(long, default_value_t = 10)]
         count: u64,
         /// Print one JSON object per report (every field of the board's pose report, plus
-        /// `attitude_deg`: roll, pitch, yaw) instead of the table.
+        /// `attitude_deg`: the rotation vector rx, ry, rz) instead of the table.
         #[arg(long)]
         json: bool,
         #[command(flatten)]
@@ -626,14 +627,17 @@ pub fn run(args: &SensorArgs) -> Result<()> {
             let cal: Calibration = read_json(file)?;
             link.call(SensorRequest::LoadCalibration(cal))
                 .with_context(|| format!("loading the calibration of {file}"))?;
-            println!("calibration from {file} stored in flash");
+            println!("calibration from {file} stored in flash{}", sim_note(&conn));
         }
         SensorCommand::LoadConstellation { file, .. } => {
             let con: Constellation = read_json(file)?;
             let n = con.beacons.len();
             link.call(SensorRequest::LoadConstellation(con))
                 .with_context(|| format!("loading the constellation of {file}"))?;
-            println!("constellation of {n} beacons from {file} stored in flash");
+            println!(
+                "constellation of {n} beacons from {file} stored in flash{}",
+                sim_note(&conn)
+            );
         }
         SensorCommand::Config { .. } => match link.call(SensorRequest::GetConfig)? {
             Some(SensorResponse::Config(c)) => {
@@ -719,13 +723,13 @@ pub fn run(args: &SensorArgs) -> Result<()> {
 /// The header of `cta sensor pose`'s table (the columns of [`pose_line`]).
 pub fn pose_header() -> String {
     format!(
-        "{:>6} {:>10} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>3} {:>3} {:>8} {:>4} {}",
-        "seq", "t (ms)", "x (in)", "y (in)", "z (in)", "roll", "pitch", "yaw", "sx(in)", "sy", "sz",
-        "sr(deg)", "sp", "sw", "rms", "it", "bcn", "solve us", "cold", "status"
+        "{:>6} {:>10} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7} {:>8} {:>7} {:>7} {:>7} {:>3} {:>3} {:>8} {:>4} {}",
+        "seq", "t (ms)", "x (in)", "y (in)", "z (in)", "rx (deg)", "ry", "rz", "sx(in)", "sy", "sz",
+        "srx(deg)", "sry", "srz", "rms", "it", "bcn", "solve us", "cold", "status"
     )
 }
 
-/// One row of `cta sensor pose`'s table: position, attitude (roll, pitch, yaw in deg), their
+/// One row of `cta sensor pose`'s table: position, attitude (rotation vector, deg), their
 /// 1-sigma ("-" where the board has none), residual RMS, iterations, beacons used, solve time
 /// on the board, cold start, status.
 pub fn pose_line(p: &PoseReport) -> String {
@@ -740,7 +744,7 @@ pub fn pose_line(p: &PoseReport) -> String {
         }
     };
     format!(
-        "{:>6} {:>10.1} {:>9.4} {:>9.4} {:>9.4} {:>8.3} {:>8.3} {:>8.3} {} {} {} {} {} {} {:>7.1} {:>3} {:>3} {:>8} {:>4} {:?}",
+        "{:>6} {:>10.1} {:>9.4} {:>9.4} {:>9.4} {:>8.3} {:>8.3} {:>8.3} {} {} {}  {} {} {} {:>7.1} {:>3} {:>3} {:>8} {:>4} {:?}",
         p.seq,
         p.t_us as f64 / 1000.0,
         p.position[0],
@@ -765,7 +769,7 @@ pub fn pose_line(p: &PoseReport) -> String {
 }
 
 /// A pose report as one line of JSON: every field of the [`PoseReport`], plus
-/// `attitude_deg` (roll, pitch, yaw: the rotation vector of the MRP, as in the table).
+/// `attitude_deg` (the rotation vector of the MRP, deg, as in the table).
 pub fn pose_json(p: &PoseReport) -> serde_json::Result<String> {
     #[derive(Serialize)]
     struct Line<'a> {
@@ -780,8 +784,19 @@ pub fn pose_json(p: &PoseReport) -> serde_json::Result<String> {
     })
 }
 
+/// After "stored in flash": with `--sim` the board lives for this one command, so what it
+/// stored is gone when it ends.
+fn sim_note(conn: &SensorConn) -> &'static str {
+    if conn.sim {
+        " of the simulated board (--sim: it lives for this command only, so the next command \
+         starts from its defaults; `cta sensor sim` keeps one running on a pty for --port)"
+    } else {
+        ""
+    }
+}
+
 /// Attitude angles (deg) about x, y, z of an MRP, `4 atan(|q|) q/|q|` (exact rotation
-/// vector; reads as roll/pitch/yaw for small angles).
+/// vector; close to Euler angles only for small rotations).
 fn small_angles_deg(q: &Vector3<f64>) -> [f64; 3] {
     let n = q.norm();
     if n == 0.0 {

@@ -191,7 +191,7 @@ fn sensor_pose_prints_every_field_and_json() {
     let lines: Vec<&str> = out.lines().collect();
     assert_eq!(lines.len(), 4, "{out}");
     for col in [
-        "sx(in)", "sr(deg)", "rms", "it", "bcn", "solve us", "cold", "status",
+        "rx (deg)", "sx(in)", "srx(deg)", "rms", "it", "bcn", "solve us", "cold", "status",
     ] {
         assert!(lines[0].contains(col), "header lacks {col}: {}", lines[0]);
     }

@@ -466,6 +466,12 @@ fn calibrate_writes_what_the_board_loads() {
     // The board stores it; the file is replaced by a later calibration.
     let o = cta(&["sensor", "--sim", "load-calibration", s(&cal)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The in-process board ends with the command: said, so nobody expects it kept.
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        said.contains("stored in flash of the simulated board") && said.contains("cta sensor sim"),
+        "{said}"
+    );
     let svg = d.join("cal.svg");
     let o = cta(&["calibrate", s(&csv), "--out", s(&cal), "--plot", s(&svg)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
