@@ -67,6 +67,25 @@ enum Cmd {
     Sensor(cta_host::sensor_cmd::SensorArgs),
 }
 
+/// Every option value may be a negative number (`--noise -3` reaches the option's own range
+/// check, which names the allowed range, instead of clap's "unexpected argument '-3'").
+fn negative_values(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|a| {
+        if a.get_action().takes_values() {
+            a.allow_negative_numbers(true)
+        } else {
+            a
+        }
+    })
+    .mut_subcommands(negative_values)
+}
+
+fn parse() -> Cli {
+    use clap::{CommandFactory, FromArgMatches};
+    let matches = negative_values(Cli::command()).get_matches();
+    Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+}
+
 fn main() {
     // Like other command-line tools, end quietly when the reader of our output goes away
     // (`cta fit data.csv | head -1`) instead of panicking in `println!`. Everything a
@@ -76,7 +95,7 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let cli = Cli::parse();
+    let cli = parse();
     let r = match &cli.cmd {
         Cmd::Nearfield(a) => commands::nearfield(a),
         Cmd::Uncertainty(a) => commands::uncertainty_cmd(a),

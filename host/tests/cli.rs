@@ -133,6 +133,16 @@ fn nearfield_and_uncertainty_json() {
         &cta(&["uncertainty", "--diameter-in=-1"]),
         "the sensor diameter must be > 0",
     );
+    // A negative number after a space reaches the option's own check (not "unexpected
+    // argument '-1'").
+    fails_with(
+        &cta(&["uncertainty", "--diameter-in", "-1"]),
+        "the sensor diameter must be > 0",
+    );
+    fails_with(
+        &cta(&["simulate", "--out", "x.csv", "--noise", "-3"]),
+        "--noise must be >= 0 counts",
+    );
     // A noise far below the effects' 1/R tails: above the noise out to 1e7 D, not "below".
     let n = json(&cta(&["nearfield", "--noise-deg", "1e-7", "--json"]));
     assert_eq!(n["crossing_kind"]["proximity"][0], "above_noise_to_1e7_D");
