@@ -159,6 +159,20 @@ pub enum SensorCommand {
         conn: SensorConn,
     },
     /// Print a JSON template (calibration or constellation) to edit and load.
+    ///
+    /// Calibration fields (`cta calibrate --out` writes the same): `d` the head's position on
+    /// the board (in, N frame); `p` its attitude (MRP, C(p) maps N to the head frame); `h` the
+    /// pinhole model's focal constant (counts); `noise` one coordinate's 1-sigma (counts);
+    /// `near_field` (null: pinhole only): `alpha_deg` the cell faces' angle (deg; the X pair's
+    /// when `alpha_y_deg` is set, both pairs' when it is null), `alpha_y_deg` the Y pair's,
+    /// `s` the cells' offset from the head centre (in), `beta` the output scale (counts),
+    /// `pattern_m` the LED pattern exponent (cos^m; 1 Lambertian, from the datasheet), `gain`
+    /// cells 1 and 3's gain minus 1 against their pair, `bias` their offsets (1/in^2, as a
+    /// signal). Out-of-range values are refused by the board, naming the field.
+    ///
+    /// Constellation fields: `beacons`, each an `id` (the NorthStar channel, 0-19) and its
+    /// position `r` (in, target frame); `boresight` the direction the LEDs face (target
+    /// frame). 4 to 20 beacons, distinct ids.
     Template {
         /// Which one.
         kind: TemplateKind,
