@@ -9,11 +9,11 @@
 //! 3. Forward selection over the effect vocabulary ([`model`], [`select`]): each candidate is
 //!    a parametric extension; the best by information criterion that also predicts held-out
 //!    separations better is added, until nothing significant remains.
-//! 4. Report the causes with their parameters, 1-sigma and strong correlations
-//!    ([`Correlation`]; values rounded as [`digits`] says), the held-out gain, chi-square per
-//!    degree of freedom and the angle-error spread per separation before and after; say
-//!    "unexplained structure remains" (and where) when the best extension still leaves
-//!    chi-square per degree of freedom clearly above 1. For every candidate tried on top of
+//! 4. Report the causes with their parameters (in the model's order), 1-sigma and strong
+//!    correlations ([`Correlation`]; values rounded as [`digits`] says), the held-out gain,
+//!    chi-square per degree of freedom and the angle-error spread per separation before and
+//!    after; say "unexplained structure remains" (and where) when the best extension still
+//!    leaves chi-square per degree of freedom clearly above 1. For every candidate tried on top of
 //!    the final model and not accepted, report its estimates +/- 1-sigma and strong
 //!    correlations (how tightly the data rule it out, [`RuledOut`]).
 
@@ -31,7 +31,7 @@ pub use digits::{pm, pm_parts};
 use model::{Base, Cand, FitResult, Model};
 use nalgebra::DMatrix;
 use serde::Serialize;
-use std::collections::BTreeMap;
+use std::borrow::Borrow;
 use std::path::PathBuf;
 
 /// Chi-square per degree of freedom above which the final model is said to leave
@@ -153,10 +153,11 @@ pub struct Cause {
     /// Vocabulary name.
     pub effect: String,
     /// Fitted parameters in the final model, with every named cause (physical units;
-    /// per-separation ones as `x@Sin`). The gains below are those of the step that added it.
-    pub params: BTreeMap<String, f64>,
+    /// per-separation ones as `x@Sin`), in the model's order ([`ParamMap`]). The gains below
+    /// are those of the step that added it.
+    pub params: ParamMap,
     /// Their 1-sigma.
-    pub sigma: BTreeMap<String, f64>,
+    pub sigma: ParamMap,
     /// Held-out RMS gain from adding this effect, counts.
     pub gain_rms_counts: f64,
     /// Chi-square improvement on all data.
@@ -183,6 +184,79 @@ pub struct Cause {
     pub rivals: Vec<Rival>,
     /// What the sensor board can do with it ([`board_note`]).
     pub board: String,
+}
+
+/// Named values in the order they were inserted: a cause's parameters in the model's order
+/// (`beacon_tilt`: `T_deg` before `AZ_deg`; per-separation ones separation by separation).
+/// JSON: an object with the keys in that order (`params.T_deg`).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ParamMap(Vec<(String, f64)>);
+
+impl ParamMap {
+    /// Set `name` to `value`: in place when present, else at the end.
+    pub fn insert(&mut self, name: impl Into<String>, value: f64) {
+        let name = name.into();
+        match self.0.iter_mut().find(|(n, _)| *n == name) {
+            Some(e) => e.1 = value,
+            None => self.0.push((name, value)),
+        }
+    }
+
+    /// The value of `name`.
+    pub fn get<Q>(&self, name: &Q) -> Option<&f64>
+    where
+        String: Borrow<Q>,
+        Q: Eq + ?Sized,
+    {
+        self.0
+            .iter()
+            .find(|(n, _)| n.borrow() == name)
+            .map(|(_, v)| v)
+    }
+
+    /// (name, value) in order.
+    pub fn iter(&self) -> impl Iterator<Item = (&String, &f64)> {
+        self.0.iter().map(|(n, v)| (n, v))
+    }
+
+    /// The names in order.
+    pub fn keys(&self) -> impl Iterator<Item = &String> {
+        self.0.iter().map(|(n, _)| n)
+    }
+
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Whether there is none.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+impl<Q> std::ops::Index<&Q> for ParamMap
+where
+    String: Borrow<Q>,
+    Q: Eq + ?Sized,
+{
+    type Output = f64;
+
+    /// Panics when `name` is absent, like `BTreeMap`'s index.
+    fn index(&self, name: &Q) -> &f64 {
+        self.get(name).expect("no parameter of that name")
+    }
+}
+
+impl Serialize for ParamMap {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(Some(self.0.len()))?;
+        for (n, v) in &self.0 {
+            m.serialize_entry(n, v)?;
+        }
+        m.end()
+    }
 }
 
 /// What the sensor board's pose solver can do with a named effect: whether its calibration
@@ -713,37 +787,39 @@ fn delta_method<'n>(
 
 /// The reported parameters of a cause: values, 1-sigma, correlations between them and with
 /// the starting model.
-type CauseParams = (
-    BTreeMap<String, f64>,
-    BTreeMap<String, f64>,
-    Vec<Correlation>,
-    Vec<Correlation>,
-);
+type CauseParams = (ParamMap, ParamMap, Vec<Correlation>, Vec<Correlation>);
 
 /// The reported parameters of `c` in the fit `f` of `model`, with 1-sigma and correlations by
 /// the delta method (numerical gradient of the reported quantities through the fitted
-/// covariance).
+/// covariance). In the model's order: the reported global quantities as [`Cand::report`]
+/// lists them, then (per-separation effects) `rms_in` and every `x@2in`, separation by
+/// separation.
 fn cause_params(model: &Model, c: Cand, f: &FitResult, seps: &[f64]) -> CauseParams {
-    let mut p = BTreeMap::new();
-    let mut s = BTreeMap::new();
+    let mut p = ParamMap::default();
+    let mut s = ParamMap::default();
     let prop = delta_method(model, c, f, |v| c.report(model.base, v));
     for &(name, val, sg) in &prop.q {
-        p.insert(name.to_string(), val);
-        s.insert(name.to_string(), sg);
+        p.insert(name, val);
+        s.insert(name, sg);
     }
     if !c.local_names().is_empty() {
-        let mut sumsq = 0.0;
-        let mut n = 0;
-        for (k, sep) in seps.iter().enumerate() {
-            for (j, i) in model.local_indices(c, k).enumerate() {
-                let name = format!("{}@{}in", c.local_names()[j], sep);
-                p.insert(name.clone(), f.x[i]);
-                s.insert(name, f.sigma[i]);
-                sumsq += f.x[i] * f.x[i];
-                n += 1;
-            }
+        // name, value, 1-sigma of every per-separation parameter, separation by separation.
+        let locals: Vec<(String, f64, f64)> = seps
+            .iter()
+            .enumerate()
+            .flat_map(|(k, sep)| {
+                model
+                    .local_indices(c, k)
+                    .zip(c.local_names())
+                    .map(move |(i, n)| (format!("{n}@{sep}in"), f.x[i], f.sigma[i]))
+            })
+            .collect();
+        let sumsq: f64 = locals.iter().map(|l| l.1 * l.1).sum();
+        p.insert("rms_in", (sumsq / locals.len().max(1) as f64).sqrt());
+        for (name, val, sg) in locals {
+            p.insert(name.clone(), val);
+            s.insert(name, sg);
         }
-        p.insert("rms_in".into(), (sumsq / n.max(1) as f64).sqrt());
     }
     (p, s, prop.correlations(), prop.base_correlations())
 }
@@ -1656,5 +1732,53 @@ mod tests {
             .expect("beacon_pattern named");
         let base: Vec<&str> = bp.base_correlations.iter().map(|r| r.a.as_str()).collect();
         assert_eq!(base, ["H_deg"], "{:?}", bp.base_correlations);
+    }
+
+    /// A cause lists its parameters in the model's order, not alphabetically: `beacon_tilt`'s
+    /// T_deg before AZ_deg in the text and in the JSON objects `params` and `sigma` (same keys
+    /// as before); `plate_offset`'s summary `rms_in` first, then x, y separation by separation
+    /// (2 in before 10 in).
+    #[test]
+    fn a_cause_lists_its_parameters_in_the_model_order() {
+        let a = run("beacon_tilt=3,45", 100);
+        let c = &a.causes[0];
+        let keys: Vec<&str> = c.params.keys().map(String::as_str).collect();
+        assert_eq!(keys, ["T_deg", "AZ_deg"]);
+        let text = render_text(&a);
+        let line = text
+            .lines()
+            .find(|l| l.contains("T_deg = "))
+            .expect("a parameter line");
+        assert!(
+            line.trim_start().starts_with("T_deg = ") && line.contains(", AZ_deg = "),
+            "{text}"
+        );
+        let json = serde_json::to_string(&a).unwrap();
+        for field in ["params", "sigma"] {
+            let at = format!("\"{field}\":{{\"T_deg\":");
+            assert!(json.contains(&at), "{field}: {json}");
+        }
+        let v = serde_json::to_value(&a).unwrap();
+        assert_eq!(
+            v["causes"][0]["params"]["T_deg"].as_f64(),
+            Some(c.params["T_deg"])
+        );
+        assert_eq!(
+            v["causes"][0]["sigma"]["AZ_deg"].as_f64(),
+            Some(c.sigma["AZ_deg"])
+        );
+
+        let a = run("plate_offset=0.05", 100);
+        let c = &a.causes[0];
+        let mut want = vec!["rms_in".to_string()];
+        for sep in &a.separations {
+            want.push(format!("x@{sep}in"));
+            want.push(format!("y@{sep}in"));
+        }
+        assert_eq!(c.params.keys().cloned().collect::<Vec<_>>(), want);
+        assert_eq!(
+            c.sigma.keys().collect::<Vec<_>>(),
+            want[1..].iter().collect::<Vec<_>>()
+        );
     }
 }
