@@ -717,6 +717,36 @@ impl Propagated<'_> {
     }
 }
 
+/// Quantities `rep` of effect `c`'s global parameters in the fit `f` of `model`: each name and
+/// value, the gradient of each with respect to the fit's free parameters (one row per
+/// quantity, in the order of `f.cov`; numerical, zero for parameters held fixed), and how many
+/// fitted parameters they derive from.
+fn gradients<'n>(
+    model: &Model,
+    c: Cand,
+    f: &FitResult,
+    rep: impl Fn(&[f64]) -> Vec<(&'n str, f64)>,
+) -> (Vec<(&'n str, f64)>, DMatrix<f64>, usize) {
+    let idx: Vec<usize> = model.global_indices(c).collect();
+    let v: Vec<f64> = idx.iter().map(|&i| f.x[i]).collect();
+    let values = rep(&v);
+    let mut g = DMatrix::zeros(values.len(), f.free.len());
+    for (j, &i) in idx.iter().enumerate() {
+        // Where the parameter sits in the covariance of the free parameters.
+        let Some(pj) = f.free.iter().position(|&fi| fi == i) else {
+            continue;
+        };
+        let h = 1e-7 * (1.0 + v[j].abs());
+        let mut vp = v.clone();
+        vp[j] += h;
+        let moved = rep(&vp);
+        for (k, &(_, val)) in values.iter().enumerate() {
+            g[(k, pj)] = (moved[k].1 - val) / h;
+        }
+    }
+    (values, g, v.len())
+}
+
 /// Quantities `rep` of effect `c`'s global parameters in the fit `f` of `model`, propagated
 /// by the delta method ([`Propagated`]).
 fn delta_method<'n>(
@@ -725,39 +755,10 @@ fn delta_method<'n>(
     f: &FitResult,
     rep: impl Fn(&[f64]) -> Vec<(&'n str, f64)>,
 ) -> Propagated<'n> {
-    let idx: Vec<usize> = model.global_indices(c).collect();
-    let v: Vec<f64> = idx.iter().map(|&i| f.x[i]).collect();
-    // Where each parameter sits in the covariance of the free parameters.
-    let at = |i: usize| f.free.iter().position(|&j| j == i);
-    let pos: Vec<Option<usize>> = idx.iter().map(|&i| at(i)).collect();
-    let values = rep(&v);
-    // Jacobian of the quantities with respect to the parameters.
-    let jac: Vec<Vec<f64>> = values
-        .iter()
-        .enumerate()
-        .map(|(k, &(_, val))| {
-            (0..v.len())
-                .map(|j| {
-                    let h = 1e-7 * (1.0 + v[j].abs());
-                    let mut vp = v.clone();
-                    vp[j] += h;
-                    (rep(&vp)[k].1 - val) / h
-                })
-                .collect()
-        })
-        .collect();
-    // Covariance of the quantities with free parameter `pb` (a column of P through J).
-    let with_free = |k: usize, pb: usize| -> f64 {
-        (0..v.len())
-            .filter_map(|a| pos[a].map(|pa| jac[k][a] * f.cov[(pa, pb)]))
-            .sum()
-    };
-    let n = values.len();
-    let cov = DMatrix::from_fn(n, n, |k, l| {
-        (0..v.len())
-            .filter_map(|b| pos[b].map(|pb| jac[l][b] * with_free(k, pb)))
-            .sum::<f64>()
-    });
+    let (values, g, raw) = gradients(model, c, f, rep);
+    // Covariance of the quantities with every free parameter (J P), and between them.
+    let gp = &g * &f.cov;
+    let cov = &gp * g.transpose();
     let q = values
         .iter()
         .enumerate()
@@ -769,20 +770,15 @@ fn delta_method<'n>(
         .iter()
         .enumerate()
         .filter_map(|(i, &name)| {
-            let pb = at(i)?;
+            let pb = f.free.iter().position(|&j| j == i)?;
             Some((
                 name,
                 f.cov[(pb, pb)],
-                (0..n).map(|k| with_free(k, pb)).collect(),
+                gp.column(pb).iter().copied().collect(),
             ))
         })
         .collect();
-    Propagated {
-        q,
-        cov,
-        raw: v.len(),
-        base,
-    }
+    Propagated { q, cov, raw, base }
 }
 
 /// The reported parameters of a cause: values, 1-sigma, correlations between them and with
