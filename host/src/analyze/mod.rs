@@ -10,12 +10,12 @@
 //!    a parametric extension; the best by information criterion that also predicts held-out
 //!    separations better is added, until nothing significant remains.
 //! 4. Report the causes with their parameters (in the model's order), 1-sigma and strong
-//!    correlations ([`Correlation`]; values rounded as [`digits`] says), the held-out gain,
-//!    chi-square per degree of freedom and the angle-error spread per separation before and
-//!    after; say "unexplained structure remains" (and where) when the best extension still
-//!    leaves chi-square per degree of freedom clearly above 1. For every candidate tried on top of
-//!    the final model and not accepted, report its estimates +/- 1-sigma and strong
-//!    correlations (how tightly the data rule it out, [`RuledOut`]).
+//!    correlations ([`Correlation`], also between two causes; values rounded as [`digits`]
+//!    says), the held-out gain, chi-square per degree of freedom and the angle-error spread
+//!    per separation before and after; say "unexplained structure remains" (and where) when
+//!    the best extension still leaves chi-square per degree of freedom clearly above 1. For
+//!    every candidate tried on top of the final model and not accepted, report its estimates
+//!    +/- 1-sigma and strong correlations (how tightly the data rule it out, [`RuledOut`]).
 
 pub mod data;
 pub mod diag;
@@ -64,6 +64,9 @@ VERDICTS:
                       (|rho| >= 0.5), so their 1-sigma alone mislead; `with the starting
                       model`: |rho| >= 0.9 with d, p or H. Every value +/- 1-sigma is rounded
                       to the 2nd significant digit of the 1-sigma (JSON: full precision)
+  correlation between causes: beacon_pattern.H_deg,proximity.S +1.00
+                      after the causes: parameters of two causes correlate (|rho| >= 0.9) in
+                      the final model, so their sizes trade against each other
 
 EXAMPLE:
   cta simulate --out tilt.csv --separations 2..30 --noise 32.8 --samples 5 --effect beacon_tilt=3,45
@@ -338,6 +341,13 @@ pub fn correlation_lines(own: &[Correlation], base: &[Correlation]) -> Vec<Strin
     v
 }
 
+/// `correlation between causes: beacon_pattern.H_deg,proximity.S +1.00`, or None when there
+/// is none
+/// ([`Analysis::cross_correlations`]).
+pub fn cross_correlation_line(c: &[Correlation]) -> Option<String> {
+    (!c.is_empty()).then(|| format!("correlation between causes: {}", correlations_text(c)))
+}
+
 /// A candidate whose BIC is within this of a named cause's is reported as its rival: a BIC
 /// difference below 10 is not "very strong" evidence for one model over the other (Kass and
 /// Raftery's scale).
@@ -502,6 +512,10 @@ pub struct Analysis {
     pub causes: Vec<Cause>,
     /// Effects that improved the fit but are not named, because structure remains.
     pub tentative: Vec<Cause>,
+    /// Correlations between the parameters of two different causes (named or tentative) in
+    /// the final model's fit, at least [`BASE_CORRELATION_MIN`] in magnitude, each name
+    /// qualified by its cause (`proximity.S`): their sizes trade against each other.
+    pub cross_correlations: Vec<Correlation>,
     /// Candidates that could not be tested, and why.
     pub untested: Vec<Untested>,
     /// The final model leaves chi2/dof clearly above 1.
@@ -779,6 +793,68 @@ fn delta_method<'n>(
         })
         .collect();
     Propagated { q, cov, raw, base }
+}
+
+/// Correlations between the reported global quantities ([`Cand::report`]) of two different
+/// effects of `model`, in the order of `effects`, from the one fit `f` (delta method, as
+/// [`delta_method`]), at least [`BASE_CORRELATION_MIN`] in magnitude. Names are qualified by
+/// effect (`proximity.S`); `a` is the earlier effect's. An effect whose quantities derive from
+/// one fitted parameter (`beacon_pattern`'s H_deg and m) contributes its first only;
+/// per-separation parameters are not included.
+fn cross_correlations(model: &Model, f: &FitResult, effects: &[Cand]) -> Vec<Correlation> {
+    /// One effect's quantities: qualified names, gradient rows (J) and J P.
+    struct Quantities {
+        names: Vec<String>,
+        g: DMatrix<f64>,
+        gp: DMatrix<f64>,
+    }
+    impl Quantities {
+        fn var(&self, k: usize) -> f64 {
+            self.gp.row(k).dot(&self.g.row(k))
+        }
+    }
+    let per: Vec<Quantities> = effects
+        .iter()
+        .map(|&c| {
+            let (values, g, raw) = gradients(model, c, f, |v| c.report(model.base, v));
+            let shown = if raw < 2 {
+                values.len().min(1)
+            } else {
+                values.len()
+            };
+            let g = g.rows(0, shown).into_owned();
+            Quantities {
+                names: values
+                    .iter()
+                    .take(shown)
+                    .map(|(n, _)| format!("{}.{n}", c.name()))
+                    .collect(),
+                gp: &g * &f.cov,
+                g,
+            }
+        })
+        .collect();
+    let mut out = Vec::new();
+    for (i, a) in per.iter().enumerate() {
+        for b in &per[i + 1..] {
+            for (k, na) in a.names.iter().enumerate() {
+                for (l, nb) in b.names.iter().enumerate() {
+                    let cov = a.gp.row(k).dot(&b.g.row(l));
+                    let Some(r) = rho(cov, a.var(k), b.var(l)) else {
+                        continue;
+                    };
+                    if r.abs() >= BASE_CORRELATION_MIN {
+                        out.push(Correlation {
+                            a: na.clone(),
+                            b: nb.clone(),
+                            rho: r,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    out
 }
 
 /// The reported parameters of a cause: values, 1-sigma, correlations between them and with
@@ -1092,6 +1168,8 @@ pub fn analyze(
             board: board_note(st.cand.name()),
         });
     }
+    let effects: Vec<Cand> = sel.steps.iter().map(|st| st.cand).collect();
+    let cross_correlations = cross_correlations(fm, ff, &effects);
     let (causes, tentative) = if unexplained {
         (Vec::new(), causes)
     } else {
@@ -1176,6 +1254,7 @@ pub fn analyze(
         model_from: opts.from.name().into(),
         causes,
         tentative,
+        cross_correlations,
         untested,
         unexplained,
         verdict,
@@ -1259,6 +1338,9 @@ pub fn render_text(a: &Analysis) -> String {
             let _ = writeln!(s, "     {line}");
         }
         let _ = writeln!(s, "     on the sensor board: {}", c.board);
+    }
+    if let Some(line) = cross_correlation_line(&a.cross_correlations) {
+        let _ = writeln!(s, "{line}");
     }
     if !a.ruled_out.is_empty() {
         let _ = writeln!(
@@ -1776,5 +1858,87 @@ mod tests {
             c.sigma.keys().collect::<Vec<_>>(),
             want[1..].iter().collect::<Vec<_>>()
         );
+    }
+
+    /// The analysis (defaults) of the setup of [`sim`] with two effects hidden at once.
+    fn run_two(first: &str, second: &str, seed: u64) -> Analysis {
+        let (ds, _) = SimConfig {
+            effects: vec![
+                Effect::parse(first).unwrap(),
+                Effect::parse(second).unwrap(),
+            ],
+            ..sim(first, seed)
+        }
+        .run();
+        analyze(&ds, &Options::default(), &|_: &str| {}).unwrap()
+    }
+
+    /// Hidden `proximity` and `beacon_pattern` are both named, and their sizes trade against
+    /// each other through d3 (H_deg,d3 -0.98 and S,d3 -0.99 here): the final model's fit
+    /// correlates S and H_deg by about +1.00 (the sample correlation of the two estimates
+    /// over seeds 200-239 is +0.999). The text says so in one line after the causes, the
+    /// report next to the causes table, JSON in `cross_correlations`.
+    #[test]
+    fn two_causes_that_trade_report_their_correlation() {
+        let a = run_two("proximity=0.21", "beacon_pattern=45", 100);
+        let names: Vec<&str> = a.causes.iter().map(|c| c.effect.as_str()).collect();
+        assert_eq!(names.len(), 2, "{}", a.verdict);
+        assert!(
+            names.contains(&"proximity") && names.contains(&"beacon_pattern"),
+            "{}",
+            a.verdict
+        );
+        let q = |e: &str| {
+            if e == "proximity" {
+                "proximity.S"
+            } else {
+                "beacon_pattern.H_deg"
+            }
+        };
+        assert_eq!(a.cross_correlations.len(), 1, "{:?}", a.cross_correlations);
+        let r = &a.cross_correlations[0];
+        assert_eq!((r.a.as_str(), r.b.as_str()), (q(names[0]), q(names[1])));
+        assert!(r.rho > 0.99, "rho {}", r.rho);
+        let text = render_text(&a);
+        let line = format!(
+            "\ncorrelation between causes: {},{} {:+.2}\n",
+            r.a, r.b, r.rho
+        );
+        let at = text.find(&line).unwrap_or_else(|| panic!("{text}"));
+        let last_cause = text.rfind("on the sensor board:").unwrap();
+        let ruled_out = text.find("ruled out").unwrap();
+        assert!(last_cause < at && at < ruled_out, "{text}");
+        let json = serde_json::to_value(&a).unwrap();
+        let j = &json["cross_correlations"][0];
+        assert_eq!(
+            (j["a"].as_str(), j["b"].as_str()),
+            (Some(q(names[0])), Some(q(names[1])))
+        );
+        assert_eq!(j["rho"].as_f64(), Some(r.rho));
+        let html = super::report::render(&a).unwrap();
+        let causes_table = html.find("<h2>Named causes</h2>").unwrap();
+        let shown = html
+            .find(&format!("<i>{}</i>", line.trim()))
+            .expect("in the report");
+        assert!(causes_table < shown && shown < html.find("<h2>Ruled out</h2>").unwrap());
+    }
+
+    /// Hidden `cell_gain` and `face_angle` are both named and nearly independent in the final
+    /// fit (|rho| <= 0.11): no correlation between causes in the text, JSON or the report.
+    #[test]
+    fn independent_causes_report_no_correlation_between_them() {
+        let a = run_two("cell_gain=0.03,-0.02", "face_angle=1,-0.5", 100);
+        let names: Vec<&str> = a.causes.iter().map(|c| c.effect.as_str()).collect();
+        assert_eq!(names, ["face_angle", "cell_gain"], "{}", a.verdict);
+        assert!(
+            a.cross_correlations.is_empty(),
+            "{:?}",
+            a.cross_correlations
+        );
+        assert!(!render_text(&a).contains("correlation between causes"));
+        let json = serde_json::to_value(&a).unwrap();
+        assert_eq!(json["cross_correlations"].as_array().map(Vec::len), Some(0));
+        let html = super::report::render(&a).unwrap();
+        assert!(!html.contains("correlation between causes"));
     }
 }

@@ -2,7 +2,7 @@
 //! inline SVG plots (plotters' SVG backend) and no external resources.
 //!
 //! Contents: the verdict; the named causes with parameters, 1-sigma, strong correlations and
-//! held-out gain; the candidates ruled out on top of the final model with their estimates
+//! held-out gain, and the strong correlations between causes; the candidates ruled out on top of the final model with their estimates
 //! +/- 1-sigma and strong correlations; the evidence (every candidate of every round with its
 //! estimates, chi-square and BIC improvement and held-out RMS); residual quiver maps per
 //! separation before and after; held-out RMS versus separation; chi-square per residual
@@ -10,7 +10,9 @@
 //! before and after; the final parameter table; and the residual diagnostics. Every
 //! value +/- 1-sigma is rounded as `analyze::digits` says.
 
-use super::{correlation_lines, g, pm, pm_parts, Analysis, Cause, Correlation};
+use super::{
+    correlation_lines, cross_correlation_line, g, pm, pm_parts, Analysis, Cause, Correlation,
+};
 use crate::noise::html_escape;
 use crate::plot::{render_svg, Panel, Series};
 use plotters::prelude::*;
@@ -189,6 +191,14 @@ pub fn render(a: &Analysis) -> Result<String, String> {
         );
         cause_rows(&mut s, &a.tentative);
         s.push_str("</table>");
+    }
+    if let Some(line) = cross_correlation_line(&a.cross_correlations) {
+        let _ = write!(
+            s,
+            "<p><i>{}</i> (|rho| &ge; 0.9 in the final model's fit: these causes' sizes trade \
+             against each other, and their 1-sigma alone mislead)</p>",
+            html_escape(&line)
+        );
     }
     if !a.structure.is_empty() {
         s.push_str("<h2>Where the unexplained structure is</h2><ul>");
