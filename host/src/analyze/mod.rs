@@ -181,7 +181,7 @@ pub struct Cause {
     /// fit, at least [`BASE_CORRELATION_MIN`] in magnitude.
     pub base_correlations: Vec<Correlation>,
     /// Candidates of the same round that explain the data about as well: significant on
-    /// their own (`dBIC > 10`) and less than [`RIVAL_DBIC`] below this cause. The data do not
+    /// their own (`dBIC > 10`) and within [`RIVAL_DBIC`] of this cause. The data do not
     /// tell them apart (e.g. `proximity` and `beacon_pattern` at small sizes: host/ANALYZE.md,
     /// "Detection limits").
     pub rivals: Vec<Rival>,
@@ -362,6 +362,26 @@ pub struct Rival {
     pub dbic: f64,
 }
 
+/// The rivals of the cause `cand` accepted in `round` with BIC improvement `dbic`: the other
+/// candidates of that round significant on their own (`dBIC > 10`) whose improvement is
+/// within [`RIVAL_DBIC`] of it, above or below. (One far above it fits the data better but was
+/// not accepted, having failed to predict the held-out separations: not a tie.)
+fn rivals(trials: &[select::Trial], round: usize, cand: Cand, dbic: f64) -> Vec<Rival> {
+    trials
+        .iter()
+        .filter(|t| {
+            t.round == round
+                && t.cand != cand
+                && t.dbic > 10.0
+                && (t.dbic - dbic).abs() < RIVAL_DBIC
+        })
+        .map(|t| Rival {
+            effect: t.cand.name().into(),
+            dbic: t.dbic,
+        })
+        .collect()
+}
+
 impl Cause {
     /// "`X` explains the data about as well ..." when the cause has rivals.
     pub fn rivals_line(&self) -> Option<String> {
@@ -374,9 +394,14 @@ impl Cause {
             .map(|r| format!("{} (dBIC {:.1} vs {:.1})", r.effect, r.dbic, self.dbic))
             .collect();
         Some(format!(
-            "but {} explains the data about as well: a BIC difference below {RIVAL_DBIC} does \
-             not tell them apart (host/ANALYZE.md, Detection limits)",
-            list.join(", ")
+            "but {} {} the data about as well: a BIC difference below {RIVAL_DBIC} does not \
+             tell them apart (host/ANALYZE.md, Detection limits)",
+            list.join(", "),
+            if list.len() == 1 {
+                "explains"
+            } else {
+                "explain"
+            }
         ))
     }
 
@@ -1138,20 +1163,7 @@ pub fn analyze(
             .iter()
             .find(|t| t.accepted && t.cand == st.cand)
             .map(|t| t.round);
-        let rivals = sel
-            .trials
-            .iter()
-            .filter(|t| {
-                Some(t.round) == round
-                    && t.cand != st.cand
-                    && t.dbic > 10.0
-                    && t.dbic > st.dbic - RIVAL_DBIC
-            })
-            .map(|t| Rival {
-                effect: t.cand.name().into(),
-                dbic: t.dbic,
-            })
-            .collect();
+        let rivals = round.map_or_else(Vec::new, |r| rivals(&sel.trials, r, st.cand, st.dbic));
         causes.push(Cause {
             effect: st.cand.name().into(),
             params,
@@ -1582,6 +1594,42 @@ mod tests {
             seed,
             ..Default::default()
         }
+    }
+
+    /// A rival is a tie: a candidate of the same round within RIVAL_DBIC of the cause, above
+    /// or below, and significant on its own. One far above (it fit better but failed the
+    /// held-out test, or it would have been named) is no tie, nor one of another round.
+    #[test]
+    fn rivals_are_candidates_within_the_bic_tie_of_the_cause() {
+        let trial = |round: usize, cand: Cand, dbic: f64| super::select::Trial {
+            round,
+            cand,
+            dchi2: dbic,
+            k: 1,
+            dbic,
+            cv_rms: None,
+            cv_chi2: None,
+            accepted: false,
+            failure: None,
+            fit: None,
+        };
+        let trials = [
+            trial(1, Cand::CellGain, 1000.0),
+            trial(1, Cand::Proximity, 995.0),
+            trial(1, Cand::BeaconPattern, 1008.0),
+            trial(1, Cand::BeaconTilt, 357_865.0),
+            trial(1, Cand::FaceAngle, 985.0),
+            trial(2, Cand::Intensity, 1001.0),
+        ];
+        let r = super::rivals(&trials, 1, Cand::CellGain, 1000.0);
+        let names: Vec<&str> = r.iter().map(|r| r.effect.as_str()).collect();
+        assert_eq!(names, ["proximity", "beacon_pattern"]);
+        // Small causes: a rival must be significant on its own.
+        let trials = [
+            trial(1, Cand::CellGain, 14.0),
+            trial(1, Cand::Proximity, 8.0),
+        ];
+        assert!(super::rivals(&trials, 1, Cand::CellGain, 14.0).is_empty());
     }
 
     fn run(effect: &str, seed: u64) -> Analysis {
