@@ -1211,8 +1211,29 @@ pub fn analyze(
                     .join(", ")
             )
         };
+        // One sample per point and no --noise: the chi-square rests on an assumed noise. When
+        // no extension gains even 1 % of the held-out RMS, the excess is most likely the
+        // sensor's own noise, larger than assumed, not structure: say what to rerun with.
+        let assumed = !data.noise_measured && opts.noise.is_none();
+        let gain = sel.base_cv.rms - fcv.rms;
+        let hint = if assumed && gain < 0.01 * sel.base_cv.rms {
+            format!(
+                ". But the noise was assumed ({:.1} counts; one sample per \
+                 point) and no extension gains 1 % of the held-out RMS ({:.1} -> {:.1} counts): \
+                 the residuals look like noise of about {:.0} counts rather than structure. If \
+                 that is the sensor's noise, rerun with --noise {:.0} (better: sweep with \
+                 repeated samples, which measure it)",
+                data::DEFAULT_NOISE_COUNTS,
+                sel.base_cv.rms,
+                fcv.rms,
+                sel.base_cv.rms,
+                sel.base_cv.rms
+            )
+        } else {
+            String::new()
+        };
         format!(
-            "unexplained structure remains: chi2/dof {:.2} after the best extension (starting model {:.2}){part}",
+            "unexplained structure remains: chi2/dof {:.2} after the best extension (starting model {:.2}){part}{hint}",
             final_chi2, base_chi2
         )
     } else if causes.is_empty() {
@@ -1630,6 +1651,33 @@ mod tests {
             trial(1, Cand::Proximity, 8.0),
         ];
         assert!(super::rivals(&trials, 1, Cand::CellGain, 14.0).is_empty());
+    }
+
+    /// One sample per point with 3x the assumed noise: the excess chi-square is no structure
+    /// (no extension gains), and the verdict says to rerun with the noise it sees; with that
+    /// noise nothing is named.
+    #[test]
+    fn a_noise_larger_than_assumed_is_pointed_out() {
+        let cfg = SimConfig {
+            effects: Vec::new(),
+            noise: 100.0,
+            samples: 1,
+            ..sim("cell_gain=0", 3)
+        };
+        let (ds, _) = cfg.run();
+        let a = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
+        assert!(a.unexplained, "{}", a.verdict);
+        assert!(
+            a.verdict.contains("rerun with --noise 10") && a.causes.is_empty(),
+            "{}",
+            a.verdict
+        );
+        let opts = Options {
+            noise: Some(100.0),
+            ..Options::default()
+        };
+        let a = analyze(&ds, &opts, &|_: &str| {}).unwrap();
+        assert!(!a.unexplained && a.causes.is_empty(), "{}", a.verdict);
     }
 
     fn run(effect: &str, seed: u64) -> Analysis {
