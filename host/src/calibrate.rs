@@ -36,9 +36,8 @@ use cta_core::pose::{Calibration, NearField};
 use nalgebra::{DVector, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::analyze::data::PINNED;
 use crate::fit::{self, Weights};
-use crate::measurement::{fmt_list, parse_separations, Dataset};
+use crate::measurement::{any_sample_pinned, fmt_list, mean_near_rail, parse_separations, Dataset};
 
 /// Near-field chi2/dof above which the report warns that the data hold structure the chip's
 /// model cannot represent.
@@ -487,10 +486,7 @@ pub fn calibrate(
     let mut pinned = 0;
     for p in ds.points() {
         let rows: Vec<_> = p.rows.iter().map(|&i| &ds.samples[i]).collect();
-        if rows
-            .iter()
-            .any(|s| s.x.abs() >= PINNED || s.y.abs() >= PINNED)
-        {
+        if any_sample_pinned(rows.iter().copied()) {
             pinned += 1;
             continue;
         }
@@ -540,12 +536,8 @@ pub fn calibrate(
     // (a cell in shadow) and only its noise kept some samples inside: it is left out with
     // the pinned ones. (With a cell offset, a pair in shadow reads the rail, where the
     // model without the offset has no output at all.)
-    let at_rail = |p: &Pt| {
-        let margin = 3.0 * noise / (p.n as f64).sqrt();
-        p.mean.iter().any(|m| m.abs() >= PINNED - margin)
-    };
     let before = pts.len();
-    pts.retain(|p| !at_rail(p));
+    pts.retain(|p| !mean_near_rail(p.mean, noise, p.n));
     pinned += before - pts.len();
     if pts.len() < 8 {
         bail!(

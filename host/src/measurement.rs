@@ -735,6 +735,27 @@ pub struct Point {
     pub rows: Vec<usize>,
 }
 
+/// The NorthStar's outputs are signed 16-bit counts: an output at or beyond this magnitude is
+/// pinned (a cell in shadow or saturated) and says nothing about where the beacon is.
+pub const RAIL: f64 = 32767.0;
+
+/// The rail rule `cta calibrate` and `cta noise` share, first half: whether a coordinate of
+/// any of these samples (the repeated samples of one point) is pinned at +/-[`RAIL`].
+pub fn any_sample_pinned<'a>(samples: impl IntoIterator<Item = &'a Sample>) -> bool {
+    samples
+        .into_iter()
+        .any(|s| s.x.abs() >= RAIL || s.y.abs() >= RAIL)
+}
+
+/// The rail rule, second half: whether the mean `(X, Y)` of `n` samples with one-sample noise
+/// `noise` (counts) has a coordinate within 3 sigma of the mean (`3 noise / sqrt(n)`) of
+/// +/-[`RAIL`]. Such a point's true output was at or past the rail (a cell in shadow) and only
+/// its noise kept its samples inside: its spread and mean are clipped, not measured.
+pub fn mean_near_rail(mean: [f64; 2], noise: f64, n: usize) -> bool {
+    let margin = 3.0 * noise / (n.max(1) as f64).sqrt();
+    mean.iter().any(|m| m.abs() >= RAIL - margin)
+}
+
 /// Format a list of separations compactly.
 pub fn fmt_list(v: &[f64]) -> String {
     v.iter()
@@ -874,6 +895,21 @@ pub fn check_derived_output(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_rail_rule() {
+        let at = |x: f64, y: f64| Sample {
+            x,
+            y,
+            ..Default::default()
+        };
+        assert!(any_sample_pinned(&[at(0.0, 0.0), at(10.0, -32767.0)]));
+        assert!(!any_sample_pinned(&[at(0.0, 0.0), at(32766.0, -32766.0)]));
+        // 3 sigma of a mean of 9 samples of noise 30 is 30 counts.
+        assert!(mean_near_rail([32740.0, 0.0], 30.0, 9));
+        assert!(mean_near_rail([0.0, -32740.0], 30.0, 9));
+        assert!(!mean_near_rail([32730.0, 0.0], 30.0, 9));
+    }
 
     fn read(s: &str) -> Result<Dataset, ReadError> {
         Dataset::from_reader(Path::new("m.csv"), s.as_bytes())
