@@ -3,6 +3,7 @@
 
 use plotters::coord::combinators::BindKeyPoints;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
 
 /// One curve.
@@ -14,7 +15,16 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
     /// Draw dashed (e.g. a noise floor or an uncertainty).
     pub dashed: bool,
+    /// Mark each point (a solid series of at most [`MARKERS_UP_TO`] points is marked anyway,
+    /// so that a few points joined by straight lines do not read as a measured curve).
+    pub markers: bool,
+    /// Error bars: for each point (same order), the half-length in y; empty for none. A
+    /// non-finite or non-positive entry draws no bar.
+    pub y_err: Vec<f64>,
 }
+
+/// A solid series with at most this many points is drawn with markers.
+pub const MARKERS_UP_TO: usize = 15;
 
 impl Series {
     /// A solid curve.
@@ -23,6 +33,8 @@ impl Series {
             label: label.into(),
             points,
             dashed: false,
+            markers: false,
+            y_err: Vec::new(),
         }
     }
     /// A dashed curve.
@@ -31,7 +43,31 @@ impl Series {
             label: label.into(),
             points,
             dashed: true,
+            markers: false,
+            y_err: Vec::new(),
         }
+    }
+    /// Mark each point.
+    pub fn with_markers(mut self) -> Self {
+        self.markers = true;
+        self
+    }
+    /// Draw error bars: `y +/- err[i]` at point `i`.
+    pub fn with_error_bars(mut self, err: Vec<f64>) -> Self {
+        self.y_err = err;
+        self
+    }
+    /// Whether the points are marked (asked for, or a solid series of few points).
+    fn marked(&self) -> bool {
+        self.markers || (!self.dashed && self.points.len() <= MARKERS_UP_TO)
+    }
+    /// The error bars that are drawn: (x, y low, y, y high).
+    fn bars(&self) -> impl Iterator<Item = (f64, f64, f64, f64)> + '_ {
+        self.points
+            .iter()
+            .zip(&self.y_err)
+            .filter(|(_, e)| e.is_finite() && **e > 0.0)
+            .map(|(&(x, y), &e)| (x, y - e, y, y + e))
     }
 }
 
@@ -52,9 +88,59 @@ pub struct Panel {
     pub series: Vec<Series>,
 }
 
-/// The corner for the legend: the one whose quarter-ish box holds the fewest data points
-/// (sampled along the lines), upper right first on a tie.
-fn legend_corner(p: &Panel, (x0, x1): (f64, f64), (y0, y1): (f64, f64)) -> SeriesLabelPosition {
+/// Where the legend goes: a corner of the plot where its box covers no data (the first of
+/// upper right, upper left, lower right, lower left), or, when every corner holds data,
+/// below the plot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum LegendAt {
+    Inside(Corner),
+    Below,
+}
+
+/// A corner of the plot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Corner {
+    UpperRight,
+    UpperLeft,
+    LowerRight,
+    LowerLeft,
+}
+
+/// Whether the segment `a`-`b` (normalised plot coordinates) meets the box
+/// `[x0, x1] x [y0, y1]` (Liang-Barsky clipping).
+fn segment_meets_box(a: (f64, f64), b: (f64, f64), (x0, x1, y0, y1): (f64, f64, f64, f64)) -> bool {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (p, q) in [
+        (-dx, a.0 - x0),
+        (dx, x1 - a.0),
+        (-dy, a.1 - y0),
+        (dy, y1 - a.1),
+    ] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return false;
+            }
+        } else {
+            let t = q / p;
+            if p < 0.0 {
+                t0 = t0.max(t);
+            } else {
+                t1 = t1.min(t);
+            }
+        }
+    }
+    t0 <= t1
+}
+
+/// The legend's place, for a legend box of `(bw, bh)` as fractions of the plot (its lines,
+/// markers and error bars are the data it must not cover).
+fn legend_place(
+    p: &Panel,
+    (x0, x1): (f64, f64),
+    (y0, y1): (f64, f64),
+    (bw, bh): (f64, f64),
+) -> LegendAt {
     let norm = |v: f64, lo: f64, hi: f64, log: bool| {
         let (v, lo, hi) = if log {
             (v.ln(), lo.ln(), hi.ln())
@@ -67,50 +153,131 @@ fn legend_corner(p: &Panel, (x0, x1): (f64, f64), (y0, y1): (f64, f64)) -> Serie
             0.5
         }
     };
-    let mut pts = Vec::new();
+    let keep = |x: f64, y: f64| {
+        x.is_finite() && y.is_finite() && (!p.log_x || x > 0.0) && (!p.log_y || y > 0.0)
+    };
+    let to = |x: f64, y: f64| (norm(x, x0, x1, p.log_x), norm(y, y0, y1, p.log_y));
+    // Segments: the lines, a short cross at each point (its marker), the error bars.
+    let mut segs: Vec<((f64, f64), (f64, f64))> = Vec::new();
     for s in &p.series {
         let q: Vec<(f64, f64)> = s
             .points
             .iter()
-            .filter(|q| q.0.is_finite() && q.1.is_finite())
-            .filter(|q| (!p.log_x || q.0 > 0.0) && (!p.log_y || q.1 > 0.0))
-            .map(|q| (norm(q.0, x0, x1, p.log_x), norm(q.1, y0, y1, p.log_y)))
+            .filter(|q| keep(q.0, q.1))
+            .map(|q| to(q.0, q.1))
             .collect();
-        for w in q.windows(2) {
-            for k in 0..8 {
-                let f = k as f64 / 8.0;
-                pts.push((
-                    w[0].0 + f * (w[1].0 - w[0].0),
-                    w[0].1 + f * (w[1].1 - w[0].1),
-                ));
+        segs.extend(q.windows(2).map(|w| (w[0], w[1])));
+        let r = 0.015;
+        for &(x, y) in &q {
+            segs.push(((x - r, y), (x + r, y)));
+            segs.push(((x, y - r), (x, y + r)));
+        }
+        for (x, lo, _, hi) in s.bars() {
+            let lo = if p.log_y && lo <= 0.0 { y0 } else { lo };
+            if keep(x, lo) && keep(x, hi) {
+                segs.push((to(x, lo), to(x, hi)));
             }
         }
-        pts.extend(q.last().copied());
     }
-    let (bw, bh) = (0.45, 0.45);
     let corners = [
-        (
-            SeriesLabelPosition::UpperRight,
-            1.0 - bw,
-            1.0,
-            1.0 - bh,
-            1.0,
-        ),
-        (SeriesLabelPosition::UpperLeft, 0.0, bw, 1.0 - bh, 1.0),
-        (SeriesLabelPosition::LowerRight, 1.0 - bw, 1.0, 0.0, bh),
-        (SeriesLabelPosition::LowerLeft, 0.0, bw, 0.0, bh),
+        (Corner::UpperRight, 1.0 - bw, 1.0, 1.0 - bh, 1.0),
+        (Corner::UpperLeft, 0.0, bw, 1.0 - bh, 1.0),
+        (Corner::LowerRight, 1.0 - bw, 1.0, 0.0, bh),
+        (Corner::LowerLeft, 0.0, bw, 0.0, bh),
     ];
-    let mut best = (usize::MAX, SeriesLabelPosition::UpperRight);
     for (pos, xa, xb, ya, yb) in corners {
-        let n = pts
-            .iter()
-            .filter(|(x, y)| *x >= xa && *x <= xb && *y >= ya && *y <= yb)
-            .count();
-        if n < best.0 {
-            best = (n, pos);
+        if bw < 1.0
+            && bh < 1.0
+            && !segs
+                .iter()
+                .any(|&(a, b)| segment_meets_box(a, b, (xa, xb, ya, yb)))
+        {
+            return LegendAt::Inside(pos);
         }
     }
-    best.1
+    LegendAt::Below
+}
+
+/// The series that have a legend entry.
+fn labelled(p: &Panel) -> impl Iterator<Item = (usize, &Series)> {
+    p.series
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| !s.label.is_empty())
+}
+
+/// Legend font.
+const LEGEND_FONT: (&str, u32) = ("sans-serif", 12);
+/// Room for the sample line and marker before each legend label, pixels.
+const LEGEND_KEY: i32 = 26;
+/// Padding inside the legend box, pixels.
+const LEGEND_PAD: i32 = 6;
+/// Height of one legend row, pixels.
+const LEGEND_ROW: i32 = 16;
+/// Gap between the plot's edge and a legend inside it, pixels.
+const LEGEND_GAP: i32 = 5;
+
+/// Width of the widest legend label, pixels (plotters' estimate: the SVG has no fonts).
+fn label_width(p: &Panel) -> i32 {
+    let font = LEGEND_FONT.into_font();
+    labelled(p)
+        .map(|(_, s)| font.box_size(&s.label).map(|b| b.0 as i32).unwrap_or(200))
+        .max()
+        .unwrap_or(0)
+}
+
+/// The legend's size in pixels with its entries in `cols` columns.
+fn legend_size(p: &Panel, cols: usize) -> (i32, i32) {
+    let n = labelled(p).count();
+    let rows = n.div_ceil(cols.max(1)) as i32;
+    (
+        cols as i32 * (label_width(p) + LEGEND_KEY) + 2 * LEGEND_PAD,
+        rows * LEGEND_ROW + 2 * LEGEND_PAD,
+    )
+}
+
+/// Draw the legend with its top left corner at `at` (pixels of `area`), entries in `cols`
+/// columns, framed (inside the plot) or not (below it).
+fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    p: &Panel,
+    at: (i32, i32),
+    cols: usize,
+    framed: bool,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let cols = cols.max(1);
+    let (w, h) = legend_size(p, cols);
+    if framed {
+        let corners = [at, (at.0 + w, at.1 + h)];
+        area.draw(&Rectangle::new(corners, WHITE.mix(0.85).filled()))?;
+        area.draw(&Rectangle::new(corners, BLACK))?;
+    }
+    let col_w = label_width(p) + LEGEND_KEY;
+    for (j, (k, s)) in labelled(p).enumerate() {
+        let col = COLORS[k % COLORS.len()];
+        let x = at.0 + LEGEND_PAD + (j % cols) as i32 * col_w;
+        let y = at.1 + LEGEND_PAD + (j / cols) as i32 * LEGEND_ROW + LEGEND_ROW / 2;
+        let style = ShapeStyle {
+            color: col.to_rgba(),
+            filled: false,
+            stroke_width: 2,
+        };
+        if s.dashed {
+            area.draw(&PathElement::new(vec![(x, y), (x + 7, y)], style))?;
+            area.draw(&PathElement::new(vec![(x + 11, y), (x + 18, y)], style))?;
+        } else {
+            area.draw(&PathElement::new(vec![(x, y), (x + 18, y)], style))?;
+        }
+        if s.marked() {
+            area.draw(&Circle::new((x + 9, y), 3, col.filled()))?;
+        }
+        let font = LEGEND_FONT
+            .into_font()
+            .color(&BLACK)
+            .pos(Pos::new(HPos::Left, VPos::Center));
+        area.draw(&Text::new(s.label.clone(), (x + LEGEND_KEY - 4, y), font))?;
+    }
+    Ok(())
 }
 
 const COLORS: [RGBColor; 8] = [
@@ -145,6 +312,35 @@ fn range(vals: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
     }
 }
 
+/// Margin around a panel, pixels.
+const MARGIN: i32 = 12;
+/// Room for the x tick labels and description, pixels.
+const X_LABEL_AREA: i32 = 36;
+/// Room for the y tick labels and description, pixels.
+const Y_LABEL_AREA: i32 = 60;
+/// Panel caption font.
+const CAPTION_FONT: (&str, u32) = ("sans-serif", 16);
+
+/// The size in pixels of the plot inside a panel of `(w, h)` pixels (laid out once on a
+/// scratch canvas: the caption's height is plotters' own).
+fn plot_size(title: &str, (w, h): (u32, u32)) -> (i32, i32) {
+    let mut scratch = String::new();
+    let root = SVGBackend::with_string(&mut scratch, (w.max(1), h.max(1))).into_drawing_area();
+    let mut b = ChartBuilder::on(&root);
+    b.caption(title, CAPTION_FONT)
+        .margin(MARGIN)
+        .x_label_area_size(X_LABEL_AREA)
+        .y_label_area_size(Y_LABEL_AREA);
+    let size = match b.build_cartesian_2d(0.0..1.0, 0.0..1.0) {
+        Ok(c) => {
+            let (pw, ph) = c.plotting_area().dim_in_pixel();
+            (pw as i32, ph as i32)
+        }
+        Err(_) => (w as i32, h as i32),
+    };
+    size
+}
+
 fn draw_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, plotters::coord::Shift>,
     p: &Panel,
@@ -160,18 +356,46 @@ where
         .series
         .iter()
         .flat_map(|s| s.points.iter().filter(|q| keep(q.0, q.1)).map(|q| q.0));
-    let ys = p
-        .series
-        .iter()
-        .flat_map(|s| s.points.iter().filter(|q| keep(q.0, q.1)).map(|q| q.1));
+    // The y range holds the error bars too.
+    let ys = p.series.iter().flat_map(|s| {
+        s.points
+            .iter()
+            .filter(|q| keep(q.0, q.1))
+            .map(|q| q.1)
+            .chain(s.bars().flat_map(|(_, lo, _, hi)| [lo, hi]))
+    });
     let (x0, x1) = range(xs, p.log_x);
     let (y0, y1) = range(ys, p.log_y);
-    let legend_at = legend_corner(p, (x0, x1), (y0, y1));
-    let mut b = ChartBuilder::on(area);
-    b.caption(&p.title, ("sans-serif", 16))
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(60);
+    // The legend: in a corner of the plot where it covers no data, else below the plot.
+    let (aw, ah) = area.dim_in_pixel();
+    let (pw, ph) = plot_size(&p.title, (aw, ah));
+    let (lw, lh) = legend_size(p, 1);
+    let place = if labelled(p).next().is_none() {
+        None
+    } else {
+        let frac = |l: i32, full: i32| f64::from(l + LEGEND_GAP) / f64::from(full.max(1));
+        Some(legend_place(
+            p,
+            (x0, x1),
+            (y0, y1),
+            (frac(lw, pw), frac(lh, ph)),
+        ))
+    };
+    let (chart_area, below) = if place == Some(LegendAt::Below) {
+        let n = labelled(p).count();
+        let col_w = label_width(p) + LEGEND_KEY;
+        let cols = ((aw as i32 - 2 * MARGIN - Y_LABEL_AREA) / col_w.max(1)).clamp(1, n as i32);
+        let (_, h) = legend_size(p, cols as usize);
+        let (top, bottom) = area.split_vertically(ah as i32 - h);
+        (top, Some((bottom, cols as usize)))
+    } else {
+        (area.clone(), None)
+    };
+    let mut b = ChartBuilder::on(&chart_area);
+    b.caption(&p.title, CAPTION_FONT)
+        .margin(MARGIN)
+        .x_label_area_size(X_LABEL_AREA)
+        .y_label_area_size(Y_LABEL_AREA);
     macro_rules! body {
         ($chart:expr) => {{
             let mut c = $chart;
@@ -196,23 +420,48 @@ where
                     stroke_width: 2,
                 };
                 if s.dashed {
-                    c.draw_series(DashedLineSeries::new(pts, 6, 4, style))
-                        .map_err(e)?
-                        .label(s.label.as_str())
-                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col));
+                    c.draw_series(DashedLineSeries::new(pts.clone(), 6, 4, style))
+                        .map_err(e)?;
                 } else {
-                    c.draw_series(LineSeries::new(pts, style))
-                        .map_err(e)?
-                        .label(s.label.as_str())
-                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], col));
+                    c.draw_series(LineSeries::new(pts.clone(), style))
+                        .map_err(e)?;
+                }
+                if s.marked() {
+                    c.draw_series(pts.iter().map(|&q| Circle::new(q, 3, col.filled())))
+                        .map_err(e)?;
+                }
+                let bar = ShapeStyle {
+                    color: col.to_rgba(),
+                    filled: false,
+                    stroke_width: 1,
+                };
+                let bars: Vec<_> = s
+                    .bars()
+                    .map(|(x, lo, y, hi)| (x, if p.log_y && lo <= 0.0 { y0 } else { lo }, y, hi))
+                    .filter(|&(x, lo, y, hi)| keep(x, lo) && keep(x, y) && keep(x, hi))
+                    .collect();
+                for (x, lo, _, hi) in bars {
+                    c.draw_series([PathElement::new(vec![(x, lo), (x, hi)], bar)])
+                        .map_err(e)?;
+                    for end in [lo, hi] {
+                        c.draw_series([EmptyElement::at((x, end))
+                            + PathElement::new(vec![(-4, 0), (4, 0)], bar)])
+                            .map_err(e)?;
+                    }
                 }
             }
-            c.configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .position(legend_at)
-                .draw()
-                .map_err(e)?;
+            if let Some(LegendAt::Inside(pos)) = place {
+                let plot = c.plotting_area().strip_coord_spec();
+                let (w, h) = plot.dim_in_pixel();
+                let (w, h) = (w as i32, h as i32);
+                let at = match pos {
+                    Corner::UpperRight => (w - lw - LEGEND_GAP, LEGEND_GAP),
+                    Corner::UpperLeft => (LEGEND_GAP, LEGEND_GAP),
+                    Corner::LowerRight => (w - lw - LEGEND_GAP, h - lh - LEGEND_GAP),
+                    Corner::LowerLeft => (LEGEND_GAP, h - lh - LEGEND_GAP),
+                };
+                draw_legend(&plot, p, at, 1, true).map_err(e)?;
+            }
         }};
     }
     match (p.log_x, p.log_y) {
@@ -236,23 +485,54 @@ where
             )
             .map_err(e)?),
     }
+    if let Some((bottom, cols)) = below {
+        draw_legend(&bottom, p, (MARGIN + Y_LABEL_AREA, 0), cols, false).map_err(e)?;
+    }
     Ok(())
 }
 
-/// Tick positions on a log axis: 1, 2, 5 per decade (1 per decade over wide ranges).
+/// The fewest labelled ticks a log axis gets.
+const MIN_LOG_TICKS: usize = 3;
+
+/// Tick positions on a log axis: 1, 2, 5 per decade (1 per decade over wide ranges); 1 to 9
+/// per decade when that gives fewer than [`MIN_LOG_TICKS`], and evenly spaced round values
+/// (a step of 1, 2 or 5 times a power of 10) when even that does (a range well under a
+/// decade, e.g. 28 to 34).
 fn log_keys(lo: f64, hi: f64) -> Vec<f64> {
     let (a, b) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
-    let mult: &[f64] = if b - a > 4 { &[1.0] } else { &[1.0, 2.0, 5.0] };
-    let mut v = Vec::new();
-    for k in a..=b {
-        for m in mult {
-            let x: f64 = format!("{m}e{k}").parse().unwrap_or(f64::NAN);
-            if x >= lo && x <= hi {
-                v.push(x);
+    let keys = |mult: &[f64]| {
+        let mut v = Vec::new();
+        for k in a..=b {
+            for m in mult {
+                let x: f64 = format!("{m}e{k}").parse().unwrap_or(f64::NAN);
+                if x >= lo && x <= hi {
+                    v.push(x);
+                }
             }
         }
+        v
+    };
+    let v = keys(if b - a > 4 { &[1.0] } else { &[1.0, 2.0, 5.0] });
+    if v.len() >= MIN_LOG_TICKS || !(lo > 0.0 && hi > lo) {
+        return v;
     }
-    v
+    let v = keys(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+    if v.len() >= MIN_LOG_TICKS {
+        return v;
+    }
+    let raw = (hi - lo) / 5.0;
+    let p10 = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|m| m * p10)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * p10);
+    let first = (lo / step).ceil() as i64;
+    let last = (hi / step).floor() as i64;
+    (first..=last)
+        .map(|k| format!("{:e}", k as f64 * step).parse().unwrap_or(f64::NAN))
+        .filter(|x: &f64| *x > 0.0)
+        .collect()
 }
 
 /// A tick label with at most 3 significant digits and no float noise.
@@ -329,4 +609,85 @@ pub fn refuse_to_replace_non_svg(path: &Path) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_log_axis_under_a_decade_gets_several_ticks() {
+        // 28 to 34 counts padded by 1.2 (the noise plot's zoom): one tick (30) before.
+        for (lo, hi) in [
+            (28.0 / 1.2, 34.0 * 1.2),
+            (0.9, 1.3),
+            (150.0, 900.0),
+            (3.0, 7.0),
+        ] {
+            let k = log_keys(lo, hi);
+            assert!(k.len() >= MIN_LOG_TICKS, "{lo}..{hi}: {k:?}");
+            assert!(k.windows(2).all(|w| w[0] < w[1]), "{k:?}");
+            assert!(k.iter().all(|v| *v >= lo && *v <= hi), "{k:?}");
+        }
+        assert_eq!(
+            log_keys(0.9, 110.0),
+            vec![1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0]
+        );
+    }
+
+    fn panel(series: Vec<Series>) -> Panel {
+        Panel {
+            title: "t".into(),
+            x_desc: "x".into(),
+            y_desc: "y".into(),
+            log_x: false,
+            log_y: false,
+            series,
+        }
+    }
+
+    #[test]
+    fn the_legend_covers_no_data() {
+        // A diagonal from lower left to upper right: the other two corners are free.
+        let diag = panel(vec![Series::new("a", vec![(0.0, 0.0), (1.0, 1.0)])]);
+        assert_eq!(
+            legend_place(&diag, (0.0, 1.0), (0.0, 1.0), (0.3, 0.2)),
+            LegendAt::Inside(Corner::UpperLeft)
+        );
+        // Curves along the top and the bottom edges: no corner is free, so below the plot.
+        let edges = panel(vec![
+            Series::new("top", vec![(0.0, 0.95), (1.0, 0.95)]),
+            Series::dashed("bottom", vec![(0.0, 0.05), (1.0, 0.05)]),
+        ]);
+        assert_eq!(
+            legend_place(&edges, (0.0, 1.0), (0.0, 1.0), (0.3, 0.2)),
+            LegendAt::Below
+        );
+        // An error bar reaching into a corner occupies it.
+        let bar = panel(vec![
+            Series::new("a", vec![(0.0, 0.5), (1.0, 0.5)]).with_error_bars(vec![0.0, 0.45])
+        ]);
+        assert_eq!(
+            legend_place(&bar, (0.0, 1.0), (0.0, 1.0), (0.3, 0.3)),
+            LegendAt::Inside(Corner::UpperLeft)
+        );
+    }
+
+    #[test]
+    fn few_points_are_marked() {
+        let svg = render_svg(
+            "",
+            &[panel(vec![Series::new(
+                "a",
+                vec![(1.0, 1.0), (30.0, 2.0), (100.0, 0.5)],
+            )])],
+            1,
+        )
+        .unwrap();
+        assert_eq!(
+            svg.matches("<circle").count(),
+            3 + 1,
+            "3 points and the legend's key"
+        );
+    }
 }
