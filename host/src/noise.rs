@@ -9,7 +9,16 @@
 //! group, the X-Y correlation, and the weighting the spread implies for `cta fit` and
 //! `cta analyze` (eq 56's `W = R^-1`): one variance for the file when the groups agree,
 //! per separation when they differ by separation (the `analyze --weights separation`
-//! default), per point when they differ within a separation.
+//! default), per point when they differ within a separation. Whether the groups of a factor
+//! differ is Bartlett's chi-square test of equal variances (each axis at 0.5 %), which holds
+//! its false-alarm rate however many groups there are; each group's standard deviation carries
+//! its standard error from sampling, `std / sqrt(2 dof)`, the error bar of the plot.
+//!
+//! Points at the 16-bit rail are left out, by `cta calibrate`'s rule
+//! ([`crate::measurement::any_sample_pinned`], [`crate::measurement::mean_near_rail`]): a
+//! coordinate pinned at +/-32767 in any sample, or the mean within 3 sigma of it. A cell in
+//! shadow or saturated clips the spread, so such a point reads quieter than the sensor is (at
+//! 2 in on the simulated CTA, 58 of 100 points: they made constant noise look lower there).
 //!
 //! It also gives the repeatability of the spot magnitude (the one-sample standard deviation
 //! of each point's magnitude relative to its mean, pooled overall and per separation): the
@@ -19,7 +28,7 @@
 //! The off-boresight angle here is geometric (no model): the angle of the beacon from the
 //! board normal seen from the N origin, `atan(hypot(x, y) / z)`.
 
-use crate::measurement::{Dataset, Sample};
+use crate::measurement::{any_sample_pinned, mean_near_rail, Dataset, Sample};
 use crate::plot::{render_svg, Panel, Series};
 use anyhow::Context;
 use serde::Serialize;
@@ -32,8 +41,11 @@ use std::path::PathBuf;
 Needs repeated samples (several rows per beacon, separation and setting). For each factor the
 file records (separation, off-boresight angle, signal magnitude, modulation frequency, power
 level, sensitivity setting) the table gives the pooled one-sample standard deviation of X and
-Y in counts, and the verdict says which weighting to use in `cta analyze --weights`. Last, the
-repeatability of the spot magnitude (one-sample std over mean, in %): what
+Y in counts with its standard error from sampling, whether the groups differ beyond sampling
+(Bartlett's test, 1 %), and the verdict says which weighting to use in `cta analyze --weights`.
+Points at the 16-bit rail (a coordinate at +/-32767 in any sample, or the mean within 3 sigma
+of it: a cell in shadow or saturated) are left out of everything, as `cta calibrate` does, and
+counted. Last, the repeatability of the spot magnitude (one-sample std over mean, in %): what
 `cta sensor floor --magnitude-noise` takes to tell what the magnitudes would add to the pose.
 
 EXAMPLE:
@@ -65,6 +77,23 @@ pub struct Group {
     pub std_x: f64,
     /// Of Y.
     pub std_y: f64,
+    /// Standard error of `std_x` from sampling alone ([`std_standard_error`]), counts: the
+    /// error bar of the plot.
+    pub se_x: f64,
+    /// Of `std_y`.
+    pub se_y: f64,
+}
+
+/// The sampling law behind both the error bars and the homogeneity test: a variance pooled
+/// over `dof` degrees of freedom of Gaussian noise has relative standard deviation
+/// `sqrt(2 / dof)` (chi-square), so its root, the standard deviation, has standard error
+/// `std / sqrt(2 dof)`.
+pub fn std_standard_error(std: f64, dof: usize) -> f64 {
+    if dof == 0 {
+        f64::NAN
+    } else {
+        std / (2.0 * dof as f64).sqrt()
+    }
 }
 
 /// Noise by one factor.
@@ -76,7 +105,16 @@ pub struct Factor {
     pub groups: Vec<Group>,
     /// Largest over smallest group std (both axes), 1 when uniform.
     pub spread_ratio: f64,
-    /// Whether the spread exceeds what sampling alone explains (99 % chi-square bound).
+    /// Bartlett's homogeneity statistic of the group variances, X and Y (chi-square with
+    /// `test_dof` degrees of freedom when only sampling separates the groups); `NaN` when
+    /// fewer than 2 groups have 2 or more degrees of freedom.
+    pub statistic: [f64; 2],
+    /// Degrees of freedom of the statistic: groups tested minus 1.
+    pub test_dof: usize,
+    /// The statistic's 99.5 % point for `test_dof` (each axis at 0.5 %, so about 1 % that
+    /// either axis passes it by sampling alone, however many groups).
+    pub bound: f64,
+    /// Whether the spread exceeds what sampling alone explains: a statistic above `bound`.
     pub significant: bool,
 }
 
@@ -91,6 +129,8 @@ pub struct NoiseReport {
     pub points_repeated: usize,
     /// Points with one sample (no variance).
     pub points_single: usize,
+    /// Points left out of the X, Y noise (their spread is clipped by the 16-bit rail).
+    pub left_out: LeftOut,
     /// Pooled one-sample std over the file (X, Y), counts.
     pub std_all: [f64; 2],
     /// Pooled X-Y correlation of the deviations.
@@ -106,13 +146,30 @@ pub struct NoiseReport {
     pub magnitude: Option<MagnitudeNoise>,
 }
 
+/// Points left out of the X, Y noise by `cta calibrate`'s rail rule: a coordinate pinned at
+/// +/-32767 in any sample, or the point's mean within 3 sigma of it (sigma: the one-sample
+/// noise pooled over the other points, over the root of the point's samples). A cell in shadow
+/// or saturated clips the spread, so such a point would read quieter than the sensor is.
+#[derive(Debug, Clone, Serialize)]
+pub struct LeftOut {
+    /// Points left out.
+    pub points: usize,
+    /// Of which with a coordinate pinned at +/-32767 in some sample.
+    pub pinned_sample: usize,
+    /// Of which with no pinned sample but a mean within 3 sigma of the rail.
+    pub mean_near_rail: usize,
+    /// By separation: (separation in, points left out), only separations with some.
+    pub by_separation: Vec<(f64, usize)>,
+}
+
 /// Repeatability of the spot magnitude: one-sample standard deviation relative to the
 /// point's mean magnitude, pooled (root of the summed relative squared deviations over the
 /// summed degrees of freedom).
 #[derive(Debug, Clone, Serialize)]
 pub struct MagnitudeNoise {
-    /// Points pooled (repeated samples, every sample with a positive magnitude below the
-    /// 16-bit ceiling [`MAGNITUDE_CEILING`]: a pinned magnitude has no spread to measure).
+    /// Points pooled (repeated samples, not left out at the X, Y rail, every sample with a
+    /// positive magnitude below the 16-bit ceiling [`MAGNITUDE_CEILING`]: a pinned magnitude
+    /// has no spread to measure).
     pub points: usize,
     /// Over the file, percent.
     pub percent: f64,
@@ -127,6 +184,8 @@ pub const MAGNITUDE_CEILING: f64 = 65535.0;
 struct Pt {
     first: Sample,
     n: usize,
+    /// Mean (X, Y), counts.
+    mean: [f64; 2],
     ss: [f64; 2],
     sxy: f64,
     /// Sum of squared relative deviations of the magnitude (`None` unless every sample has a
@@ -137,44 +196,77 @@ struct Pt {
 fn pool(label: String, key: f64, pts: &[&Pt]) -> Group {
     let dof: usize = pts.iter().map(|p| p.n - 1).sum();
     let d = dof.max(1) as f64;
+    let std_x = (pts.iter().map(|p| p.ss[0]).sum::<f64>() / d).sqrt();
+    let std_y = (pts.iter().map(|p| p.ss[1]).sum::<f64>() / d).sqrt();
     Group {
         label,
         key,
         points: pts.len(),
         dof,
-        std_x: (pts.iter().map(|p| p.ss[0]).sum::<f64>() / d).sqrt(),
-        std_y: (pts.iter().map(|p| p.ss[1]).sum::<f64>() / d).sqrt(),
+        std_x,
+        std_y,
+        se_x: std_standard_error(std_x, dof),
+        se_y: std_standard_error(std_y, dof),
     }
+}
+
+/// Upper `p` point of the chi-square distribution with `k` degrees of freedom (Wilson and
+/// Hilferty's cube-root approximation: within 1 % of the table from 1 degree of freedom on, at
+/// the 99.5 % point used here), `z` the standard normal's upper `p` point.
+fn chi2_upper(k: usize, z: f64) -> f64 {
+    let k = k as f64;
+    let c = 2.0 / (9.0 * k);
+    k * (1.0 - c + z * c.sqrt()).powi(3)
+}
+
+/// Standard normal's 99.5 % point.
+const Z_995: f64 = 2.575_829;
+
+/// Bartlett's statistic for equal variances over groups `(variance, dof)`: under Gaussian
+/// noise of one variance it is chi-square with (groups - 1) degrees of freedom, whatever the
+/// number of groups (testing every pair against a fixed bound instead flags one of many
+/// groups as different by chance alone). `NaN` with fewer than 2 groups; infinite when some
+/// variances are 0 and others are not.
+fn bartlett(groups: &[(f64, usize)]) -> f64 {
+    let k = groups.len();
+    if k < 2 {
+        return f64::NAN;
+    }
+    let n: f64 = groups.iter().map(|g| g.1 as f64).sum();
+    let pooled = groups.iter().map(|g| g.0 * g.1 as f64).sum::<f64>() / n;
+    if pooled <= 0.0 {
+        return 0.0;
+    }
+    if groups.iter().any(|g| g.0 <= 0.0) {
+        return f64::INFINITY;
+    }
+    let num = n * pooled.ln() - groups.iter().map(|g| g.1 as f64 * g.0.ln()).sum::<f64>();
+    let c = 1.0
+        + (groups.iter().map(|g| 1.0 / g.1 as f64).sum::<f64>() - 1.0 / n)
+            / (3.0 * (k as f64 - 1.0));
+    num / c
 }
 
 fn factor(name: &str, groups: Vec<Group>) -> Factor {
     let g: Vec<&Group> = groups.iter().filter(|g| g.dof >= 2).collect();
-    let mut lo = f64::INFINITY;
-    let mut hi: f64 = 0.0;
-    let mut significant = false;
-    for a in 0..2 {
-        let s: Vec<f64> = g
-            .iter()
-            .map(|g| if a == 0 { g.std_x } else { g.std_y })
-            .collect();
-        for &v in &s {
-            lo = lo.min(v);
-            hi = hi.max(v);
-        }
-        // Each group's variance estimate has relative sd sqrt(2/dof); flag a spread beyond
-        // ~2.6 of those (99 %) between the extreme groups.
-        for (i, gi) in g.iter().enumerate() {
-            for (j, gj) in g.iter().enumerate() {
-                if i < j {
-                    let (vi, vj) = (s[i] * s[i], s[j] * s[j]);
-                    let sd = ((2.0 / gi.dof as f64) + (2.0 / gj.dof as f64)).sqrt();
-                    if vi > 0.0 && vj > 0.0 && (vi / vj).ln().abs() > 2.6 * sd {
-                        significant = true;
-                    }
-                }
-            }
-        }
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for v in g.iter().flat_map(|g| [g.std_x, g.std_y]) {
+        lo = lo.min(v);
+        hi = hi.max(v);
     }
+    let statistic = [0, 1].map(|a| {
+        let v: Vec<(f64, usize)> = g
+            .iter()
+            .map(|g| ((if a == 0 { g.std_x } else { g.std_y }).powi(2), g.dof))
+            .collect();
+        bartlett(&v)
+    });
+    let test_dof = g.len().saturating_sub(1);
+    let bound = if test_dof > 0 {
+        chi2_upper(test_dof, Z_995)
+    } else {
+        f64::NAN
+    };
     Factor {
         factor: name.into(),
         spread_ratio: if lo > 0.0 && lo.is_finite() {
@@ -182,7 +274,10 @@ fn factor(name: &str, groups: Vec<Group>) -> Factor {
         } else {
             f64::NAN
         },
-        significant,
+        significant: statistic.iter().any(|t| *t > bound),
+        statistic,
+        test_dof,
+        bound,
         groups,
     }
 }
@@ -270,6 +365,12 @@ fn magnitude_noise(rep: &[&Pt]) -> Option<MagnitudeNoise> {
 /// Analyze the noise of a dataset.
 pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
     let groups = ds.points();
+    // The rail rule of `cta calibrate` ([`any_sample_pinned`], [`mean_near_rail`]): a point
+    // with a coordinate pinned at +/-32767 in any sample, or its mean within 3 sigma of the
+    // rail, has its spread clipped by the rail (a cell in shadow or saturated): it is left out.
+    let (groups, pinned): (Vec<_>, Vec<_>) = groups
+        .into_iter()
+        .partition(|g| !any_sample_pinned(g.rows.iter().map(|&i| &ds.samples[i])));
     let mut pts = Vec::with_capacity(groups.len());
     for g in &groups {
         let n = g.rows.len();
@@ -303,12 +404,54 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
         pts.push(Pt {
             first: g.first,
             n,
+            mean: [mx, my],
             ss,
             sxy,
             ss_mag_rel,
         });
     }
+    // The margin's sigma: the one-sample noise pooled over both axes of the points that
+    // passed the first half of the rule (as `cta calibrate` takes it).
+    let (ss, dof) = pts.iter().fold((0.0, 0), |(s, d), p| {
+        (s + p.ss[0] + p.ss[1], d + 2 * (p.n - 1))
+    });
+    let mut out_seps: Vec<f64> = pinned.iter().map(|g| g.first.separation_in).collect();
+    let mut near_rail = 0;
+    if dof > 0 {
+        let noise = (ss / dof as f64).sqrt();
+        pts.retain(|p| {
+            let out = mean_near_rail(p.mean, noise, p.n);
+            if out {
+                near_rail += 1;
+                out_seps.push(p.first.separation_in);
+            }
+            !out
+        });
+    }
+    let mut by_sep: BTreeMap<u64, usize> = BTreeMap::new();
+    for sep in out_seps {
+        *by_sep.entry(sep.to_bits()).or_default() += 1;
+    }
+    let left_out = LeftOut {
+        points: pinned.len() + near_rail,
+        pinned_sample: pinned.len(),
+        mean_near_rail: near_rail,
+        by_separation: by_sep
+            .into_iter()
+            .map(|(k, v)| (f64::from_bits(k), v))
+            .collect(),
+    };
     let rep: Vec<&Pt> = pts.iter().filter(|p| p.n > 1).collect();
+    if rep.is_empty() && left_out.points > 0 {
+        return Err(format!(
+            "{}: no point with repeated samples is left once the points at the 16-bit rail are \
+             left out ({} with a coordinate pinned at +/-32767 in some sample, {} with a mean \
+             within 3 sigma of it: a cell in shadow or saturated clips the spread)",
+            ds.path.display(),
+            left_out.pinned_sample,
+            left_out.mean_near_rail
+        ));
+    }
     if rep.is_empty() {
         return Err(format!(
             "{}: every point has a single sample: the noise needs repeated samples of one \
@@ -412,6 +555,7 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
         magnitude,
         file: ds.path.display().to_string(),
         samples: ds.samples.len(),
+        left_out,
         points_repeated: rep.len(),
         points_single: pts.len() - rep.len(),
         std_all: [all.std_x, all.std_y],
@@ -431,6 +575,24 @@ pub fn render_text(r: &NoiseReport) -> String {
         "cta noise {}: {} samples, {} points with repeated samples ({} single)",
         r.file, r.samples, r.points_repeated, r.points_single
     );
+    let lo = &r.left_out;
+    if lo.points > 0 {
+        let by: Vec<String> = lo
+            .by_separation
+            .iter()
+            .map(|(sep, n)| format!("{sep} in: {n}"))
+            .collect();
+        let _ = writeln!(
+            s,
+            "{} points left out ({} with a coordinate pinned at +/-32767 in some sample, {} with \
+             a mean within 3 sigma of it):\n  a cell in shadow or saturated clips the spread, so \
+             they would read quieter than the sensor is ({})",
+            lo.points,
+            lo.pinned_sample,
+            lo.mean_near_rail,
+            by.join(", ")
+        );
+    }
     let _ = writeln!(
         s,
         "one-sample std over the file: X {:.2}, Y {:.2} counts; X-Y correlation {:+.3}\n",
@@ -441,16 +603,26 @@ pub fn render_text(r: &NoiseReport) -> String {
             let _ = writeln!(s, "by {}: not recorded in the file\n", f.factor);
             continue;
         }
+        let test = if f.test_dof > 0 {
+            format!(
+                "{}: Bartlett chi2 X {:.1}, Y {:.1} on {} dof, 1 % bound {:.1}",
+                if f.significant {
+                    "differs beyond sampling"
+                } else {
+                    "within sampling"
+                },
+                f.statistic[0],
+                f.statistic[1],
+                f.test_dof,
+                f.bound
+            )
+        } else {
+            "one group: nothing to compare".into()
+        };
         let _ = writeln!(
             s,
-            "by {} (max/min {:.2}{}):",
-            f.factor,
-            f.spread_ratio,
-            if f.significant {
-                ", differs beyond sampling"
-            } else {
-                ", within sampling"
-            }
+            "by {} (max/min {:.2}, {test}):",
+            f.factor, f.spread_ratio
         );
         let _ = writeln!(
             s,
@@ -511,20 +683,51 @@ pub fn render_text(r: &NoiseReport) -> String {
     s
 }
 
+/// The x-axis label of a factor's panel, with its unit.
+fn axis_label(factor: &str) -> String {
+    let unit = match factor {
+        "separation" => "in",
+        "off-boresight angle" => "deg, bin centre",
+        "signal magnitude" => "sensor units, bin centre",
+        "modulation frequency" => "Hz",
+        "power level" => "drive level",
+        "sensitivity setting" => "NorthStar setting",
+        _ => return factor.into(),
+    };
+    format!("{factor} ({unit})")
+}
+
 fn panel(f: &Factor, log_x: bool) -> Panel {
-    let pts = |a: usize| -> Vec<(f64, f64)> {
-        f.groups
+    let series = |a: usize| {
+        let pts = f
+            .groups
             .iter()
             .map(|g| (g.key, if a == 0 { g.std_x } else { g.std_y }))
-            .collect()
+            .collect();
+        let se = f
+            .groups
+            .iter()
+            .map(|g| if a == 0 { g.se_x } else { g.se_y })
+            .collect();
+        Series::new(if a == 0 { "X" } else { "Y" }, pts)
+            .with_markers()
+            .with_error_bars(se)
     };
     Panel {
-        title: format!("noise by {}", f.factor),
-        x_desc: f.factor.clone(),
-        y_desc: "one-sample std (counts)".into(),
+        title: format!(
+            "noise by {} ({})",
+            f.factor,
+            if f.significant {
+                "differs beyond sampling"
+            } else {
+                "within sampling"
+            }
+        ),
+        x_desc: axis_label(&f.factor),
+        y_desc: "one-sample std (counts), bars +/-1 s.e.".into(),
         log_x,
         log_y: false,
-        series: vec![Series::new("X", pts(0)), Series::new("Y", pts(1))],
+        series: vec![series(0), series(1)],
     }
 }
 
@@ -610,6 +813,92 @@ mod tests {
         assert!(analyze_noise(&single)
             .unwrap_err()
             .contains("single sample"));
+    }
+
+    /// The reviewer's repro (`cta simulate --separations 2..30 --noise 32.8 --samples 20`):
+    /// constant noise, but at 2 and 3 in cells in shadow pin samples at the rail. Those points
+    /// are left out (as `cta calibrate` does), and 29 separations of one noise are not called
+    /// different (a bound per pair of groups flagged one of the 406 pairs by chance).
+    #[test]
+    fn constant_noise_with_railed_close_points_is_uniform() {
+        for seed in [1, 2010] {
+            let ds = SimConfig {
+                noise: 32.8,
+                samples: 20,
+                seed,
+                ..Default::default()
+            }
+            .run()
+            .0;
+            assert!(ds.samples.iter().any(|s| s.x.abs() >= 32767.0));
+            let r = analyze_noise(&ds).unwrap();
+            assert!(r.left_out.pinned_sample > 0, "{:?}", r.left_out);
+            assert!(
+                r.left_out.by_separation.iter().all(|(sep, _)| *sep < 5.0),
+                "{:?}",
+                r.left_out
+            );
+            assert_eq!(r.points_repeated + r.left_out.points, 2900);
+            for f in &r.factors {
+                assert!(
+                    !f.significant,
+                    "seed {seed}: {}: {:?}",
+                    f.factor, f.statistic
+                );
+            }
+            assert!(r.weighting.contains("uniform"), "{}", r.weighting);
+            // Every separation's noise within 4 standard errors of the injected 32.8 (58
+            // estimates: one beyond 3 is to be expected), and the railed 2 in within 3.
+            for g in &r.factors[0].groups {
+                let k = if g.key == 2.0 { 3.0 } else { 4.0 };
+                for (v, se) in [(g.std_x, g.se_x), (g.std_y, g.se_y)] {
+                    assert!((v - 32.8).abs() < k * se, "{}: {v} +/- {se}", g.label);
+                }
+            }
+            let text = render_text(&r);
+            assert!(text.contains("points left out"), "{text}");
+            assert!(!text.contains("differs beyond sampling"), "{text}");
+        }
+    }
+
+    /// A point whose samples all stay inside the rail but whose mean is within 3 sigma of it
+    /// is left out too (its spread is clipped by the samples that would have reached it).
+    #[test]
+    fn a_mean_near_the_rail_is_left_out() {
+        let mut ds = two_separations();
+        let first = ds.samples[0];
+        let same = |s: &Sample| s.separation_in == first.separation_in && s.r == first.r;
+        let n = ds.samples.iter().filter(|s| same(s)).count();
+        // Move the point to 2 sigma-of-the-mean below the rail, keeping its spread (30
+        // counts, well inside it at 10 samples: no sample reaches the rail).
+        let mean = ds
+            .samples
+            .iter()
+            .filter(|s| same(s))
+            .map(|s| s.x)
+            .sum::<f64>()
+            / n as f64;
+        let shift = 32767.0 - 2.0 * 30.0 / (n as f64).sqrt() - mean;
+        for s in ds.samples.iter_mut().filter(|s| same(s)) {
+            s.x = (s.x + shift).min(32766.0);
+        }
+        let r = analyze_noise(&ds).unwrap();
+        assert_eq!(
+            (r.left_out.pinned_sample, r.left_out.mean_near_rail),
+            (0, 1),
+            "{:?}",
+            r.left_out
+        );
+        assert_eq!(r.left_out.by_separation, vec![(first.separation_in, 1)]);
+    }
+
+    #[test]
+    fn chi_square_bound_matches_the_table() {
+        // 99.5 % points: 7.879 (1 dof), 18.548 (6), 50.993 (28).
+        for (k, table) in [(1, 7.879), (6, 18.548), (28, 50.993)] {
+            let v = chi2_upper(k, Z_995);
+            assert!((v / table - 1.0).abs() < 0.01, "{k}: {v} vs {table}");
+        }
     }
 
     #[test]
