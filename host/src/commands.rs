@@ -778,12 +778,15 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
                     ev.reference
                 ),
                 x_desc: "separation (in)".into(),
-                y_desc: "deg".into(),
+                y_desc: "error in angle (deg)".into(),
                 log_x: false,
                 log_y: true,
+                // One value per separation: marked, so that a few separations joined by
+                // straight lines do not read as a measured curve.
                 series: vec![
-                    Series::new("std of the error in angle", pts(&ev.angle_std_deg)),
-                    Series::dashed("mean CTA uncertainty (eq 36)", pts(&ev.cta_uncertainty_deg)),
+                    Series::new("std of the error in angle", pts(&ev.angle_std_deg)).with_markers(),
+                    Series::dashed("mean CTA uncertainty (eq 36)", pts(&ev.cta_uncertainty_deg))
+                        .with_markers(),
                 ],
             }],
             1,
