@@ -261,7 +261,8 @@ pub enum SensorCommand {
     /// Simulates frames of the constellation through the eq 63 physics at each range, solves
     /// each with both models (f32, as on the chip) and prints the RMS error of one frame, the
     /// noise floor (the near-field solver's predicted 1-sigma), the systematic error (the same
-    /// poses without noise) and the issue's claims with a verdict each. The near-field
+    /// poses without noise) and the design targets with a verdict each (near-field at least 5x
+    /// more accurate than pinhole at 2-10 in; both at the noise floor at 30 in). The near-field
     /// calibration is fitted to a simulated CTA sweep first, as the lab would do.
     ///
     /// The target's spread and beacon count decide the attitude figures: compare the
@@ -460,7 +461,8 @@ pub struct AccuracyArgs {
     /// Print JSON instead of the table.
     #[arg(long)]
     pub json: bool,
-    /// Exit with an error unless the issue's claims hold (>= 5x at 2-10 in, both at the
+    /// Exit with an error unless every design target holds (near-field at least 5x more
+    /// accurate than pinhole at 2-10 in, in position and attitude; both within 1.5x of the
     /// noise floor at 30 in).
     #[arg(long)]
     pub check: bool,
@@ -971,7 +973,7 @@ pub struct AccuracyRow {
     pub ph_att_sys: f64,
 }
 
-/// One claim of the issue, checked on the table.
+/// One design target, checked on the table.
 #[derive(Debug, Clone, Serialize)]
 pub struct Claim {
     /// What is claimed.
@@ -1084,7 +1086,7 @@ impl AccuracyTable {
                 r.ph_sys_failures,
             );
         }
-        s += "\nClaims (issue 5; `--check` fails unless all hold):\n";
+        s += "\nDesign targets (`--check` fails unless all hold):\n";
         for c in self.claims() {
             s += &format!(
                 "  [{}] {}: {}\n",
@@ -1096,13 +1098,13 @@ impl AccuracyTable {
         s
     }
 
-    /// The issue's claims, each with whether it holds here and the figures behind it:
+    /// The design targets, each with whether it holds here and the figures behind it:
     /// near-field at least 5x more accurate than pinhole in position and in attitude at
     /// 2-10 in (per frame, and for the systematic part), and both within 1.5x of the noise
     /// floor at 30 in; plus, where the per-frame attitude claim fails, whether the near-field
     /// pose is itself on the noise floor there (then no model could do better).
     pub fn claims(&self) -> Vec<Claim> {
-        // The issue's 2-10 in (a range below 2 in, if run, is shown but not judged).
+        // The targets' 2-10 in (a range below 2 in, if run, is shown but not judged).
         let near: Vec<&AccuracyRow> = self
             .rows
             .iter()
@@ -1255,7 +1257,10 @@ impl AccuracyTable {
             .map(|c| format!("{}: {}", c.name, c.detail))
             .collect();
         if !problems.is_empty() {
-            bail!("accuracy claims not met:\n  {}", problems.join("\n  "));
+            bail!(
+                "accuracy design targets not met:\n  {}",
+                problems.join("\n  ")
+            );
         }
         Ok(())
     }
@@ -1603,7 +1608,7 @@ mod tests {
         assert!(t.rows[0].ph_failures > 5, "{:?}", t.rows[0]);
         let text = t.render();
         assert!(
-            text.contains("Claims") && text.contains("Systematic error"),
+            text.contains("Design targets") && text.contains("Systematic error"),
             "{text}"
         );
     }
