@@ -27,7 +27,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use cta_core::collinearity::{self, ParamsExt};
 use cta_core::emulator::{Emulator, Head, Pose as HeadPose};
@@ -836,22 +836,28 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
         Some(s) => Some(parse_separations(s).map_err(|e| anyhow!("--pinhole-separations: {e}"))?),
     };
     let rep = calibrate(&ds, &all, ph.as_deref(), a.noise, a.pattern_m)?;
-    if let Some(out) = &a.out {
-        let json = serde_json::to_string_pretty(&rep.file)?;
-        let tmp = out.with_extension("json.partial");
-        std::fs::write(&tmp, json)
-            .and_then(|()| std::fs::rename(&tmp, out))
-            .with_context(|| format!("cannot write {}", out.display()))?;
-    }
-    if let Some(p) = &a.plot {
-        plot(&rep, p)?;
-    }
+    // Written as every `cta` output is (missing folders created); the report is printed
+    // whether or not the writes succeed, and a failed write is the error after it.
+    let saved = match &a.out {
+        Some(out) => {
+            let json = serde_json::to_string_pretty(&rep.file)?;
+            crate::measurement::write_output(out, json.as_bytes())
+                .map_err(|e| anyhow!("{e}; the calibration above was not saved"))
+                .map(|()| Some(out.as_path()))
+        }
+        None => Ok(None),
+    };
+    let plotted = match &a.plot {
+        Some(p) => plot(&rep, p).map_err(|e| anyhow!("{e}; the plot was not written")),
+        None => Ok(()),
+    };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&rep)?);
-        return Ok(());
+    } else {
+        print_report(&rep, saved.as_ref().ok().copied().flatten());
     }
-    print_report(&rep, a.out.as_deref());
-    Ok(())
+    saved?;
+    plotted
 }
 
 /// The residual RMS per separation of both models and the noise's, on a log scale.

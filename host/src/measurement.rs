@@ -855,6 +855,46 @@ fn suggest_step(a: f64, b: f64) -> f64 {
     }
 }
 
+/// Create the folders missing above the output file `path` (`--save nd1/fit.json` creates
+/// `nd1`): every `cta` output does so, so that a computed result is never lost to a missing
+/// folder. Errors read `cannot write PATH: cannot create the folder DIR: reason`.
+pub fn create_parent_folders(path: &Path) -> Result<(), String> {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => std::fs::create_dir_all(dir)
+            .map_err(|e| {
+                format!(
+                    "cannot write {}: cannot create the folder {}: {e}",
+                    path.display(),
+                    dir.display()
+                )
+            }),
+        _ => Ok(()),
+    }
+}
+
+/// Write an output file of a `cta` command (`fit --save`, `calibrate --out`, every `--plot`
+/// SVG, ...) the one way they are all written: missing parent folders are created
+/// ([`create_parent_folders`]), and the bytes go to `PATH.partial`, renamed into place only
+/// when complete, so an earlier file is replaced whole or not at all. On error the partial
+/// file is removed and the message reads `cannot write PATH: reason`. Whether `path` may be
+/// replaced is the caller's check (e.g. [`check_derived_output`]).
+pub fn write_output(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    create_parent_folders(path)?;
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".partial");
+    let tmp = path.with_file_name(name);
+    let write = || -> std::io::Result<()> {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    };
+    write().map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        format!("cannot write {}: {e}", path.display())
+    })
+}
+
 /// Whether a file derived from the measurement file `data` (a saved fit, a calibration) may
 /// be written to `out`, given on the command line as `flag`: never a folder or `data` itself;
 /// an existing file only when `earlier` recognises it as this command's own output (`what`
@@ -909,6 +949,36 @@ mod tests {
         assert!(mean_near_rail([32740.0, 0.0], 30.0, 9));
         assert!(mean_near_rail([0.0, -32740.0], 30.0, 9));
         assert!(!mean_near_rail([32730.0, 0.0], 30.0, 9));
+    }
+
+    /// Missing folders are made, an earlier file is replaced whole, nothing partial is left,
+    /// and a folder that cannot be made is named in `cannot write PATH: ...`.
+    #[test]
+    fn write_output_makes_folders_and_names_the_file() {
+        let d = std::env::temp_dir().join(format!("cta-write-output-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        let f = d.join("a/b/out.json");
+        write_output(&f, b"one").unwrap();
+        write_output(&f, b"two").unwrap();
+        assert_eq!(std::fs::read_to_string(&f).unwrap(), "two");
+        assert!(!d.join("a/b/out.json.partial").exists());
+        let bad = f.join("x.json");
+        let e = write_output(&bad, b"three").unwrap_err();
+        assert!(
+            e.starts_with(&format!(
+                "cannot write {}: cannot create the folder",
+                bad.display()
+            )),
+            "{e}"
+        );
+        assert_eq!(std::fs::read_to_string(&f).unwrap(), "two");
+        let e = write_output(&d.join("a"), b"x").unwrap_err();
+        assert!(
+            e.starts_with(&format!("cannot write {}: ", d.join("a").display())),
+            "{e}"
+        );
+        assert!(!d.join("a.partial").exists());
+        std::fs::remove_dir_all(&d).unwrap();
     }
 
     fn read(s: &str) -> Result<Dataset, ReadError> {

@@ -30,7 +30,6 @@
 
 use crate::measurement::{any_sample_pinned, mean_near_rail, Dataset, Sample};
 use crate::plot::{render_svg, Panel, Series};
-use anyhow::Context;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -735,8 +734,15 @@ fn panel(f: &Factor, log_x: bool) -> Panel {
 pub fn run(args: &NoiseArgs) -> anyhow::Result<()> {
     let ds = Dataset::read(&args.file).map_err(anyhow::Error::msg)?;
     let r = analyze_noise(&ds).map_err(anyhow::Error::msg)?;
+    // The report first: a plot that cannot be written loses nothing.
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        print!("{}", render_text(&r));
+    }
     if let Some(dir) = &args.plot {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", dir.display()))?;
         let panels: Vec<Panel> = r
             .factors
             .iter()
@@ -745,19 +751,16 @@ pub fn run(args: &NoiseArgs) -> anyhow::Result<()> {
             .collect();
         let svg = render_svg(&format!("CTA noise: {}", r.file), &panels, 2)
             .map_err(|e| anyhow::anyhow!("plotting failed: {e}"))?;
-        std::fs::write(dir.join("noise.svg"), &svg)?;
+        crate::measurement::write_output(&dir.join("noise.svg"), svg.as_bytes())
+            .map_err(anyhow::Error::msg)?;
         let html = format!(
             "<!doctype html><meta charset=utf-8><title>cta noise</title>\
              <body style='font-family:sans-serif'>{svg}<pre>{}</pre></body>",
             html_escape(&render_text(&r))
         );
-        std::fs::write(dir.join("index.html"), html)?;
+        crate::measurement::write_output(&dir.join("index.html"), html.as_bytes())
+            .map_err(anyhow::Error::msg)?;
         eprintln!("plots: {}", dir.join("index.html").display());
-    }
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&r)?);
-    } else {
-        print!("{}", render_text(&r));
     }
     Ok(())
 }

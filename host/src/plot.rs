@@ -574,13 +574,13 @@ pub fn render_svg(title: &str, panels: &[Panel], cols: usize) -> Result<String, 
     Ok(buf)
 }
 
-/// Render panels to an SVG file.
+/// Render panels to an SVG file, written as every `cta` output is
+/// ([`crate::measurement::write_output`]: missing folders created, `cannot write PATH: reason`).
 pub fn write_svg(path: &Path, title: &str, panels: &[Panel], cols: usize) -> anyhow::Result<()> {
     refuse_to_replace_non_svg(path)?;
     let svg = render_svg(title, panels, cols)
         .map_err(|e| anyhow::anyhow!("{}: plotting failed: {e}", path.display()))?;
-    std::fs::write(path, svg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok(())
+    crate::measurement::write_output(path, svg.as_bytes()).map_err(anyhow::Error::msg)
 }
 
 /// A plot may replace an earlier plot, never another kind of file (`--plot data.csv` by
@@ -599,7 +599,13 @@ pub fn refuse_to_replace_non_svg(path: &Path) -> anyhow::Result<()> {
     let mut head = [0u8; 256];
     let n = std::fs::File::open(path)
         .and_then(|mut f| f.read(&mut head))
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "{}: exists and cannot be read ({e}), so it is not known to be an earlier plot: \
+                 not replacing it (choose another name, or remove the file)",
+                path.display()
+            )
+        })?;
     let text = String::from_utf8_lossy(&head[..n]);
     let t = text.trim_start();
     if !(t.starts_with("<svg") || (t.starts_with("<?xml") && text.contains("<svg"))) {

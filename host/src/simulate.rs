@@ -470,7 +470,8 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
 }
 
 /// Write a simulation to `out` (CSV) and its truth to `FILE.truth.json`, each through a
-/// `.partial` file renamed into place only when complete. `out` must pass [`check_out`] with
+/// `.partial` file renamed into place only when complete; missing folders above `out` are
+/// created (as for every `cta` output, [`crate::measurement::create_parent_folders`]). `out` must pass [`check_out`] with
 /// `force` (otherwise nothing is written). On any error both partial files are removed and the
 /// error names the path. Returns the truth path.
 pub fn write_files(
@@ -480,6 +481,7 @@ pub fn write_files(
     force: bool,
 ) -> Result<PathBuf, String> {
     check_out(out, force)?;
+    crate::measurement::create_parent_folders(out)?;
     let tp = Truth::path_for(out);
     let tmp = out.with_extension("csv.partial");
     let tmp_truth = tp.with_extension("json.partial");
@@ -761,9 +763,13 @@ mod tests {
         assert!(e.contains("x.truth.json"), "{e}");
         assert_eq!(partials(&d), 0);
         assert!(!out.exists());
-        // A directory that does not exist.
-        let e = write_files(&d.join("no").join("y.csv"), &ds, &truth, false).unwrap_err();
-        assert!(e.contains("y.csv"), "{e}");
+        // A folder that does not exist is created; one that cannot be (a file is in the way)
+        // is an error naming the file.
+        let y = d.join("no").join("y.csv");
+        write_files(&y, &ds, &truth, false).unwrap();
+        assert!(y.exists() && d.join("no").join("y.truth.json").exists());
+        let e = write_files(&y.join("z.csv"), &ds, &truth, false).unwrap_err();
+        assert!(e.starts_with("cannot write") && e.contains("z.csv"), "{e}");
         // Success: both files, readable, no partial.
         let tp = write_files(&d.join("ok.csv"), &ds, &truth, false).unwrap();
         assert_eq!(partials(&d), 0);
