@@ -98,6 +98,9 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
         bail!("--half-angle must be in (0, 90) deg");
     }
     check_diameter(a.diameter_in)?;
+    if let Some(p) = &a.plot {
+        crate::plot::refuse_to_replace_non_svg(p)?;
+    }
     let thetas = parse_list(&a.theta).context("--theta")?;
     let max_theta = 90.0 - a.alpha;
     if let Some(t) = thetas.iter().find(|t| !(**t > 0.0 && **t < max_theta)) {
@@ -147,6 +150,71 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
             .collect();
         coeff.insert(e.name().into(), json!(v));
     }
+    if a.json {
+        let out = json!({
+            "alpha_deg": a.alpha,
+            "noise_deg": a.noise_deg,
+            "profile": describe_pattern(&model.pattern),
+            "theta_deg": thetas,
+            "crossing_D": crossing,
+            "crossing_kind": crossing_kind,
+            "coeff_deg_D": coeff,
+            "diameter_in": a.diameter_in,
+            "sign": "all errors make the beacon appear farther off boresight (convex pairing)",
+            "warnings": warnings,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        println!(
+        "Near-field errors in angle (thesis Ch II, 2-D, a = {} deg, beacon: {}), noise {} deg, D = {} in",
+        a.alpha,
+        describe_pattern(&model.pattern),
+        a.noise_deg,
+        a.diameter_in
+    );
+        println!(
+            "Distance (sensor diameters D [inches]) beyond which each effect is below the noise:"
+        );
+        println!(
+            "{:>9} {:>18} {:>18} {:>18} {:>18}",
+            "theta", "proximity", "intensity", "pattern", "combined"
+        );
+        for (i, t) in thetas.iter().enumerate() {
+            let cell = |e: NfEffect| match (
+                crossing[e.name()][i].as_f64(),
+                crossing_kind[e.name()][i].as_str(),
+            ) {
+                (Some(v), _) => format!("{v:.1} [{:.1}]", v * a.diameter_in),
+                (None, Some("below_noise")) => "below noise".into(),
+                _ => format!(
+                    "> {CROSSING_MAX_D:.0e} [> {:.0e}]",
+                    CROSSING_MAX_D * a.diameter_in
+                ),
+            };
+            println!(
+                "{:>7} ° {:>18} {:>18} {:>18} {:>18}",
+                t,
+                cell(NfEffect::Proximity),
+                cell(NfEffect::Intensity),
+                cell(NfEffect::Pattern),
+                cell(NfEffect::Combined)
+            );
+        }
+        println!("Far-field coefficients R x |delta theta| (deg D; the error falls as coeff / R):");
+        for (i, t) in thetas.iter().enumerate() {
+            println!(
+                "{:>7} ° proximity {:>8.3}  intensity {:>8.3}  pattern {:>8.3}",
+                t,
+                coeff["proximity"][i].as_f64().unwrap_or(f64::NAN),
+                coeff["intensity"][i].as_f64().unwrap_or(f64::NAN),
+                coeff["pattern"][i].as_f64().unwrap_or(f64::NAN)
+            );
+        }
+        println!("All three errors make the beacon appear farther off boresight (convex pairing, REFERENCE.md 2.2).");
+        for w in warnings {
+            println!("warning: {w}");
+        }
+    }
     if let Some(p) = &a.plot {
         let panels: Vec<Panel> = NfEffect::ALL
             .iter()
@@ -185,70 +253,8 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
             ),
             &panels,
             2,
-        )?;
-    }
-    if a.json {
-        let out = json!({
-            "alpha_deg": a.alpha,
-            "noise_deg": a.noise_deg,
-            "profile": describe_pattern(&model.pattern),
-            "theta_deg": thetas,
-            "crossing_D": crossing,
-            "crossing_kind": crossing_kind,
-            "coeff_deg_D": coeff,
-            "diameter_in": a.diameter_in,
-            "sign": "all errors make the beacon appear farther off boresight (convex pairing)",
-            "warnings": warnings,
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
-        return Ok(());
-    }
-    println!(
-        "Near-field errors in angle (thesis Ch II, 2-D, a = {} deg, beacon: {}), noise {} deg, D = {} in",
-        a.alpha,
-        describe_pattern(&model.pattern),
-        a.noise_deg,
-        a.diameter_in
-    );
-    println!("Distance (sensor diameters D [inches]) beyond which each effect is below the noise:");
-    println!(
-        "{:>9} {:>18} {:>18} {:>18} {:>18}",
-        "theta", "proximity", "intensity", "pattern", "combined"
-    );
-    for (i, t) in thetas.iter().enumerate() {
-        let cell = |e: NfEffect| match (
-            crossing[e.name()][i].as_f64(),
-            crossing_kind[e.name()][i].as_str(),
-        ) {
-            (Some(v), _) => format!("{v:.1} [{:.1}]", v * a.diameter_in),
-            (None, Some("below_noise")) => "below noise".into(),
-            _ => format!(
-                "> {CROSSING_MAX_D:.0e} [> {:.0e}]",
-                CROSSING_MAX_D * a.diameter_in
-            ),
-        };
-        println!(
-            "{:>7} ° {:>18} {:>18} {:>18} {:>18}",
-            t,
-            cell(NfEffect::Proximity),
-            cell(NfEffect::Intensity),
-            cell(NfEffect::Pattern),
-            cell(NfEffect::Combined)
-        );
-    }
-    println!("Far-field coefficients R x |delta theta| (deg D; the error falls as coeff / R):");
-    for (i, t) in thetas.iter().enumerate() {
-        println!(
-            "{:>7} ° proximity {:>8.3}  intensity {:>8.3}  pattern {:>8.3}",
-            t,
-            coeff["proximity"][i].as_f64().unwrap_or(f64::NAN),
-            coeff["intensity"][i].as_f64().unwrap_or(f64::NAN),
-            coeff["pattern"][i].as_f64().unwrap_or(f64::NAN)
-        );
-    }
-    println!("All three errors make the beacon appear farther off boresight (convex pairing, REFERENCE.md 2.2).");
-    for w in warnings {
-        println!("warning: {w}");
+        )
+        .map_err(|e| anyhow!("{e}; the table above is complete, the plot was not written"))?;
     }
     Ok(())
 }
@@ -370,6 +376,9 @@ const MAX_BUDGET_MILS: f64 = 1e6;
 /// Run `cta uncertainty`.
 pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
     check_diameter(a.diameter_in)?;
+    if let Some(p) = &a.plot {
+        crate::plot::refuse_to_replace_non_svg(p)?;
+    }
     let owned: Vec<(String, [f64; 6])> = match &a.budget {
         Some(p) => load_budget(p)?,
         None => uncertainty::TABLE2
@@ -396,6 +405,39 @@ pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
             (t, u, e / u, eq / u)
         })
         .collect();
+    if a.json {
+        let out = json!({
+            "items": owned.iter().map(|(n, m)| json!({"name": n, "mils": m})).collect::<Vec<_>>(),
+            "rss_mils": {"x": r[0].max(r[1]), "y": r[2].max(r[3]), "z": r[4].max(r[5]),
+                          "x_plus": r[0], "x_minus": r[1], "y_plus": r[2], "y_minus": r[3], "z_plus": r[4], "z_minus": r[5]},
+            "eq40_u_theta_times_R_deg_in": rows.iter().map(|r| json!({"theta_deg": r.0, "value": r.1})).collect::<Vec<_>>(),
+            "nearfield_over_cta": rows.iter().map(|r| json!({"theta_deg": r.0, "lambertian": r.2, "quartic": r.3})).collect::<Vec<_>>(),
+            "uy_in": uy,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        println!("CTA uncertainty budget (thesis Ch IV, eq 26), mils:");
+        println!(
+            "{:<36} {:>6} {:>6} {:>6} {:>6} {:>6} {:>6}",
+            "item", "X+", "X-", "Y+", "Y-", "Z+", "Z-"
+        );
+        for (n, m) in &owned {
+            println!(
+                "{:<36} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2}",
+                n, m[0], m[1], m[2], m[3], m[4], m[5]
+            );
+        }
+        println!(
+            "{:<36} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2}",
+            "root-sum-square", r[0], r[1], r[2], r[3], r[4], r[5]
+        );
+        println!("Angle uncertainty in 2-D (eq 40), u_theta x R, and the near-field error over it (D = {} in):", a.diameter_in);
+        for (t, u, l, q) in &rows {
+            println!("  theta {t:>4} deg: {u:.3} deg in; near-field / CTA = {l:.1} (Lambertian), {q:.1} (printed quartic)");
+        }
+        println!("Note: the thesis's 3-D sensitivities (eqs 34/35) are singular at x = y = z; CTA uses the corrected");
+        println!("|d theta/d x| = sqrt(y^2+z^2)/|b|^2 (REFERENCE.md 2.4), about 1.4x larger.");
+    }
     if let Some(p) = &a.plot {
         let mut panels = Vec::new();
         for &(t, _, _, _) in &rows {
@@ -438,41 +480,9 @@ pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
             "CTA angle uncertainty vs near-field error (thesis Figure 40)",
             &panels,
             2,
-        )?;
+        )
+        .map_err(|e| anyhow!("{e}; the table above is complete, the plot was not written"))?;
     }
-    if a.json {
-        let out = json!({
-            "items": owned.iter().map(|(n, m)| json!({"name": n, "mils": m})).collect::<Vec<_>>(),
-            "rss_mils": {"x": r[0].max(r[1]), "y": r[2].max(r[3]), "z": r[4].max(r[5]),
-                          "x_plus": r[0], "x_minus": r[1], "y_plus": r[2], "y_minus": r[3], "z_plus": r[4], "z_minus": r[5]},
-            "eq40_u_theta_times_R_deg_in": rows.iter().map(|r| json!({"theta_deg": r.0, "value": r.1})).collect::<Vec<_>>(),
-            "nearfield_over_cta": rows.iter().map(|r| json!({"theta_deg": r.0, "lambertian": r.2, "quartic": r.3})).collect::<Vec<_>>(),
-            "uy_in": uy,
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
-        return Ok(());
-    }
-    println!("CTA uncertainty budget (thesis Ch IV, eq 26), mils:");
-    println!(
-        "{:<36} {:>6} {:>6} {:>6} {:>6} {:>6} {:>6}",
-        "item", "X+", "X-", "Y+", "Y-", "Z+", "Z-"
-    );
-    for (n, m) in &owned {
-        println!(
-            "{:<36} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2}",
-            n, m[0], m[1], m[2], m[3], m[4], m[5]
-        );
-    }
-    println!(
-        "{:<36} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2}",
-        "root-sum-square", r[0], r[1], r[2], r[3], r[4], r[5]
-    );
-    println!("Angle uncertainty in 2-D (eq 40), u_theta x R, and the near-field error over it (D = {} in):", a.diameter_in);
-    for (t, u, l, q) in &rows {
-        println!("  theta {t:>4} deg: {u:.3} deg in; near-field / CTA = {l:.1} (Lambertian), {q:.1} (printed quartic)");
-    }
-    println!("Note: the thesis's 3-D sensitivities (eqs 34/35) are singular at x = y = z; CTA uses the corrected");
-    println!("|d theta/d x| = sqrt(y^2+z^2)/|b|^2 (REFERENCE.md 2.4), about 1.4x larger.");
     Ok(())
 }
 
@@ -602,8 +612,8 @@ pub fn simulate(a: &SimulateArgs) -> Result<()> {
     // again, with the same words, when it writes).
     crate::simulate::check_out(&a.out, a.force).map_err(|e| anyhow!("{e}"))?;
     let (ds, truth) = cfg.try_run().map_err(|e| anyhow!("{e}"))?;
-    let tp =
-        crate::simulate::write_files(&a.out, &ds, &truth, a.force).map_err(|e| anyhow!("{e}"))?;
+    let tp = crate::simulate::write_files(&a.out, &ds, &truth, a.force)
+        .map_err(|e| anyhow!("{e}; the simulation was not saved"))?;
     eprintln!(
         "wrote {} reports ({} separations x {} beacons x {} samples, {} points outside the field of view) to {} (truth: {})",
         ds.samples.len(),
@@ -669,28 +679,56 @@ fn check_fit_save(save: &Path, data: &Path, force: bool) -> Result<()> {
     )
 }
 
-/// Run `cta fit`.
+/// Run `cta fit`. The report (text or JSON) is printed before `--save` is written, so a
+/// failing write loses nothing; the error then says the fit was not saved.
 pub fn fit_cmd(a: &FitArgs) -> Result<()> {
     if let Some(p) = &a.save {
         check_fit_save(p, &a.file, a.force)?;
     }
     let ds = load(&a.file, a.separations.as_deref())?;
-    let rep = fit::fit(&ds, a.weights).map_err(|e| anyhow!(e))?;
-    if let Some(p) = &a.save {
-        std::fs::write(p, serde_json::to_string_pretty(&rep)?)
-            .with_context(|| format!("{}", p.display()))?;
-    }
+    let mut rep = fit::fit(&ds, a.weights).map_err(|e| anyhow!(e))?;
+    rep.warnings.extend(fit::chi2_warning(&rep, &a.file));
+    let json = serde_json::to_string_pretty(&rep)?;
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&rep)?);
-        return Ok(());
+        println!("{json}");
+    } else {
+        print_fit(&rep, &a.file);
     }
+    if let Some(p) = &a.save {
+        crate::measurement::write_output(p, json.as_bytes())
+            .map_err(|e| anyhow!("{e}; the fit above was not saved"))?;
+        if !a.json {
+            println!("saved to {}", p.display());
+        }
+    }
+    Ok(())
+}
+
+/// `v` to `n` significant digits, in fixed point from 1e-3 to 1e6, else in exponent form.
+fn sig(v: f64, n: i32) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let mag = v.abs().log10().floor() as i32;
+    if (-3..6).contains(&mag) {
+        let d = (n - 1 - mag).max(0) as usize;
+        format!("{v:.d$}")
+    } else {
+        format!("{v:.*e}", (n - 1).max(0) as usize)
+    }
+}
+
+/// The text report of `cta fit`: each estimate to the digits its 1-sigma resolves (as
+/// `cta calibrate` and `cta analyze` print them), the truth when the file has a sidecar.
+fn print_fit(rep: &FitReport, file: &Path) {
     println!(
-        "Collinearity model (eq 65) fitted by GLSDC to {} observations at {} in ({:?} weights):",
+        "Collinearity model (eq 65) fitted by GLSDC to {} {} at {} in, {}:",
         rep.observations,
+        rep.weights.observations(),
         fmt_list(&rep.separations),
-        rep.weights
+        rep.weights.describe()
     );
-    let (truth, truth_warning) = Truth::load_for_fit(&a.file);
+    let (truth, truth_warning) = Truth::load_for_fit(file);
     if let Some(w) = truth_warning {
         eprintln!("warning: {w}");
     }
@@ -704,29 +742,42 @@ pub fn fit_cmd(a: &FitArgs) -> Result<()> {
             "p3" => t.p[2],
             _ => t.h,
         });
-        let unit = if n.starts_with('d') { " in" } else { "" };
-        match t {
-            Some(t) => println!(
-                "  {n:>2} = {:>12.6} ± {:<10.3e}{unit:3}  (truth {t:.6})",
-                rep.params[n], rep.sigma[n]
-            ),
-            None => println!(
-                "  {n:>2} = {:>12.6} ± {:<10.3e}{unit}",
-                rep.params[n], rep.sigma[n]
-            ),
-        }
+        let unit = match n {
+            "H" => "counts",
+            _ if n.starts_with('d') => "in",
+            _ => "",
+        };
+        let (v, sd) = crate::analyze::digits::pm_parts(rep.params[n], rep.sigma[n]);
+        let what = t.map_or(String::new(), |t| {
+            format!(
+                "(truth {})",
+                crate::analyze::digits::pm_parts(t, rep.sigma[n]).0
+            )
+        });
+        let line = format!("    {n:>2} = {v:>12} ± {sd:<9} {unit:<6} {what}");
+        println!("{}", line.trim_end());
     }
+    let spread = match (rep.residual_variance_counts2, rep.chi2_per_dof) {
+        (_, Some(c)) => format!("chi2/dof {c:.3}"),
+        (Some(v), None) => format!(
+            "residual variance {} counts^2 per degree of freedom (the 1-sigma are scaled by it)",
+            sig(v, 4)
+        ),
+        (None, None) => format!(
+            "weighted residual variance per degree of freedom {}",
+            sig(rep.chi2_dof, 4)
+        ),
+    };
+    println!("  residual RMS {:.2} counts, {spread}", rep.rms_counts);
     println!(
-        "  residual RMS {:.3} counts, chi2/dof {:.3}, {} iterations ({}), condition {:.3e}",
-        rep.rms_counts, rep.chi2_dof, rep.iterations, rep.stop, rep.condition
+        "  {} iterations (converged: {}), condition number {}",
+        rep.iterations,
+        fit::describe_stop(&rep.stop),
+        sig(rep.condition, 3)
     );
     for w in &rep.warnings {
         println!("warning: {w}");
     }
-    if let Some(p) = &a.save {
-        println!("saved to {}", p.display());
-    }
-    Ok(())
 }
 
 // ---------------------------------------------------------------------------------------
@@ -750,7 +801,7 @@ pub struct EvaluateArgs {
     pub json: bool,
 }
 
-/// Run `cta evaluate`.
+/// Run `cta evaluate`. The table (or JSON) is printed before `--plot` is written.
 pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
     let rep = FitReport::load(&a.fit).map_err(|e| anyhow!(e))?;
     let ds = load(&a.file, a.separations.as_deref())?;
@@ -760,6 +811,14 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
         None => None,
     };
     let ev = fit::evaluate(&rep.x(), &ds, truth.as_ref().map(|t| t.pose().d));
+    if let Some(p) = &a.plot {
+        crate::plot::refuse_to_replace_non_svg(p)?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&ev)?);
+    } else {
+        print_evaluation(&rep, &ev);
+    }
     if let Some(p) = &a.plot {
         let pts = |v: &Vec<f64>| {
             ev.separation_in
@@ -790,12 +849,15 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
                 ],
             }],
             1,
-        )?;
+        )
+        .map_err(|e| anyhow!("{e}; the table above is complete, the plot was not written"))?;
     }
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&ev)?);
-        return Ok(());
-    }
+    Ok(())
+}
+
+/// The text table of `cta evaluate`: the mean error with its standard error (to the digits
+/// that resolves), the standard deviation and the CTA uncertainty to 3 significant digits.
+fn print_evaluation(rep: &FitReport, ev: &fit::Evaluation) {
     println!(
         "Error in angle (eq 67) of the fit on {} in, against the {}:",
         fmt_list(&rep.separations),
@@ -806,18 +868,32 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
         }
     );
     println!(
-        "{:>14} {:>14} {:>14} {:>18} {:>8}",
-        "separation in", "std (deg)", "mean (deg)", "CTA uncert. (deg)", "reports"
+        "{:>14} {:>10} {:>22} {:>18} {:>8}",
+        "separation in", "std (deg)", "mean ± s.e. (deg)", "CTA uncert. (deg)", "reports"
     );
     for i in 0..ev.separation_in.len() {
+        let n = ev.reports[i];
+        let mean = if n > 1 {
+            let (m, se) = crate::analyze::digits::pm_parts(
+                ev.angle_mean_deg[i],
+                ev.angle_std_deg[i] / (n as f64).sqrt(),
+            );
+            format!("{m} ± {se}")
+        } else {
+            sig(ev.angle_mean_deg[i], 3)
+        };
+        let std = if n > 1 {
+            sig(ev.angle_std_deg[i], 3)
+        } else {
+            "-".into()
+        };
         println!(
-            "{:>14} {:>14.5} {:>14.5} {:>18.5} {:>8}",
+            "{:>14} {:>10} {:>22} {:>18} {:>8}",
             ev.separation_in[i],
-            ev.angle_std_deg[i],
-            ev.angle_mean_deg[i],
-            ev.cta_uncertainty_deg[i],
-            ev.reports[i]
+            std,
+            mean,
+            sig(ev.cta_uncertainty_deg[i], 3),
+            n
         );
     }
-    Ok(())
 }

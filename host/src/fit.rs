@@ -22,6 +22,38 @@ pub enum Weights {
     Repeat,
 }
 
+impl Weights {
+    /// How the text output names the weighting.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Weights::None => "unweighted",
+            Weights::Repeat => "weighted by the spread of the repeated samples of each point",
+        }
+    }
+
+    /// What one observation is under this weighting, plural (`6000 reports`).
+    pub fn observations(self) -> &'static str {
+        match self {
+            Weights::None => "reports",
+            Weights::Repeat => "point means",
+        }
+    }
+}
+
+/// Why GLSDC stopped, in words (the JSON keeps the name, `FitReport::stop`).
+pub fn describe_stop(stop: &str) -> String {
+    match stop {
+        "SmallStep" => "the step fell below tolerance".into(),
+        "SmallCostChange" => "the cost changed by less than tolerance".into(),
+        "ZeroCost" => "the residuals are zero".into(),
+        "NoFurtherDecrease" => "no step lowers the cost any more".into(),
+        "SmallPredictedDecrease" => {
+            "the predicted decrease of the cost fell below tolerance".into()
+        }
+        other => other.into(),
+    }
+}
+
 /// The model a saved fit holds (`FitReport::model`); a fit file naming another is refused.
 pub const MODEL: &str = "pinhole (eq 65, 7 parameters)";
 
@@ -48,7 +80,18 @@ pub struct FitReport {
     pub covariance: Vec<f64>,
     /// Unweighted residual RMS, counts.
     pub rms_counts: f64,
-    /// Weighted residual variance per degree of freedom (chi2/dof with `repeat` weights).
+    /// With `none` weights: the residual variance per degree of freedom, counts^2 (the
+    /// sigmas are scaled by it); `null` with `repeat` weights.
+    #[serde(default)]
+    pub residual_variance_counts2: Option<f64>,
+    /// With `repeat` weights: chi-square per degree of freedom (about 1 when the model
+    /// holds; above [`crate::calibrate::CHI2_WARN`] the 1-sigma are too small by about its
+    /// square root); `null` with `none` weights.
+    #[serde(default)]
+    pub chi2_per_dof: Option<f64>,
+    /// Kept for readers of earlier fit files: the weighted residual variance per degree of
+    /// freedom whatever the weighting, i.e. the one of `residual_variance_counts2` and
+    /// `chi2_per_dof` that is set. A chi-square per degree of freedom only with `repeat`.
     pub chi2_dof: f64,
     /// Iterations.
     pub iterations: usize,
@@ -71,8 +114,12 @@ impl FitReport {
     /// Load a saved fit.
     pub fn load(path: &Path) -> Result<FitReport, String> {
         let s = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let r: FitReport = serde_json::from_str(&s)
+        let mut r: FitReport = serde_json::from_str(&s)
             .map_err(|e| format!("{}: not a CTA fit file: {e}", path.display()))?;
+        // A fit saved before the two named fields existed: derive them from `chi2_dof`.
+        if r.residual_variance_counts2.is_none() && r.chi2_per_dof.is_none() {
+            (r.residual_variance_counts2, r.chi2_per_dof) = split_variance(r.weights, r.chi2_dof);
+        }
         r.validate()
             .map_err(|e| format!("{}: not a valid CTA fit: {e}", path.display()))?;
         Ok(r)
@@ -133,13 +180,44 @@ impl FitReport {
                 "field `separations`: {s} in is not a positive separation"
             ));
         }
-        for (name, v) in [("rms_counts", self.rms_counts), ("chi2_dof", self.chi2_dof)] {
-            if !(v.is_finite() && v >= 0.0) {
+        for (name, v) in [
+            ("rms_counts", Some(self.rms_counts)),
+            ("chi2_dof", Some(self.chi2_dof)),
+            ("residual_variance_counts2", self.residual_variance_counts2),
+            ("chi2_per_dof", self.chi2_per_dof),
+        ] {
+            if let Some(v) = v.filter(|v| !(v.is_finite() && *v >= 0.0)) {
                 return Err(format!("field `{name}`: {v} is not a finite number >= 0"));
             }
         }
         Ok(())
     }
+}
+
+/// GLSDC's variance factor as `(residual_variance_counts2, chi2_per_dof)`: which one it is
+/// depends on the weighting.
+fn split_variance(weights: Weights, variance_factor: f64) -> (Option<f64>, Option<f64>) {
+    match weights {
+        Weights::None => (Some(variance_factor), None),
+        Weights::Repeat => (None, Some(variance_factor)),
+    }
+}
+
+/// The warning for a fit whose chi2/dof (with `repeat` weights) is above
+/// [`crate::calibrate::CHI2_WARN`], the line `cta calibrate` uses, in its words; `file` is the
+/// measurement file to analyze. `None` with `none` weights (no noise to compare with).
+pub fn chi2_warning(rep: &FitReport, file: &Path) -> Option<String> {
+    let c = rep.chi2_per_dof?;
+    (c > crate::calibrate::CHI2_WARN).then(|| {
+        format!(
+            "chi2/dof {:.2}: the residuals are {:.1}x the noise, so the data hold structure the \
+             pinhole model (eq 65: d, p, H) cannot represent, and the 1-sigma above are too small \
+             by about that factor. `cta analyze {}` names what it is.",
+            c,
+            c.sqrt(),
+            file.display()
+        )
+    })
 }
 
 /// Build the GLSDC observations from a dataset.
@@ -260,7 +338,11 @@ pub fn fit(ds: &Dataset, weights: Weights) -> Result<FitReport, String> {
             ))
         }
         Err(glsdc::Error::Model(e)) => {
-            return Err(format!("{}: the model cannot be evaluated at the start ({e:?}): a beacon behind the head?", ds.path.display()))
+            let why = match e {
+                glsdc::ModelError::NonFinite => "a prediction is not a finite number",
+                glsdc::ModelError::NoData => "no usable observation",
+            };
+            return Err(format!("{}: the model cannot be evaluated at the start ({why}): a beacon behind the head?", ds.path.display()))
         }
         Err(glsdc::Error::TooFewRows { m, n }) => {
             return Err(format!("{}: {m} residuals for {n} parameters", ds.path.display()))
@@ -292,6 +374,8 @@ pub fn fit(ds: &Dataset, weights: Weights) -> Result<FitReport, String> {
         sigma: map(&|i| sol.sigma[i]),
         covariance: sol.covariance.transpose().iter().copied().collect(),
         rms_counts: sol.rms,
+        residual_variance_counts2: split_variance(weights, sol.variance_factor).0,
+        chi2_per_dof: split_variance(weights, sol.variance_factor).1,
         chi2_dof: sol.variance_factor,
         iterations: sol.iterations,
         condition: sol.condition,
@@ -389,6 +473,8 @@ mod tests {
             sigma: map(&|_| 1e-3),
             covariance: vec![1e-6; 49],
             rms_counts: 1.0,
+            residual_variance_counts2: Some(1.0),
+            chi2_per_dof: None,
             chi2_dof: 1.0,
             iterations: 5,
             condition: 1e3,
@@ -407,6 +493,73 @@ mod tests {
         let r = FitReport::load(&p);
         std::fs::remove_file(&p).ok();
         r
+    }
+
+    /// Every way GLSDC stops is said in words.
+    #[test]
+    fn stop_reasons_are_in_words() {
+        use glsdc::Stop::*;
+        for stop in [
+            SmallStep,
+            SmallCostChange,
+            ZeroCost,
+            NoFurtherDecrease,
+            SmallPredictedDecrease,
+        ] {
+            let name = format!("{stop:?}");
+            let words = describe_stop(&name);
+            assert!(
+                words.contains(' ') && !words.contains(&name),
+                "{name}: {words}"
+            );
+        }
+    }
+
+    /// The chi2/dof warning: only with `repeat` weights, above `cta calibrate`'s line.
+    #[test]
+    fn chi2_warning_only_for_repeat_weights_above_the_line() {
+        let f = Path::new("m.csv");
+        let mut r = report();
+        r.residual_variance_counts2 = Some(1921.0);
+        assert_eq!(chi2_warning(&r, f), None);
+        r.weights = Weights::Repeat;
+        r.residual_variance_counts2 = None;
+        r.chi2_per_dof = Some(crate::calibrate::CHI2_WARN);
+        assert_eq!(chi2_warning(&r, f), None);
+        r.chi2_per_dof = Some(2.25);
+        let w = chi2_warning(&r, f).unwrap();
+        assert!(
+            w.starts_with("chi2/dof 2.25: the residuals are 1.5x the noise")
+                && w.contains("the 1-sigma above are too small by about that factor")
+                && w.contains("`cta analyze m.csv`"),
+            "{w}"
+        );
+    }
+
+    /// A fit saved before `residual_variance_counts2` and `chi2_per_dof` existed loads, with
+    /// them derived from `chi2_dof` by its weighting.
+    #[test]
+    fn earlier_fit_files_load_with_the_named_fields() {
+        let strip = |v: &mut serde_json::Value| {
+            let o = v.as_object_mut().unwrap();
+            o.remove("residual_variance_counts2");
+            o.remove("chi2_per_dof");
+            o.insert("chi2_dof".into(), serde_json::json!(1921.0));
+        };
+        let r = load_edited("old-none", strip).unwrap();
+        assert_eq!(
+            (r.residual_variance_counts2, r.chi2_per_dof),
+            (Some(1921.0), None)
+        );
+        let r = load_edited("old-repeat", |v| {
+            strip(v);
+            v["weights"] = serde_json::json!("repeat");
+        })
+        .unwrap();
+        assert_eq!(
+            (r.residual_variance_counts2, r.chi2_per_dof),
+            (None, Some(1921.0))
+        );
     }
 
     #[test]
