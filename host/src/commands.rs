@@ -687,7 +687,11 @@ pub fn fit_cmd(a: &FitArgs) -> Result<()> {
     }
     let ds = load(&a.file, a.separations.as_deref())?;
     let mut rep = fit::fit(&ds, a.weights).map_err(|e| anyhow!(e))?;
-    rep.warnings.extend(fit::chi2_warning(&rep, &a.file));
+    rep.warnings.extend(fit::chi2_warning(
+        &rep,
+        &a.file,
+        fit::repeat_chi2_expected(&ds),
+    ));
     let json = serde_json::to_string_pretty(&rep)?;
     if a.json {
         println!("{json}");

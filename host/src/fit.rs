@@ -203,18 +203,41 @@ fn split_variance(weights: Weights, variance_factor: f64) -> (Option<f64>, Optio
     }
 }
 
+/// The chi2/dof a right model gives with `repeat` weights: each point is weighted by the
+/// inverse of its own sample variance from `n` samples, whose mean is `(n - 1) / (n - 3)`
+/// times the inverse true variance (an inverse chi-square), so chi2/dof averages that over
+/// the points (1.29 with 10 samples, 3 with 4). `None` when a point has 3 samples or fewer
+/// (the mean is infinite: no line to compare with).
+pub fn repeat_chi2_expected(ds: &Dataset) -> Option<f64> {
+    let (mut sum, mut k) = (0.0, 0usize);
+    for p in ds.points() {
+        let n = p.rows.len() as f64;
+        if n <= 3.0 {
+            return None;
+        }
+        sum += (n - 1.0) / (n - 3.0);
+        k += 1;
+    }
+    (k > 0).then(|| sum / k as f64)
+}
+
 /// The warning for a fit whose chi2/dof (with `repeat` weights) is above
-/// [`crate::calibrate::CHI2_WARN`], the line `cta calibrate` uses, in its words; `file` is the
-/// measurement file to analyze. `None` with `none` weights (no noise to compare with).
-pub fn chi2_warning(rep: &FitReport, file: &Path) -> Option<String> {
+/// [`crate::calibrate::CHI2_WARN`] times what a right model gives with these weights
+/// (`expected`, [`repeat_chi2_expected`]), in `cta calibrate`'s words; `file` is the
+/// measurement file to analyze. `None` with `none` weights (no noise to compare with), or
+/// without an expectation.
+pub fn chi2_warning(rep: &FitReport, file: &Path, expected: Option<f64>) -> Option<String> {
     let c = rep.chi2_per_dof?;
-    (c > crate::calibrate::CHI2_WARN).then(|| {
+    let e = expected?;
+    (c > crate::calibrate::CHI2_WARN * e).then(|| {
         format!(
-            "chi2/dof {:.2}: the residuals are {:.1}x the noise, so the data hold structure the \
+            "chi2/dof {:.2} (a right model gives {:.2} with weights from each point's own \
+             samples): the residuals are {:.1}x the noise, so the data hold structure the \
              pinhole model (eq 65: d, p, H) cannot represent, and the 1-sigma above are too small \
              by about that factor. `cta analyze {}` names what it is.",
             c,
-            c.sqrt(),
+            e,
+            (c / e).sqrt(),
             file.display()
         )
     })
@@ -521,15 +544,20 @@ mod tests {
         let f = Path::new("m.csv");
         let mut r = report();
         r.residual_variance_counts2 = Some(1921.0);
-        assert_eq!(chi2_warning(&r, f), None);
+        assert_eq!(chi2_warning(&r, f, Some(1.0)), None);
         r.weights = Weights::Repeat;
         r.residual_variance_counts2 = None;
         r.chi2_per_dof = Some(crate::calibrate::CHI2_WARN);
-        assert_eq!(chi2_warning(&r, f), None);
+        assert_eq!(chi2_warning(&r, f, Some(1.0)), None);
+        // 10 samples per point: a right model gives 9/7 = 1.29.
+        r.chi2_per_dof = Some(1.31);
+        assert_eq!(chi2_warning(&r, f, Some(9.0 / 7.0)), None);
         r.chi2_per_dof = Some(2.25);
-        let w = chi2_warning(&r, f).unwrap();
+        assert_eq!(chi2_warning(&r, f, None), None);
+        let w = chi2_warning(&r, f, Some(1.0)).unwrap();
         assert!(
-            w.starts_with("chi2/dof 2.25: the residuals are 1.5x the noise")
+            w.starts_with("chi2/dof 2.25 (a right model gives 1.00")
+                && w.contains("the residuals are 1.5x the noise")
                 && w.contains("the 1-sigma above are too small by about that factor")
                 && w.contains("`cta analyze m.csv`"),
             "{w}"
