@@ -854,7 +854,7 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
     if a.json {
         println!("{}", serde_json::to_string_pretty(&rep)?);
     } else {
-        print_report(&rep, saved.as_ref().ok().copied().flatten());
+        print_report(&rep, saved.as_ref().map(|o| o.as_deref()).ok());
     }
     saved?;
     plotted
@@ -906,7 +906,9 @@ fn plot(rep: &CalibrationReport, path: &Path) -> Result<()> {
     )
 }
 
-fn print_report(rep: &CalibrationReport, out: Option<&Path>) {
+/// `out`: `Some(Some(path))` written, `Some(None)` not asked for, `None` its write failed (the
+/// error follows the report).
+fn print_report(rep: &CalibrationReport, out: Option<Option<&Path>>) {
     let f = &rep.file.fitted;
     let c = &rep.file.calibration;
     let nf = c.near_field.unwrap_or(NearField::nominal());
@@ -996,12 +998,13 @@ fn print_report(rep: &CalibrationReport, out: Option<&Path>) {
         );
     }
     match out {
-        Some(p) => println!(
+        Some(Some(p)) => println!(
             "\nwritten to {}: load it with `cta sensor --port PORT load-calibration {}`",
             p.display(),
             p.display()
         ),
-        None => println!("\n(not written: give --out CAL.json)"),
+        Some(None) => println!("\n(not written: give --out CAL.json)"),
+        None => {}
     }
 }
 

@@ -615,11 +615,12 @@ pub fn simulate(a: &SimulateArgs) -> Result<()> {
     let tp = crate::simulate::write_files(&a.out, &ds, &truth, a.force)
         .map_err(|e| anyhow!("{e}; the simulation was not saved"))?;
     eprintln!(
-        "wrote {} reports ({} separations x {} beacons x {} samples, {} points outside the field of view) to {} (truth: {})",
+        "wrote {} reports ({} separations x {} beacons x {} sample{}, {} points outside the field of view) to {} (truth: {})",
         ds.samples.len(),
         cfg.separations.len(),
         cfg.grid.0 * cfg.grid.1,
         cfg.samples,
+        if cfg.samples == 1 { "" } else { "s" },
         truth.skipped_points,
         a.out.display(),
         tp.display()

@@ -794,6 +794,15 @@ fn outputs_create_missing_folders() {
     fails_with(&o, &format!("cannot write {}: ", bad.display()));
     fails_with(&o, "the plot was not written");
     assert!(String::from_utf8_lossy(&o.stdout).contains("near-field (eqs 60-63)"));
+    // --out that cannot be written: the report, without "(not written: give --out)".
+    let bad = blocker.join("cal.json");
+    let o = cta(&["calibrate", s(&sim), "--out", s(&bad)]);
+    fails_with(&o, "the calibration above was not saved");
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("near-field (eqs 60-63)") && !out.contains("give --out"),
+        "{out}"
+    );
     let bad = blocker.join("sim.csv");
     fails_with(
         &cta(&["simulate", "--out", s(&bad), "--separations", "20"]),
