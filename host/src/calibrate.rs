@@ -48,6 +48,19 @@ pub const CHI2_WARN: f64 = 1.2;
 /// [`SeparationRms::near_field_z`]).
 pub const MISFIT_Z: f64 = 5.0;
 
+/// The warning for a fit whose chi-square exceeds what the noise gives by `ratio` (above
+/// [`CHI2_WARN`]), shared by `cta calibrate` and `cta fit`: `head` states the figure, `model`
+/// names the model that cannot represent the data, `file` is the file to analyze.
+pub fn misfit_warning(head: &str, ratio: f64, model: &str, file: &Path) -> String {
+    format!(
+        "{head}: the residuals are {:.1}x the noise, so the data hold structure the {model} \
+         cannot represent, and the 1-sigma above are too small by about that factor. `cta \
+         analyze {}` names what it is.",
+        ratio.sqrt(),
+        file.display()
+    )
+}
+
 /// What `--out` files carry in `fitted` (and how an earlier one is recognised).
 pub const WRITER: &str = "cta calibrate";
 
@@ -710,13 +723,11 @@ pub fn calibrate(
         .sqrt();
 
     if nf.chi2_dof > CHI2_WARN {
-        warnings.push(format!(
-            "chi2/dof {:.2}: the residuals are {:.1}x the noise, so the data hold structure the \
-             chip's near-field model (d, p, face angles, s, cell gains and offsets) cannot represent, and the 1-sigma above are \
-             too small by about that factor. `cta analyze {}` names what it is.",
+        warnings.push(misfit_warning(
+            &format!("chi2/dof {:.2}", nf.chi2_dof),
             nf.chi2_dof,
-            nf.chi2_dof.sqrt(),
-            all.path.display()
+            "chip's near-field model (d, p, face angles, s, cell gains and offsets)",
+            &all.path,
         ));
     }
     // Where the model misses: a misfit confined to a few separations (a plate tilt shows

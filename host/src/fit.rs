@@ -230,15 +230,14 @@ pub fn chi2_warning(rep: &FitReport, file: &Path, expected: Option<f64>) -> Opti
     let c = rep.chi2_per_dof?;
     let e = expected?;
     (c > crate::calibrate::CHI2_WARN * e).then(|| {
-        format!(
-            "chi2/dof {:.2} (a right model gives {:.2} with weights from each point's own \
-             samples): the residuals are {:.1}x the noise, so the data hold structure the \
-             pinhole model (eq 65: d, p, H) cannot represent, and the 1-sigma above are too small \
-             by about that factor. `cta analyze {}` names what it is.",
-            c,
-            e,
-            (c / e).sqrt(),
-            file.display()
+        crate::calibrate::misfit_warning(
+            &format!(
+                "chi2/dof {c:.2} (a right model gives {e:.2} with weights from each point's own \
+                 samples)"
+            ),
+            c / e,
+            "pinhole model (eq 65: d, p, H)",
+            file,
         )
     })
 }

@@ -471,9 +471,9 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
 
 /// Write a simulation to `out` (CSV) and its truth to `FILE.truth.json`, each through a
 /// `.partial` file renamed into place only when complete; missing folders above `out` are
-/// created (as for every `cta` output, [`crate::measurement::create_parent_folders`]). `out` must pass [`check_out`] with
-/// `force` (otherwise nothing is written). On any error both partial files are removed and the
-/// error names the path. Returns the truth path.
+/// created (as for every `cta` output, [`crate::measurement::create_parent_folders`]). `out`
+/// must pass [`check_out`] with `force` (otherwise nothing is written). On any error both
+/// partial files are removed and the error names the path. Returns the truth path.
 pub fn write_files(
     out: &Path,
     ds: &Dataset,

@@ -32,8 +32,6 @@ use nalgebra::Vector3;
 pub const DEFAULT_NOISE_COUNTS: f64 = 32.768;
 /// Quantisation floor on every variance, counts^2.
 pub const VARIANCE_FLOOR: f64 = 1.0 / 12.0;
-/// Outputs at or beyond this magnitude are treated as pinned.
-pub const PINNED: f64 = 32767.0;
 
 /// How the weights are made.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -117,12 +115,13 @@ impl Data {
         for g in &groups {
             let n = g.rows.len();
             let mut mean = [0.0; 2];
-            let mut pinned = false;
+            // The rail rule's first half, shared with `cta calibrate` and `cta noise`.
+            let pinned =
+                crate::measurement::any_sample_pinned(g.rows.iter().map(|&i| &ds.samples[i]));
             for &i in &g.rows {
                 let s = &ds.samples[i];
                 mean[0] += s.x;
                 mean[1] += s.y;
-                pinned |= s.x.abs() >= PINNED || s.y.abs() >= PINNED;
             }
             mean[0] /= n as f64;
             mean[1] /= n as f64;
