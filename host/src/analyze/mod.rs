@@ -8,7 +8,9 @@
 //!    residuals ([`diag`]).
 //! 3. Forward selection over the effect vocabulary ([`model`], [`select`]): each candidate is
 //!    a parametric extension; the best by information criterion that also predicts held-out
-//!    separations better is added, until nothing significant remains.
+//!    separations better is added, until nothing significant remains; then a named cause
+//!    that no longer earns its place beside the later ones is dropped and the search rerun
+//!    without it ([`DroppedOut`]).
 //! 4. Report the causes with their parameters (in the model's order), 1-sigma and strong
 //!    correlations ([`Correlation`], also between two causes; values rounded as [`digits`]
 //!    says), the held-out gain, chi-square per degree of freedom and the angle-error spread
@@ -48,7 +50,9 @@ METHOD (host/ANALYZE.md has the details):
   is fitted on top of it. A candidate is accepted when it lowers the Bayesian information
   criterion by more than 10 AND predicts held-out separations better (cross-validation: fit on
   some separations, predict the others). The best accepted one is added and the search
-  repeats until nothing significant remains.
+  repeats until nothing significant remains. Then each named cause but the last must pass
+  the same test against all the others; one that fails stood in for them: it is dropped and
+  the search rerun without it.
 
   Candidates: proximity (from pinhole), intensity (from pinhole), beacon_pattern, beacon_tilt,
   cell_gain, cell_bias, face_angle, saturation, plate_offset, separation_error.
@@ -58,6 +62,7 @@ VERDICTS:
   no significant effect  the starting model already explains the data
   unexplained structure remains  the best extension still leaves chi2/dof > 1.2: nothing is
                       named with confidence; the output shows where the residuals are
+  dropped             a cause named in an early round that the later causes made redundant
   ruled out           every candidate tried on top of the final model and not accepted, with
                       its estimate +/- 1-sigma: the data still allow about estimate +/- 2 sigma
   correlation: DX,DY +0.71  under a candidate's estimates: two of its parameters correlate
@@ -465,6 +470,62 @@ pub struct TrialOut {
     pub base_correlations: Vec<Correlation>,
 }
 
+/// A cause forward selection named and then dropped, because once later causes were named
+/// it no longer earned its parameters (host/ANALYZE.md, Method 4).
+#[derive(Debug, Clone, Serialize)]
+pub struct DroppedOut {
+    /// The effect.
+    pub effect: String,
+    /// The round it was named in.
+    pub round: usize,
+    /// Its BIC improvement then.
+    pub dbic_named: f64,
+    /// The other causes of the model it was dropped from.
+    pub others: Vec<String>,
+    /// Its parameters.
+    pub k: usize,
+    /// Chi-square lost without it, in that model.
+    pub dchi2_keep: f64,
+    /// BIC improvement of keeping it (at most 10, or the held-out RMS did not improve).
+    pub dbic_keep: f64,
+    /// Held-out RMS with it, counts.
+    pub heldout_rms_with: f64,
+    /// Without it, when the held-out test decided.
+    pub heldout_rms_without: Option<f64>,
+}
+
+impl DroppedOut {
+    /// One line of text: why it was dropped.
+    pub fn line(&self) -> String {
+        let why = match self.heldout_rms_without {
+            None => format!(
+                "keeping its {} parameters gains dBIC {:.0} (dchi2 {:.0}), at most {}",
+                self.k,
+                self.dbic_keep,
+                self.dchi2_keep,
+                select::BIC_MIN
+            ),
+            Some(w) => format!(
+                "without it the held-out RMS is {w:.2} counts, {:.2} with it",
+                self.heldout_rms_with
+            ),
+        };
+        format!(
+            "{}: named in round {} (dBIC {:.0}), but once {} {} named, {why}: it stood in for \
+             them, so the search was rerun without it",
+            self.effect,
+            self.round,
+            self.dbic_named,
+            self.others.join(", "),
+            if self.others.len() == 1 {
+                "was"
+            } else {
+                "were"
+            },
+        )
+    }
+}
+
 /// A candidate tried on top of the final model and not accepted: how tightly the data rule
 /// it out.
 #[derive(Debug, Clone, Serialize)]
@@ -541,6 +602,8 @@ pub struct Analysis {
     /// the final model's fit, at least [`BASE_CORRELATION_MIN`] in magnitude, each name
     /// qualified by its cause (`proximity.S`): their sizes trade against each other.
     pub cross_correlations: Vec<Correlation>,
+    /// Causes named by forward selection and dropped once later causes made them redundant.
+    pub dropped: Vec<DroppedOut>,
     /// Candidates that could not be tested, and why.
     pub untested: Vec<Untested>,
     /// The final model leaves chi2/dof clearly above 1.
@@ -561,6 +624,9 @@ pub struct Analysis {
     pub angle_std_before_deg: Vec<f64>,
     /// Final model.
     pub angle_std_after_deg: Vec<f64>,
+    /// Points left out of both angle columns because one of the models cannot turn their
+    /// output into a direction (measured output beyond what it predicts, near the rail).
+    pub angle_left_out: usize,
     /// Held-out RMS per separation before and after, counts.
     pub heldout_rms_by_sep_before: Vec<f64>,
     /// After.
@@ -1032,6 +1098,8 @@ fn ruled_out(
                      fits better than none"
                         .into(),
                 )
+            } else if let Some(d) = sel.dropped.iter().find(|d| d.cand.name() == t.effect) {
+                Some(format!("named in round {}, then dropped (above)", d.round))
             } else if t.dbic > select::BIC_MIN {
                 Some(format!(
                     "dBIC above {} but the held-out chi-square did not drop{}",
@@ -1191,6 +1259,26 @@ pub fn analyze(
     let after_res = diag::residuals(fm, &ff.x, &data);
     let ab = diag::angle_errors(&sel.base_model, &sel.base_fit.x, &data);
     let aa = diag::angle_errors(fm, &ff.x, &data);
+    // Compare the two models' angle errors over the same points: near the output rail one
+    // model may not reach the measured output at all (no direction) while the other turns
+    // a few counts into degrees where the output hardly changes with angle.
+    let both = |e: &[f64]| -> Vec<f64> {
+        e.iter()
+            .zip(ab.iter().zip(&aa))
+            .map(|(&v, (b, a))| {
+                if b.is_finite() && a.is_finite() {
+                    v
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect()
+    };
+    let angle_left_out = ab
+        .iter()
+        .zip(&aa)
+        .filter(|(b, a)| !(b.is_finite() && a.is_finite()))
+        .count();
     let diagnostics_before = diag::diagnose(&sel.base_model, &sel.base_fit.x, &data);
     let diagnostics_after = diag::diagnose(fm, &ff.x, &data);
     let structure = if final_chi2 > UNEXPLAINED_CHI2_DOF {
@@ -1288,6 +1376,21 @@ pub fn analyze(
         causes,
         tentative,
         cross_correlations,
+        dropped: sel
+            .dropped
+            .iter()
+            .map(|d| DroppedOut {
+                effect: d.cand.name().into(),
+                round: d.round,
+                dbic_named: d.dbic_named,
+                others: d.others.iter().map(|c| c.name().to_string()).collect(),
+                k: d.k,
+                dchi2_keep: d.dchi2_keep,
+                dbic_keep: d.dbic_keep,
+                heldout_rms_with: d.cv_rms_with,
+                heldout_rms_without: d.cv_rms_without,
+            })
+            .collect(),
         untested,
         unexplained,
         verdict,
@@ -1296,8 +1399,9 @@ pub fn analyze(
         rms_before: sel.base_cv.rms,
         rms_after: fcv.rms,
         separations: data.seps.clone(),
-        angle_std_before_deg: diag::angle_std_by_sep(&ab, &data),
-        angle_std_after_deg: diag::angle_std_by_sep(&aa, &data),
+        angle_std_before_deg: diag::angle_std_by_sep(&both(&ab), &data),
+        angle_std_after_deg: diag::angle_std_by_sep(&both(&aa), &data),
+        angle_left_out,
         heldout_rms_by_sep_before: sel.base_cv.rms_by_sep.clone(),
         heldout_rms_by_sep_after: fcv.rms_by_sep.clone(),
         params_before: params_of(&sel.base_model, &sel.base_fit, &data.seps, true),
@@ -1375,6 +1479,9 @@ pub fn render_text(a: &Analysis) -> String {
     if let Some(line) = cross_correlation_line(&a.cross_correlations) {
         let _ = writeln!(s, "{line}");
     }
+    for d in &a.dropped {
+        let _ = writeln!(s, "\ndropped: {}", d.line());
+    }
     if !a.ruled_out.is_empty() {
         let _ = writeln!(
             s,
@@ -1435,6 +1542,14 @@ pub fn render_text(a: &Analysis) -> String {
             a.angle_std_after_deg[k],
             a.heldout_rms_by_sep_before[k],
             a.heldout_rms_by_sep_after[k]
+        );
+    }
+    if a.angle_left_out > 0 {
+        let _ = writeln!(
+            s,
+            "  (angle std over the points both models turn into a direction: {} near the \
+             output rail left out, where one of them cannot)",
+            a.angle_left_out
         );
     }
     let _ = writeln!(s, "\nfinal parameters:");

@@ -10,6 +10,15 @@
 //! (`plate_offset`, `separation_error`) cannot be predicted for a separation never seen: on
 //! held-out separations they are estimated from that separation's data with everything else
 //! fixed, and the held-out RMS is corrected for those degrees of freedom.
+//!
+//! Forward selection alone can keep a cause that only stood in for others: a flexible
+//! per-separation correction (`plate_offset`) absorbs most of a cell-gain plus cell-bias
+//! error in round 1, and stays named after the true causes join it. So when the search
+//! ends, every named cause but the last is tested again against all the others: it must
+//! still earn its parameters (`dBIC > BIC_MIN` for keeping it) and still lower the held-out
+//! chi-square. The most redundant one that fails is dropped and the search is rerun without
+//! it (backward elimination); the dropped causes are then fitted on top of the final model,
+//! so they are reported with the ruled-out ones.
 
 use super::data::Data;
 use super::model::{fit, Base, Cand, FitFailure, FitResult, Model};
@@ -95,6 +104,32 @@ pub struct Selection {
     pub trials: Vec<Trial>,
     /// Candidates that could not be tested at all, with the reason.
     pub untested: Vec<(Cand, String)>,
+    /// Causes named by an earlier search and dropped as redundant, in the order dropped.
+    pub dropped: Vec<Dropped>,
+}
+
+/// A cause forward selection named that no longer earned its place once others were named.
+#[derive(Debug, Clone)]
+pub struct Dropped {
+    /// The cause.
+    pub cand: Cand,
+    /// The round it was named in, and its BIC improvement then.
+    pub round: usize,
+    /// BIC improvement when it was named.
+    pub dbic_named: f64,
+    /// The other causes of the model it was dropped from, in order.
+    pub others: Vec<Cand>,
+    /// Its parameters in that model.
+    pub k: usize,
+    /// Chi-square the model loses without it (all data).
+    pub dchi2_keep: f64,
+    /// BIC improvement of keeping it: `dchi2_keep - k ln m`.
+    pub dbic_keep: f64,
+    /// Held-out RMS of the model with it, counts.
+    pub cv_rms_with: f64,
+    /// Held-out RMS of the model without it, when measured (only needed when the BIC test
+    /// alone did not drop it).
+    pub cv_rms_without: Option<f64>,
 }
 
 impl Selection {
@@ -330,8 +365,9 @@ pub fn select(data: &Data, opts: &Options, progress: Progress) -> Result<Selecti
     select_with_folds(data, opts, &f, progress)
 }
 
-/// Run forward selection with the given held-out folds (separation indices). Errors when
-/// even the starting model cannot be fitted.
+/// Run forward selection with the given held-out folds (separation indices), then drop
+/// redundant causes and search again without them (module doc). Errors when even the
+/// starting model cannot be fitted.
 pub fn select_with_folds(
     data: &Data,
     opts: &Options,
@@ -360,6 +396,7 @@ pub fn select_with_folds(
         steps: Vec::new(),
         trials: Vec::new(),
         untested: Vec::new(),
+        dropped: Vec::new(),
     };
     // Candidates that cannot be tested on this data at all.
     let mut pool: Vec<Cand> = Vec::new();
@@ -379,6 +416,40 @@ pub fn select_with_folds(
         }
         pool.push(c);
     }
+    let start_sel = sel;
+    let mut dropped: Vec<Dropped> = Vec::new();
+    loop {
+        let mut sel = start_sel.clone();
+        let pool: Vec<Cand> = pool
+            .iter()
+            .copied()
+            .filter(|c| !dropped.iter().any(|d| d.cand == *c))
+            .collect();
+        forward(&mut sel, pool, data, opts, fold_seps, progress);
+        if let Some(d) = redundant(&sel, data, fold_seps, progress) {
+            progress(&format!(
+                "{} dropped as redundant; searching again",
+                d.cand.name()
+            ));
+            dropped.push(d);
+            continue;
+        }
+        on_top(&mut sel, &dropped, data, fold_seps, progress);
+        sel.dropped = dropped;
+        return Ok(sel);
+    }
+}
+
+/// Forward selection from `sel`'s current model over `pool` (module doc).
+fn forward(
+    sel: &mut Selection,
+    mut pool: Vec<Cand>,
+    data: &Data,
+    opts: &Options,
+    fold_seps: &[Vec<usize>],
+    progress: Progress,
+) {
+    let all: Vec<usize> = (0..data.points.len()).collect();
     let mut round = 0;
     while !pool.is_empty() && sel.steps.len() < opts.max_effects {
         round += 1;
@@ -476,7 +547,122 @@ pub fn select_with_folds(
             sel.untested.push((c, why));
         }
     }
-    Ok(sel)
+}
+
+/// The most redundant named cause, when one is: every cause but the last (which was just
+/// accepted against the model without it) is refitted out of the final model; it is
+/// redundant when keeping it gains no more than `BIC_MIN`, or when the model without it
+/// predicts the held-out separations at least as well. A cause whose removal cannot be
+/// fitted is kept.
+fn redundant(
+    sel: &Selection,
+    data: &Data,
+    fold_seps: &[Vec<usize>],
+    progress: Progress,
+) -> Option<Dropped> {
+    let n = sel.steps.len();
+    if n < 2 {
+        return None;
+    }
+    let all: Vec<usize> = (0..data.points.len()).collect();
+    let (model, full, full_cv) = sel.last();
+    let ln_m = (full.m as f64).ln();
+    let tests: Vec<Option<Dropped>> = (0..n - 1)
+        .into_par_iter()
+        .map(|i| {
+            let c = sel.steps[i].cand;
+            let mut without = Model::new(model.base, model.nsep);
+            without.effects = model.effects.iter().copied().filter(|&e| e != c).collect();
+            let x0 = without.start_from(model, &full.x);
+            let f = fit_all(&without, data, &all, x0.as_slice()).ok()?;
+            progress(&format!("is {} still needed?", c.name()));
+            let k = added_params(&without, c);
+            let dchi2_keep = f.chi2 - full.chi2;
+            let dbic_keep = dchi2_keep - k as f64 * ln_m;
+            let cv_rms_without = if dbic_keep <= BIC_MIN {
+                None
+            } else {
+                let cv = cross_validate(&without, data, &f.x, fold_seps).ok()?;
+                if cv.chi2 > full_cv.chi2 {
+                    return None;
+                }
+                Some(cv.rms)
+            };
+            Some(Dropped {
+                cand: c,
+                round: i + 1,
+                dbic_named: sel.steps[i].dbic,
+                others: without.effects.clone(),
+                k,
+                dchi2_keep,
+                dbic_keep,
+                cv_rms_with: full_cv.rms,
+                cv_rms_without,
+            })
+        })
+        .collect();
+    tests
+        .into_iter()
+        .flatten()
+        .min_by(|a, b| a.dbic_keep.total_cmp(&b.dbic_keep))
+}
+
+/// Fit the dropped causes on top of the final model as trials of its last round (the one
+/// that accepted nothing), so they are reported with the ruled-out candidates. Nothing is
+/// added when the search ended by accepting (no candidates left, or `max_effects`).
+fn on_top(
+    sel: &mut Selection,
+    dropped: &[Dropped],
+    data: &Data,
+    fold_seps: &[Vec<usize>],
+    progress: Progress,
+) {
+    let Some(last) = sel.trials.iter().map(|t| t.round).max() else {
+        return;
+    };
+    if dropped.is_empty() || sel.trials.iter().any(|t| t.round == last && t.accepted) {
+        return;
+    }
+    let all: Vec<usize> = (0..data.points.len()).collect();
+    let (model, cur) = {
+        let (m, f, _) = sel.last();
+        (m.clone(), f.clone())
+    };
+    let ln_m = (cur.m as f64).ln();
+    for d in dropped {
+        let c = d.cand;
+        let k = added_params(&model, c);
+        let mut t = Trial {
+            round: last,
+            cand: c,
+            dchi2: 0.0,
+            k,
+            dbic: -(k as f64) * ln_m,
+            cv_rms: None,
+            cv_chi2: None,
+            accepted: false,
+            failure: None,
+            fit: None,
+        };
+        let m2 = model.with(c);
+        match start(&model, c, &cur, data, &all).map(|x0| fit_all(&m2, data, &all, &x0)) {
+            None => {}
+            Some(Err(e)) => t.failure = Some(e.0),
+            Some(Ok(f)) => {
+                t.dchi2 = cur.chi2 - f.chi2;
+                t.dbic = t.dchi2 - k as f64 * ln_m;
+                if t.dbic > BIC_MIN {
+                    if let Ok(cv) = cross_validate(&m2, data, &f.x, fold_seps) {
+                        t.cv_rms = Some(cv.rms);
+                        t.cv_chi2 = Some(cv.chi2);
+                    }
+                }
+                t.fit = Some(Box::new((m2, f)));
+            }
+        }
+        progress(&format!("{} fitted on top of the final model", c.name()));
+        sel.trials.push(t);
+    }
 }
 
 /// Starting pose: the 7-parameter pinhole fit (eq 65) from a zero pose, as REFERENCE.md
