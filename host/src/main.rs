@@ -67,14 +67,22 @@ enum Cmd {
     Sensor(cta_host::sensor_cmd::SensorArgs),
 }
 
+/// List options whose value may start with a minus sign (`--separations -5,3` is not a
+/// number, so `allow_negative_numbers` alone lets clap read it as a flag).
+const LIST_OPTIONS: [&str; 4] = ["separations", "holdout", "theta", "ranges"];
+
 /// Every option value may be a negative number (`--noise -3` reaches the option's own range
-/// check, which names the allowed range, instead of clap's "unexpected argument '-3'").
+/// check, which names the allowed range, instead of clap's "unexpected argument '-3'"), and
+/// every list option a list starting with one (`--separations -5,3` reaches the separation
+/// parser, which says why -5 is refused).
 fn negative_values(cmd: clap::Command) -> clap::Command {
     cmd.mut_args(|a| {
-        if a.get_action().takes_values() {
-            a.allow_negative_numbers(true)
-        } else {
+        if !a.get_action().takes_values() {
             a
+        } else if LIST_OPTIONS.contains(&a.get_id().as_str()) {
+            a.allow_hyphen_values(true)
+        } else {
+            a.allow_negative_numbers(true)
         }
     })
     .mut_subcommands(negative_values)

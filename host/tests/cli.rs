@@ -143,6 +143,15 @@ fn nearfield_and_uncertainty_json() {
         &cta(&["simulate", "--out", "x.csv", "--noise", "-3"]),
         "--noise must be >= 0 counts",
     );
+    // A list starting with a negative number reaches the list's own check too.
+    fails_with(
+        &cta(&["simulate", "--out", "x.csv", "--separations", "-5,3"]),
+        "separation -5 in must be a positive",
+    );
+    fails_with(
+        &cta(&["nearfield", "--theta", "-6,18"]),
+        "--theta -6: must be in (0, 60) deg",
+    );
     // A noise far below the effects' 1/R tails: above the noise out to 1e7 D, not "below".
     let n = json(&cta(&["nearfield", "--noise-deg", "1e-7", "--json"]));
     assert_eq!(n["crossing_kind"]["proximity"][0], "above_noise_to_1e7_D");
