@@ -5,7 +5,7 @@
 //! the 7-parameter fit to avoid false minima):
 //!
 //! 1. **Pinhole** (eq 65, `d, p, H`; [`crate::fit::fit`]) on the far separations (25 and 30
-//!    in when the file has them, else its two largest): the chip's `pinhole` model and the
+//!    in when the file has them, or measured values within 0.1 in, else its two largest): the chip's `pinhole` model and the
 //!    near-field fit's start.
 //! 2. **Near-field** (eqs 60-63, `d, p`, the face angle `a`, the cell offset `s`, the cell
 //!    gains `gx, gy` of [`NearField::gain`] and the cell offsets `bx, by` of
@@ -341,7 +341,8 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "SEPS")]
     pub separations: Option<String>,
     /// Fit the pinhole model (eq 65) to these separations; default: 25 and 30 in when the
-    /// file has both (the thesis's calibration), else the file's two largest.
+    /// file has both (the thesis's calibration; a measured 24.995 counts as 25: within 0.1
+    /// in), else the file's two largest.
     #[arg(long, value_name = "SEPS")]
     pub pinhole_separations: Option<String>,
     /// One-sample noise of a coordinate, counts: the calibration's `noise` and the weights.
@@ -583,10 +584,9 @@ pub fn calibrate(
         Some(s) => s.to_vec(),
         None => {
             let have = all.separations();
-            if [25.0, 30.0].iter().all(|s| have.contains(s)) {
-                vec![25.0, 30.0]
-            } else {
-                have.iter().rev().take(2).rev().copied().collect()
+            match (all.nearest_separation(25.0), all.nearest_separation(30.0)) {
+                (Some(a), Some(b)) => vec![a, b],
+                _ => have.iter().rev().take(2).rev().copied().collect(),
             }
         }
     };

@@ -636,18 +636,29 @@ impl Dataset {
         v
     }
 
-    /// Keep only the given separations (matched to 1e-6 in). Errors name the separations
-    /// that are not in the file.
+    /// The file's separation nearest to `want`, when one lies within [`SEP_MATCH_IN`]: a
+    /// swept file records the measured mean of the four corner readings (`10.0125` for a
+    /// nominal 10 in), so a requested `10` must find it.
+    pub fn nearest_separation(&self, want: f64) -> Option<f64> {
+        nearest_within(&self.separations(), want)
+    }
+
+    /// Keep only the given separations, each matched to the file's nearest separation within
+    /// [`SEP_MATCH_IN`] (so `25,30` finds the measured 24.995 and 30.005). Errors name the
+    /// requested separations with no file separation that near.
     pub fn select(&self, seps: &[f64]) -> Result<Dataset, String> {
         let have = self.separations();
-        let missing: Vec<String> = seps
-            .iter()
-            .filter(|s| !have.iter().any(|h| (h - *s).abs() < 1e-6))
-            .map(|s| format!("{s}"))
-            .collect();
+        let mut keep: Vec<f64> = Vec::new();
+        let mut missing: Vec<String> = Vec::new();
+        for &s in seps {
+            match nearest_within(&have, s) {
+                Some(h) => keep.push(h),
+                None => missing.push(format!("{s}")),
+            }
+        }
         if !missing.is_empty() {
             return Err(format!(
-                "{}: separation(s) {} not in the file (it has {})",
+                "{}: separation(s) {} not in the file, nor any within {SEP_MATCH_IN} in (it has {})",
                 self.path.display(),
                 missing.join(", "),
                 fmt_list(&have)
@@ -658,7 +669,7 @@ impl Dataset {
             samples: self
                 .samples
                 .iter()
-                .filter(|s| seps.iter().any(|h| (h - s.separation_in).abs() < 1e-6))
+                .filter(|s| keep.contains(&s.separation_in))
                 .copied()
                 .collect(),
         })
@@ -768,6 +779,19 @@ pub fn fmt_list(v: &[f64]) -> String {
 /// plan's `separations_in`): the count is computed before anything is expanded, so a range
 /// like `1..1e12` or `2..30:0.0000001` is refused at once instead of filling the memory.
 pub const MAX_SEPARATIONS: usize = 10_000;
+
+/// How far (in) a requested separation may lie from a recorded one and still select it: a
+/// few times the scatter of a measured plate position (the mean of four corner readings,
+/// +/-0.015 in on the CTA), and well under the 1 in between the CTA's closest separations.
+pub const SEP_MATCH_IN: f64 = 0.1;
+
+/// The value of `have` nearest to `want`, when it lies within [`SEP_MATCH_IN`].
+pub fn nearest_within(have: &[f64], want: f64) -> Option<f64> {
+    have.iter()
+        .copied()
+        .filter(|h| (h - want).abs() <= SEP_MATCH_IN)
+        .min_by(|a, b| (a - want).abs().total_cmp(&(b - want).abs()))
+}
 
 /// Parse a separation list: `20,25`, `2..30` (step 1), `2..30:2` (step 2), or a mix
 /// `3,5,20..30:5`. Every end and step must be finite, and the whole list may give at most
@@ -1251,9 +1275,17 @@ mod tests {
         assert_eq!(back.samples[0].beacon, Some(3));
         assert_eq!(back.separations(), vec![20.0, 25.0]);
         assert_eq!(back.select(&[25.0]).unwrap().samples.len(), 1);
+        // A measured plate position (mean of four corners) is found from its nominal value.
+        let mut m = back.clone();
+        m.samples[1].separation_in = 25.0125;
+        let got = m.select(&[25.0]).unwrap();
+        assert_eq!(got.samples.len(), 1);
+        assert_eq!(got.samples[0].separation_in, 25.0125);
+        assert_eq!(m.nearest_separation(19.95), Some(20.0));
+        assert_eq!(m.nearest_separation(24.8), None);
         let e = back.select(&[30.0]).unwrap_err();
         assert!(
-            e.contains("separation(s) 30 not in the file (it has 20, 25)"),
+            e.contains("separation(s) 30 not in the file, nor any within 0.1 in (it has 20, 25)"),
             "{e}"
         );
     }

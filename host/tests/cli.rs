@@ -196,7 +196,7 @@ fn bad_measurement_files() {
     );
     fails_with(
         &cta(&["fit", s(&sim), "--separations", "30"]),
-        "separation(s) 30 not in the file (it has 20, 25)",
+        "separation(s) 30 not in the file, nor any within 0.1 in (it has 20, 25)",
     );
     fails_with(
         &cta(&["fit", s(&sim), "--weights", "repeat"]),

@@ -1161,11 +1161,14 @@ pub fn analyze(
         Some(h) => {
             let mut idx = Vec::new();
             for s in h {
-                match data.seps.iter().position(|v| (v - s).abs() < 1e-6) {
+                let near = crate::measurement::nearest_within(&data.seps, *s);
+                match near.and_then(|v| data.seps.iter().position(|w| *w == v)) {
                     Some(k) => idx.push(k),
                     None => {
                         return Err(format!(
-                            "{file}: --holdout separation {s} in is not in the file (it has {})",
+                            "{file}: --holdout separation {s} in is not in the file, nor any \
+                             within {} in (it has {})",
+                            crate::measurement::SEP_MATCH_IN,
                             data.seps_text()
                         ))
                     }
