@@ -17,6 +17,7 @@
 //! (`cta beacon --port P table` lists it; default: the 10 NorthStar ID pairs, entry `2k` and
 //! `2k + 1` for ID `k`).
 
+use std::io::Write;
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
@@ -275,8 +276,13 @@ impl BeaconCommand {
     }
 }
 
-/// Run `cta beacon`.
+/// Run `cta beacon`, printing to stdout.
 pub fn run(args: &BeaconArgs) -> Result<()> {
+    run_to(args, &mut std::io::stdout())
+}
+
+/// Run `cta beacon`, writing what it prints to `out`.
+pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
     let Some(after) = args.command.conn() else {
         let given = args.conn.given();
         if !given.is_empty() {
@@ -288,12 +294,9 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
             );
         }
         return match &args.command {
-            BeaconCommand::Sim { seconds } => run_sim(*seconds),
-            BeaconCommand::Pins => {
-                print_pins();
-                Ok(())
-            }
-            BeaconCommand::Measure { seconds } => measure(*seconds),
+            BeaconCommand::Sim { seconds } => run_sim(*seconds, out),
+            BeaconCommand::Pins => print_pins(out),
+            BeaconCommand::Measure { seconds } => measure(*seconds, out),
             _ => unreachable!("every board command has connection options"),
         };
     };
@@ -313,23 +316,26 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
         .check_board()
         .with_context(|| format!("identifying the board on {path}"))?;
     match &args.command {
-        BeaconCommand::Identify { .. } => println!(
+        BeaconCommand::Identify { .. } => writeln!(
+            out,
             "{} board, firmware {}, protocol {}{}, max frame {} bytes",
             id.board,
             id.firmware,
             id.protocol,
             if id.simulated { " (simulated)" } else { "" },
             id.max_frame
-        ),
+        )?,
         BeaconCommand::Status { .. } => match link.call(BeaconRequest::Status)? {
             Some(BeaconResponse::Status(s)) => {
-                println!("uptime          {:.1} s", s.uptime_ms as f64 / 1000.0);
-                println!("lit LEDs        {} (cap {})", s.lit, s.limits.max_lit);
-                println!(
+                writeln!(out, "uptime          {:.1} s", s.uptime_ms as f64 / 1000.0)?;
+                writeln!(out, "lit LEDs        {} (cap {})", s.lit, s.limits.max_lit)?;
+                writeln!(
+                    out,
                     "dead-man        {} ms, host silent for {} ms, tripped {} time(s)",
                     s.limits.deadman_ms, s.since_host_ms, s.deadman_trips
-                );
-                println!(
+                )?;
+                writeln!(
+                    out,
                     "frames          {} good, {} bad (oversized {}, encoding {}, truncated {}, crc {}, malformed {}, version {})",
                     s.decoder.ok,
                     s.decoder.bad(),
@@ -339,14 +345,15 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
                     s.decoder.crc,
                     s.decoder.malformed,
                     s.decoder.version
-                );
-                println!("refused         {}", s.refused);
-                println!("uart errors     {}", s.uart_errors);
-                println!(
+                )?;
+                writeln!(out, "refused         {}", s.refused)?;
+                writeln!(out, "uart errors     {}", s.uart_errors)?;
+                writeln!(
+                    out,
                     "tick            {} Hz, table of {} frequencies",
                     s.tick_hz, s.table_len
-                );
-                println!("watchdog reset  {}", s.watchdog_reset);
+                )?;
+                writeln!(out, "watchdog reset  {}", s.watchdog_reset)?;
             }
             other => bail!("unexpected reply to Status: {other:?}"),
         },
@@ -356,7 +363,7 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
                 mode: parse_mode(mode)?,
             };
             link.call(BeaconRequest::Set(setting))?;
-            println!("LED {led}: {}", mode_text(setting.mode));
+            writeln!(out, "LED {led}: {}", mode_text(setting.mode))?;
         }
         BeaconCommand::SetMany { settings, .. } => {
             let mut v = heapless::Vec::new();
@@ -366,11 +373,11 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
             }
             let n = v.len();
             link.call(BeaconRequest::SetMany(v))?;
-            println!("{n} LED(s) set");
+            writeln!(out, "{n} LED(s) set")?;
         }
         BeaconCommand::AllOff { .. } => {
             link.call(BeaconRequest::AllOff)?;
-            println!("all LEDs off");
+            writeln!(out, "all LEDs off")?;
         }
         BeaconCommand::Table { set, .. } => {
             if let Some(hz) = set {
@@ -383,12 +390,12 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
                         .map_err(|_| anyhow::anyhow!("more than {MAX_FREQS} frequencies"))?;
                 }
                 link.call(BeaconRequest::SetTable(v))?;
-                println!("table replaced; all LEDs off");
+                writeln!(out, "table replaced; all LEDs off")?;
             }
             match link.call(BeaconRequest::GetTable)? {
                 Some(BeaconResponse::Table(t)) => {
                     for (i, mhz) in t.iter().enumerate() {
-                        println!("{i:2}  {:.3} Hz", *mhz as f64 / 1000.0);
+                        writeln!(out, "{i:2}  {:.3} Hz", *mhz as f64 / 1000.0)?;
                     }
                 }
                 other => bail!("unexpected reply to GetTable: {other:?}"),
@@ -398,11 +405,11 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
             Some(BeaconResponse::Leds(modes)) => {
                 for (i, m) in modes.iter().enumerate() {
                     if m.is_lit() {
-                        println!("{i:3}  {}", mode_text(*m));
+                        writeln!(out, "{i:3}  {}", mode_text(*m))?;
                     }
                 }
                 let lit = modes.iter().filter(|m| m.is_lit()).count();
-                println!("{lit} lit, {} off", modes.len() - lit);
+                writeln!(out, "{lit} lit, {} off", modes.len() - lit)?;
             }
             other => bail!("unexpected reply to GetLeds: {other:?}"),
         },
@@ -421,10 +428,11 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
                 deadman_ms: deadman_ms.unwrap_or(current.deadman_ms),
             };
             link.call(BeaconRequest::SetLimits(limits))?;
-            println!(
+            writeln!(
+                out,
                 "cap {} LEDs, dead-man {} ms",
                 limits.max_lit, limits.deadman_ms
-            );
+            )?;
         }
         BeaconCommand::Heartbeat {
             every_ms, count, ..
@@ -438,7 +446,7 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
                 }
                 std::thread::sleep(Duration::from_millis(*every_ms));
             }
-            println!("{sent} heartbeat(s) acknowledged");
+            writeln!(out, "{sent} heartbeat(s) acknowledged")?;
         }
         BeaconCommand::Sim { .. } | BeaconCommand::Pins | BeaconCommand::Measure { .. } => {
             unreachable!("handled above")
@@ -447,15 +455,15 @@ pub fn run(args: &BeaconArgs) -> Result<()> {
     Ok(())
 }
 
-fn run_sim(seconds: Option<f64>) -> Result<()> {
+fn run_sim(seconds: Option<f64>, out: &mut dyn Write) -> Result<()> {
     let sim = SimBoard::spawn().context("starting the simulated beacon board")?;
-    println!("simulated beacon board on {}", sim.path());
-    println!(
+    writeln!(out, "simulated beacon board on {}", sim.path())?;
+    writeln!(
+        out,
         "try: cta beacon --port {} identify   (Ctrl-C stops the board)",
         sim.path()
-    );
-    use std::io::Write as _;
-    std::io::stdout().flush()?;
+    )?;
+    out.flush()?;
     let start = std::time::Instant::now();
     loop {
         std::thread::sleep(Duration::from_millis(100));
@@ -470,7 +478,7 @@ fn run_sim(seconds: Option<f64>) -> Result<()> {
 }
 
 /// Frequency error and jitter of every table frequency on the simulated tick stream.
-pub fn measure(seconds: f64) -> Result<()> {
+pub fn measure(seconds: f64, out: &mut dyn Write) -> Result<()> {
     use cta_core::schedule::{measure::run, Modulator, NORTHSTAR_TABLE_MHZ, TICK_HZ};
     if !(seconds.is_finite() && seconds > 0.0 && seconds <= 600.0) {
         bail!("--seconds {seconds}: expected 0 < seconds <= 600");
@@ -483,49 +491,56 @@ pub fn measure(seconds: f64) -> Result<()> {
     let ticks = (seconds * TICK_HZ as f64).round() as u32;
     let (stats, load) = run(&mut m, &modes, &NORTHSTAR_TABLE_MHZ, ticks)
         .map_err(|t| anyhow::anyhow!("incremental outputs diverged at tick {t}"))?;
-    println!(
+    writeln!(
+        out,
         "{} LEDs, {ticks} ticks at {TICK_HZ} Hz ({seconds} s simulated); {:.2} port operations per tick (max {})",
         stats.len(),
         load.mean_writes,
         load.max_writes
-    );
-    println!("index  nominal Hz   worst |error|   worst jitter p-p   worst jitter rms");
+    )?;
+    writeln!(
+        out,
+        "index  nominal Hz   worst |error|   worst jitter p-p   worst jitter rms"
+    )?;
     let (mut worst_err, mut worst_pp, mut worst_rms) = (0f64, 0f64, 0f64);
     for i in 0..NORTHSTAR_TABLE_MHZ.len() as u8 {
         let of_i: Vec<_> = stats.iter().filter(|s| s.index == i).collect();
         let e = of_i.iter().map(|s| s.rel_error.abs()).fold(0.0, f64::max);
         let pp = of_i.iter().map(|s| s.jitter_pp_us).fold(0.0, f64::max);
         let rms = of_i.iter().map(|s| s.jitter_rms_us).fold(0.0, f64::max);
-        println!(
+        writeln!(
+            out,
             "{i:5}  {:10.3}   {:11.2e} %   {pp:12.3} us   {rms:12.3} us",
             NORTHSTAR_TABLE_MHZ[i as usize] as f64 / 1000.0,
             e * 100.0
-        );
+        )?;
         worst_err = worst_err.max(e);
         worst_pp = worst_pp.max(pp);
         worst_rms = worst_rms.max(rms);
     }
-    println!(
+    writeln!(
+        out,
         "worst: frequency error {:.2e} % (target 0.05 %), jitter {worst_pp:.3} us peak-to-peak, {worst_rms:.3} us rms (target 10 us)",
         worst_err * 100.0
-    );
+    )?;
     if worst_err > 5e-4 || worst_pp > 10.0 {
         bail!("modulation outside its targets");
     }
     Ok(())
 }
 
-fn print_pins() {
-    println!("id  row col   x(in)  y(in)  GPIO");
+fn print_pins(out: &mut dyn Write) -> Result<()> {
+    writeln!(out, "id  row col   x(in)  y(in)  GPIO")?;
     for (id, pin) in BEACON_PINS.iter().enumerate() {
         let (row, col, x, y) = grid_position(id as u8);
-        println!("{id:3} {row:3} {col:3}  {x:6.1} {y:6.1}  {pin}");
+        writeln!(out, "{id:3} {row:3} {col:3}  {x:6.1} {y:6.1}  {pin}")?;
     }
-    println!("reserved:");
+    writeln!(out, "reserved:")?;
     for (pin, why) in RESERVED_PINS {
-        println!("  {pin:5} {why}");
+        writeln!(out, "  {pin:5} {why}")?;
     }
-    println!("spare: {SPARE_PIN}");
+    writeln!(out, "spare: {SPARE_PIN}")?;
+    Ok(())
 }
 
 #[cfg(test)]
@@ -548,7 +563,7 @@ mod tests {
 
     #[test]
     fn simulated_modulation_meets_its_targets() {
-        measure(0.2).unwrap();
-        assert!(measure(0.0).is_err());
+        measure(0.2, &mut std::io::sink()).unwrap();
+        assert!(measure(0.0, &mut std::io::sink()).is_err());
     }
 }
