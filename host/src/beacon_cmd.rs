@@ -10,12 +10,19 @@
 //! cta beacon --port /dev/ttyUSB0 heartbeat --every-ms 2000   # keep LEDs lit (dead-man)
 //! cta beacon --port /dev/ttyUSB0 all-off
 //! cta beacon --port /dev/ttyUSB0 limits --deadman-ms 30000   # the cap stays as it is
+//! cta beacon --sim set 45 3               # against an in-process simulated board instead
+//! cta beacon --sim table                  # (it lives for that one command only)
 //! cta beacon pins                         # the pin map
 //! ```
 //!
 //! LED ids are `row * 10 + column`; frequencies are indices into the board's table
 //! (`cta beacon --port P table` lists it; default: the 10 NorthStar ID pairs, entry `2k` and
 //! `2k + 1` for ID `k`).
+//!
+//! `--sim` starts the simulated board (the one `cta beacon sim` serves on a pty) inside this
+//! process for the one command and stops it when the command ends: what a command sets on it
+//! (LED modes, the table, the limits) is gone for the next, and those commands say so. To keep
+//! a simulated board across commands, run `cta beacon sim` and give its pty as `--port`.
 
 use std::io::Write;
 use std::time::Duration;
@@ -34,8 +41,9 @@ use crate::link::{open_serial, Link, LinkConfig};
 /// `cta beacon`: command the beacon board over its serial link.
 ///
 /// The connection options go before the subcommand (`cta beacon --port P status`) or after
-/// it (`cta beacon status --port P`); `sim`, `pins` and `measure` talk to no board and
-/// refuse them.
+/// it (`cta beacon status --port P`); `--sim` talks to a simulated board started in this
+/// process for the one command instead of `--port`; `sim`, `pins` and `measure` talk to no
+/// board and refuse them.
 #[derive(Debug, Args)]
 pub struct BeaconArgs {
     /// How to reach the board.
@@ -55,8 +63,12 @@ pub const DEFAULT_RETRIES: u32 = 2;
 #[derive(Debug, Clone, Default, Args)]
 pub struct BeaconConn {
     /// Serial port of the board (e.g. /dev/ttyUSB0, or the pty printed by `cta beacon sim`).
-    #[arg(long, value_name = "PATH")]
+    #[arg(long, value_name = "PATH", conflicts_with = "sim")]
     pub port: Option<String>,
+    /// Talk to a simulated board started in this process (instead of --port); it lives for
+    /// this command only.
+    #[arg(long)]
+    pub sim: bool,
     /// Reply timeout per attempt, ms (1 or more) [default: 500].
     #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..))]
     pub timeout_ms: Option<u64>,
@@ -73,6 +85,9 @@ impl BeaconConn {
         if self.port.is_some() {
             v.push("--port");
         }
+        if self.sim {
+            v.push("--sim");
+        }
         if self.timeout_ms.is_some() {
             v.push("--timeout-ms");
         }
@@ -83,13 +98,18 @@ impl BeaconConn {
     }
 
     /// These options (given before the subcommand) with those given after it; an option
-    /// given in both places is refused.
+    /// given in both places, or `--sim` with `--port`, is refused.
     fn merge(&self, after: &BeaconConn) -> Result<BeaconConn> {
-        Ok(BeaconConn {
+        let conn = BeaconConn {
             port: one_of("--port", &self.port, &after.port)?,
+            sim: self.sim || after.sim,
             timeout_ms: one_of("--timeout-ms", &self.timeout_ms, &after.timeout_ms)?,
             retries: one_of("--retries", &self.retries, &after.retries)?,
-        })
+        };
+        if conn.sim && conn.port.is_some() {
+            bail!("--sim and --port exclude each other: use the simulated board or the one on the port");
+        }
+        Ok(conn)
     }
 }
 
@@ -301,9 +321,19 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
         };
     };
     let conn = args.conn.merge(after)?;
-    let path = conn.port.as_deref().context(
-        "--port PATH is required (the board's serial port, or the pty of `cta beacon sim`)",
-    )?;
+    // In-process simulated board when --sim (kept alive for the whole command).
+    let sim = if conn.sim {
+        Some(SimBoard::spawn().context("starting the simulated beacon board")?)
+    } else {
+        None
+    };
+    let path = match (&sim, &conn.port) {
+        (Some(s), _) => s.path(),
+        (None, Some(p)) => p.as_str(),
+        (None, None) => bail!(
+            "--port PATH is required (the board's serial port, or the pty of `cta beacon sim`), or use --sim"
+        ),
+    };
     let port = open_serial(path)?;
     let mut link = Link::<Beacon, _>::new(
         port,
@@ -363,7 +393,12 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
                 mode: parse_mode(mode)?,
             };
             link.call(BeaconRequest::Set(setting))?;
-            writeln!(out, "LED {led}: {}", mode_text(setting.mode))?;
+            writeln!(
+                out,
+                "LED {led}: {}{}",
+                mode_text(setting.mode),
+                sim_note(&conn)
+            )?;
         }
         BeaconCommand::SetMany { settings, .. } => {
             let mut v = heapless::Vec::new();
@@ -373,11 +408,11 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
             }
             let n = v.len();
             link.call(BeaconRequest::SetMany(v))?;
-            writeln!(out, "{n} LED(s) set")?;
+            writeln!(out, "{n} LED(s) set{}", sim_note(&conn))?;
         }
         BeaconCommand::AllOff { .. } => {
             link.call(BeaconRequest::AllOff)?;
-            writeln!(out, "all LEDs off")?;
+            writeln!(out, "all LEDs off{}", sim_note(&conn))?;
         }
         BeaconCommand::Table { set, .. } => {
             if let Some(hz) = set {
@@ -390,7 +425,7 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
                         .map_err(|_| anyhow::anyhow!("more than {MAX_FREQS} frequencies"))?;
                 }
                 link.call(BeaconRequest::SetTable(v))?;
-                writeln!(out, "table replaced; all LEDs off")?;
+                writeln!(out, "table replaced; all LEDs off{}", sim_note(&conn))?;
             }
             match link.call(BeaconRequest::GetTable)? {
                 Some(BeaconResponse::Table(t)) => {
@@ -430,8 +465,10 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
             link.call(BeaconRequest::SetLimits(limits))?;
             writeln!(
                 out,
-                "cap {} LEDs, dead-man {} ms",
-                limits.max_lit, limits.deadman_ms
+                "cap {} LEDs, dead-man {} ms{}",
+                limits.max_lit,
+                limits.deadman_ms,
+                sim_note(&conn)
             )?;
         }
         BeaconCommand::Heartbeat {
@@ -453,6 +490,17 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// After a command that changes the board's LED modes, table or limits: with `--sim` the
+/// board lives for this one command, so the change is gone when it ends.
+fn sim_note(conn: &BeaconConn) -> &'static str {
+    if conn.sim {
+        " on the simulated board (--sim: it lives for this command only, so the next command \
+         starts from its defaults; `cta beacon sim` keeps one running on a pty for --port)"
+    } else {
+        ""
+    }
 }
 
 fn run_sim(seconds: Option<f64>, out: &mut dyn Write) -> Result<()> {
@@ -546,6 +594,7 @@ fn print_pins(out: &mut dyn Write) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::Args as _;
 
     #[test]
     fn modes_parse() {
@@ -565,5 +614,126 @@ mod tests {
     fn simulated_modulation_meets_its_targets() {
         measure(0.2, &mut std::io::sink()).unwrap();
         assert!(measure(0.0, &mut std::io::sink()).is_err());
+    }
+
+    /// `cta beacon ARGS...` as the command line parses it.
+    fn parse(args: &[&str]) -> std::result::Result<BeaconArgs, clap::Error> {
+        use clap::FromArgMatches as _;
+        let m = BeaconArgs::augment_args(clap::Command::new("beacon"))
+            .try_get_matches_from(std::iter::once("beacon").chain(args.iter().copied()))?;
+        BeaconArgs::from_arg_matches(&m)
+    }
+
+    /// What `cta beacon ARGS...` prints, or its error.
+    fn beacon(args: &[&str]) -> Result<String> {
+        let mut out = Vec::new();
+        run_to(&parse(args)?, &mut out)?;
+        Ok(String::from_utf8(out)?)
+    }
+
+    /// The error of `cta beacon ARGS...`, which must fail.
+    fn refused(args: &[&str]) -> String {
+        match beacon(args) {
+            Ok(out) => panic!("{args:?} succeeded: {out}"),
+            Err(e) => format!("{e:#}"),
+        }
+    }
+
+    const NOTE: &str = " on the simulated board (--sim: it lives for this command only, so the \
+                        next command starts from its defaults; `cta beacon sim` keeps one \
+                        running on a pty for --port)";
+
+    #[test]
+    fn sim_serves_one_command_in_process() {
+        let out = beacon(&["--sim", "identify"]).unwrap();
+        assert!(
+            out.starts_with("beacon board, firmware ") && out.contains(" (simulated), max frame"),
+            "{out}"
+        );
+        // After the subcommand too, with the other connection options.
+        let out = beacon(&["status", "--sim", "--timeout-ms", "300", "--retries", "1"]).unwrap();
+        assert!(out.contains("lit LEDs        0 (cap 20)"), "{out}");
+        // Commands that only read say nothing more.
+        assert_eq!(beacon(&["--sim", "leds"]).unwrap(), "0 lit, 100 off\n");
+        // Those that change the board say that the change ends with the command.
+        for (args, said) in [
+            (&["--sim", "set", "45", "3"][..], "LED 45: 3"),
+            (&["set-many", "0=2", "9=on", "--sim"][..], "2 LED(s) set"),
+            (&["--sim", "all-off"][..], "all LEDs off"),
+            (
+                &["--sim", "limits", "--max-lit", "40"][..],
+                "cap 40 LEDs, dead-man 10000 ms",
+            ),
+        ] {
+            assert_eq!(beacon(args).unwrap(), format!("{said}{NOTE}\n"), "{args:?}");
+        }
+        // The board served the whole command: the table it lists is the one just set.
+        let out = beacon(&["--sim", "table", "--set", "3040,2010"]).unwrap();
+        assert_eq!(
+            out,
+            format!("table replaced; all LEDs off{NOTE}\n 0  3040.000 Hz\n 1  2010.000 Hz\n")
+        );
+        let out = beacon(&["--sim", "heartbeat", "--every-ms", "10", "--count", "2"]).unwrap();
+        assert_eq!(out, "2 heartbeat(s) acknowledged\n");
+        // Without --sim (a real board or `cta beacon sim` on --port) there is no note.
+        assert_eq!(sim_note(&BeaconConn::default()), "");
+    }
+
+    #[test]
+    fn sim_and_port_exclude_each_other() {
+        let e = parse(&["--sim", "--port", "/dev/null", "identify"]).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("'--sim' cannot be used with '--port <PATH>'"),
+            "{e}"
+        );
+        let e = parse(&["set", "1", "on", "--port", "/dev/null", "--sim"]).unwrap_err();
+        assert!(e.to_string().contains("cannot be used with"), "{e}");
+        // Split across the subcommand: refused before any port is opened.
+        for args in [
+            &["--sim", "identify", "--port", "/dev/null"][..],
+            &["--port", "/dev/null", "status", "--sim"][..],
+        ] {
+            assert_eq!(
+                refused(args),
+                "--sim and --port exclude each other: use the simulated board or the one on the port"
+            );
+        }
+        assert!(
+            refused(&["identify"]).contains("--port PATH is required")
+                && refused(&["leds"]).ends_with(", or use --sim"),
+        );
+    }
+
+    #[test]
+    fn sim_only_where_a_board_is_talked_to() {
+        for sub in ["pins", "measure", "sim"] {
+            assert_eq!(
+                refused(&["--sim", sub]),
+                format!("--sim means nothing for `cta beacon {sub}`: it talks to no board")
+            );
+            let e = parse(&[sub, "--sim"]).unwrap_err();
+            assert!(e.to_string().contains("unexpected argument '--sim'"), "{e}");
+        }
+        assert!(refused(&["--sim", "--retries", "1", "pins"])
+            .starts_with("--sim, --retries mean nothing for `cta beacon pins`"));
+        let mut cmd = BeaconArgs::augment_args(clap::Command::new("beacon"));
+        for sub in ["identify", "set", "table", "heartbeat"] {
+            let help = cmd
+                .find_subcommand_mut(sub)
+                .unwrap()
+                .render_help()
+                .to_string();
+            assert!(
+                help.contains("--sim") && help.contains("this command only"),
+                "{sub}: {help}"
+            );
+        }
+        let help = cmd
+            .find_subcommand_mut("pins")
+            .unwrap()
+            .render_help()
+            .to_string();
+        assert!(!help.contains("--sim"), "{help}");
     }
 }
