@@ -594,7 +594,6 @@ fn print_pins(out: &mut dyn Write) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::Args as _;
 
     #[test]
     fn modes_parse() {
