@@ -708,9 +708,12 @@ fn panel(f: &Factor, log_x: bool) -> Panel {
             .iter()
             .map(|g| if a == 0 { g.se_x } else { g.se_y })
             .collect();
+        // From 0: a constant noise level whose points scatter by +/-1 s.e. must not fill
+        // the panel and read as a trend.
         Series::new(if a == 0 { "X" } else { "Y" }, pts)
             .with_markers()
             .with_error_bars(se)
+            .from_zero()
     };
     Panel {
         title: format!(

@@ -21,6 +21,11 @@ pub struct Series {
     /// Error bars: for each point (same order), the half-length in y; empty for none. A
     /// non-finite or non-positive entry draws no bar.
     pub y_err: Vec<f64>,
+    /// The panel's (linear) y axis starts at 0 (or below, for negative data), so that the
+    /// series is read against its size, not against its own spread: a noise level whose
+    /// points scatter by their sampling error would otherwise fill the panel and look like
+    /// structure.
+    pub y_from_zero: bool,
 }
 
 /// A solid series with at most this many points is drawn with markers.
@@ -35,6 +40,7 @@ impl Series {
             dashed: false,
             markers: false,
             y_err: Vec::new(),
+            y_from_zero: false,
         }
     }
     /// A dashed curve.
@@ -45,11 +51,17 @@ impl Series {
             dashed: true,
             markers: false,
             y_err: Vec::new(),
+            y_from_zero: false,
         }
     }
     /// Mark each point.
     pub fn with_markers(mut self) -> Self {
         self.markers = true;
+        self
+    }
+    /// Start the panel's y axis at 0 (see [`Series::y_from_zero`]; ignored on a log axis).
+    pub fn from_zero(mut self) -> Self {
+        self.y_from_zero = true;
         self
     }
     /// Draw error bars: `y +/- err[i]` at point `i`.
@@ -312,6 +324,34 @@ fn range(vals: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
     }
 }
 
+/// The y range of a panel: its points and error bars, padded (see [`range`]); from 0 when a
+/// series asks for it ([`Series::y_from_zero`]) and the axis is linear.
+fn y_range(p: &Panel) -> (f64, f64) {
+    let keep = |x: f64, y: f64| {
+        x.is_finite() && y.is_finite() && (!p.log_x || x > 0.0) && (!p.log_y || y > 0.0)
+    };
+    // The y range holds the error bars too.
+    let ys: Vec<f64> = p
+        .series
+        .iter()
+        .flat_map(|s| {
+            s.points
+                .iter()
+                .filter(|q| keep(q.0, q.1))
+                .map(|q| q.1)
+                .chain(s.bars().flat_map(|(_, lo, _, hi)| [lo, hi]))
+        })
+        .collect();
+    if p.log_y || !p.series.iter().any(|s| s.y_from_zero) {
+        return range(ys.into_iter(), p.log_y);
+    }
+    // 0 is one of the values; with no negative data the axis starts exactly there (no padding
+    // below it), and the top is padded as usual.
+    let nonneg = ys.iter().all(|v| !v.is_finite() || *v >= 0.0);
+    let (lo, hi) = range(ys.into_iter().chain([0.0]), false);
+    (if nonneg { 0.0 } else { lo }, hi)
+}
+
 /// Margin around a panel, pixels.
 const MARGIN: i32 = 12;
 /// Room for the x tick labels and description, pixels.
@@ -356,16 +396,8 @@ where
         .series
         .iter()
         .flat_map(|s| s.points.iter().filter(|q| keep(q.0, q.1)).map(|q| q.0));
-    // The y range holds the error bars too.
-    let ys = p.series.iter().flat_map(|s| {
-        s.points
-            .iter()
-            .filter(|q| keep(q.0, q.1))
-            .map(|q| q.1)
-            .chain(s.bars().flat_map(|(_, lo, _, hi)| [lo, hi]))
-    });
     let (x0, x1) = range(xs, p.log_x);
-    let (y0, y1) = range(ys, p.log_y);
+    let (y0, y1) = y_range(p);
     // The legend: in a corner of the plot where it covers no data, else below the plot.
     let (aw, ah) = area.dim_in_pixel();
     let (pw, ph) = plot_size(&p.title, (aw, ah));
@@ -677,6 +709,31 @@ mod tests {
             legend_place(&bar, (0.0, 1.0), (0.0, 1.0), (0.3, 0.3)),
             LegendAt::Inside(Corner::UpperLeft)
         );
+    }
+
+    #[test]
+    fn a_series_from_zero_puts_zero_on_the_axis() {
+        // A noise level of about 33 counts scattering by its +/-0.5 s.e.
+        let pts = vec![(2.0, 33.3), (10.0, 34.0), (20.0, 31.2), (30.0, 32.8)];
+        let se = vec![0.5; 4];
+        let zoomed = panel(vec![
+            Series::new("X", pts.clone()).with_error_bars(se.clone())
+        ]);
+        let (y0, y1) = y_range(&zoomed);
+        assert!(y0 > 30.0 && y1 < 35.0, "{y0}..{y1}");
+        let anchored = panel(vec![Series::new("X", pts).with_error_bars(se).from_zero()]);
+        let (y0, y1) = y_range(&anchored);
+        assert_eq!(y0, 0.0);
+        assert!(y1 > 34.5 && y1 < 40.0, "{y1}");
+        // Negative data keep their room below 0.
+        let neg = panel(vec![
+            Series::new("d", vec![(0.0, -1.0), (1.0, 3.0)]).from_zero()
+        ]);
+        assert!(y_range(&neg).0 < -1.0);
+        // A log axis ignores it.
+        let mut log = anchored.clone();
+        log.log_y = true;
+        assert!(y_range(&log).0 > 20.0);
     }
 
     #[test]
