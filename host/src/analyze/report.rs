@@ -16,6 +16,7 @@ use super::{
 use crate::noise::html_escape;
 use crate::plot::{render_svg, Panel, Series};
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::fmt::Write;
 use std::path::Path;
 
@@ -343,8 +344,11 @@ pub fn render(a: &Analysis) -> Result<String, String> {
     if let Some(d) = &a.detail {
         s.push_str(
             "<h2>Residual maps</h2><p>Each arrow is a point's mean residual (measured &minus; \
-             model) in (X, Y) counts, drawn at the beacon's grid position; before and after \
-             share one scale per separation (the bar in the title).</p>",
+             model) in the sensor's (X, Y) output counts, drawn from the beacon's position on \
+             the plate (x, y in inches, dot); red with the starting model (before), blue with \
+             the final one (after). Before and after share one arrow scale per separation: \
+             the arrow under each map is its key, in counts. The colour only tells the models \
+             apart; the size of a residual is the arrow's length.</p>",
         );
         s.push_str(&quivers(a, d)?);
     }
@@ -384,6 +388,23 @@ fn param_table(s: &mut String, params: &[super::Param]) {
     s.push_str("</table>");
 }
 
+/// Height of the strip under each residual map that holds its arrow key, pixels.
+const KEY_STRIP: u32 = 24;
+
+/// The largest 1, 2 or 5 times a power of 10 not above `v` (`v` itself when it is not a
+/// positive number).
+fn round_down_125(v: f64) -> f64 {
+    if !(v.is_finite() && v > 0.0) {
+        return v;
+    }
+    let p10 = 10f64.powf(v.log10().floor());
+    [5.0, 2.0, 1.0]
+        .iter()
+        .map(|m| m * p10)
+        .find(|k| *k <= v * (1.0 + 1e-12))
+        .unwrap_or(p10)
+}
+
 /// Quiver maps: up to 8 separations spread over the range, before and after side by side.
 fn quivers(a: &Analysis, d: &super::Detail) -> Result<String, String> {
     let nsep = a.separations.len();
@@ -415,28 +436,41 @@ fn quivers(a: &Analysis, d: &super::Detail) -> Result<String, String> {
                 .filter(|v| v.is_finite())
                 .fold(0.0f64, f64::max)
                 .max(1e-9);
-            // The longest "before" arrow spans 1.2 grid pitches.
+            // The longest "before" arrow spans 1.2 in on the plate (1.2 pitches of the 1 in
+            // grid).
             let scale = 1.2 / max_res;
-            for (col, (res, name)) in [(&d.before, "before"), (&d.after, "after")]
-                .iter()
-                .enumerate()
+            // The key: a round number of counts (1, 2 or 5 times a power of 10) whose arrow
+            // is 0.4 to 1 in long.
+            let key = round_down_125(1.0 / scale);
+            for (col, (res, name)) in [
+                (&d.before, "before (starting model)"),
+                (&d.after, "after (final model)"),
+            ]
+            .iter()
+            .enumerate()
             {
-                let area = &areas[row * 2 + col];
-                let mut c = ChartBuilder::on(area)
+                let (map_area, key_area) =
+                    areas[row * 2 + col].split_vertically(h / rows as u32 - KEY_STRIP);
+                let mut c = ChartBuilder::on(&map_area)
                     .caption(
-                        format!(
-                            "{} in, {name} (arrow of 1 pitch = {} counts)",
-                            a.separations[k],
-                            crate::plot::tick(1.0 / scale)
-                        ),
+                        format!("{} in, {name}", a.separations[k]),
                         ("sans-serif", 14),
                     )
                     .margin(8)
-                    .x_label_area_size(24)
-                    .y_label_area_size(30)
+                    .x_label_area_size(36)
+                    .y_label_area_size(48)
                     .build_cartesian_2d(-ext..ext, -ext..ext)
                     .map_err(e)?;
-                c.configure_mesh().disable_mesh().draw().map_err(e)?;
+                c.configure_mesh()
+                    .disable_mesh()
+                    .x_desc("beacon x on the plate (in)")
+                    .y_desc("beacon y on the plate (in)")
+                    .x_label_formatter(&|v: &f64| crate::plot::tick(*v))
+                    .y_label_formatter(&|v: &f64| crate::plot::tick(*v))
+                    .label_style(("sans-serif", 11))
+                    .axis_desc_style(("sans-serif", 12))
+                    .draw()
+                    .map_err(e)?;
                 let color = if col == 0 {
                     RGBColor(214, 39, 40)
                 } else {
@@ -471,9 +505,64 @@ fn quivers(a: &Analysis, d: &super::Detail) -> Result<String, String> {
                     c.draw_series(std::iter::once(Circle::new((x0, y0), 1, BLACK.filled())))
                         .map_err(e)?;
                 }
+                // The key under the map, in the map's pixels per inch.
+                let ppi =
+                    f64::from(c.backend_coord(&(1.0, 0.0)).0 - c.backend_coord(&(0.0, 0.0)).0);
+                let len = (key * scale * ppi).round() as i32;
+                let (kx, ky) = (56, KEY_STRIP as i32 / 2);
+                key_area
+                    .draw(&PathElement::new(vec![(kx, ky), (kx + len, ky)], color))
+                    .map_err(e)?;
+                let hs = (0.15 * ppi).min(0.4 * f64::from(len)).round() as i32;
+                key_area
+                    .draw(&PathElement::new(
+                        vec![
+                            (kx + len - hs, ky - hs / 2),
+                            (kx + len, ky),
+                            (kx + len - hs, ky + hs / 2),
+                        ],
+                        color,
+                    ))
+                    .map_err(e)?;
+                key_area
+                    .draw(&Text::new(
+                        format!(
+                            "= {} counts of mean residual (X, Y)",
+                            crate::plot::tick(key)
+                        ),
+                        (kx + len + 8, ky),
+                        ("sans-serif", 12)
+                            .into_font()
+                            .color(&BLACK)
+                            .pos(Pos::new(HPos::Left, VPos::Center)),
+                    ))
+                    .map_err(e)?;
             }
         }
         root.present().map_err(e)?;
     }
     Ok(buf)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::round_down_125;
+
+    #[test]
+    fn the_arrow_key_is_a_round_number_of_counts() {
+        for (v, k) in [
+            (76.2, 50.0),
+            (36.2, 20.0),
+            (19.9, 10.0),
+            (20.0, 20.0),
+            (0.37, 0.2),
+            (1.0, 1.0),
+        ] {
+            assert!(
+                (round_down_125(v) - k).abs() < 1e-12,
+                "{v}: {}",
+                round_down_125(v)
+            );
+        }
+    }
 }
