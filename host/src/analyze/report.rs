@@ -2,12 +2,13 @@
 //! inline SVG plots (plotters' SVG backend) and no external resources.
 //!
 //! Contents: the verdict; the named causes with parameters, 1-sigma, strong correlations and
-//! held-out gain, and the strong correlations between causes; the candidates ruled out on top of the final model with their estimates
-//! +/- 1-sigma and strong correlations; the evidence (every candidate of every round with its
+//! held-out gain, and the strong correlations between causes; the causes dropped as
+//! redundant; the candidates ruled out on top of the final model with their estimates +/-
+//! 1-sigma and strong correlations; the evidence (every candidate of every round with its
 //! estimates, chi-square and BIC improvement and held-out RMS); residual quiver maps per
 //! separation before and after; held-out RMS versus separation; chi-square per residual
-//! versus off-boresight angle; the Figure 57 curve (angle-error spread versus separation)
-//! before and after; the final parameter table; and the residual diagnostics. Every
+//! versus off-boresight angle; Figure 57's statistic on each model's residual (angle spread
+//! versus separation; no truth used) before and after; the final parameter table; and the residual diagnostics. Every
 //! value +/- 1-sigma is rounded as `analyze::digits` says.
 
 use super::{
@@ -201,6 +202,16 @@ pub fn render(a: &Analysis) -> Result<String, String> {
             html_escape(&line)
         );
     }
+    if !a.dropped.is_empty() {
+        s.push_str(
+            "<h2>Dropped</h2><p>Named in an early round, then made redundant by the causes \
+             named after them (the search was rerun without them):</p><ul>",
+        );
+        for d in &a.dropped {
+            let _ = write!(s, "<li>{}</li>", html_escape(&d.line()));
+        }
+        s.push_str("</ul>");
+    }
     if !a.structure.is_empty() {
         s.push_str("<h2>Where the unexplained structure is</h2><ul>");
         for n in &a.structure {
@@ -252,6 +263,7 @@ pub fn render(a: &Analysis) -> Result<String, String> {
     s.push_str("</table>");
     // Plots.
     let seps = &a.separations;
+    let before_name = format!("before ({} starting model)", a.model_from);
     let line = |title: &str, y: &str, log_y: bool, b: &[f64], af: &[f64]| Panel {
         title: title.into(),
         x_desc: "separation (in)".into(),
@@ -260,11 +272,11 @@ pub fn render(a: &Analysis) -> Result<String, String> {
         log_y,
         series: vec![
             Series::new(
-                "before",
+                before_name.as_str(),
                 seps.iter().copied().zip(b.iter().copied()).collect(),
             ),
             Series::new(
-                "after",
+                "after (final model)",
                 seps.iter().copied().zip(af.iter().copied()).collect(),
             ),
         ],
@@ -285,8 +297,8 @@ pub fn render(a: &Analysis) -> Result<String, String> {
     };
     let panels = vec![
         line(
-            "Figure 57: angle-error spread per separation",
-            "angle error std (deg)",
+            "residual as an angle: spread per separation (no truth used)",
+            "std of the residual angle (deg)",
             true,
             &a.angle_std_before_deg,
             &a.angle_std_after_deg,
@@ -339,7 +351,14 @@ pub fn render(a: &Analysis) -> Result<String, String> {
             ],
         },
     ];
-    s.push_str("<h2>Before and after</h2>");
+    s.push_str(
+        "<h2>Before and after</h2><p>The first panel takes Figure 57's statistic (the spread \
+         over the beacons of a separation) on each model's own residual: the direction the \
+         model infers from the measured output against the one it predicts, since real data \
+         has no truth. It is not the thesis's Figure 57, the pinhole calibration's error \
+         against the true directions, which <code>cta evaluate</code> plots (the demo's \
+         <code>figure57.svg</code>). Both columns use the same points.</p>",
+    );
     s.push_str(&render_svg("", &panels, 2)?);
     if let Some(d) = &a.detail {
         s.push_str(
