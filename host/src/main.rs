@@ -60,7 +60,8 @@ enum Cmd {
     /// sensitivity (the Ch VI questions), and the weighting it implies for fit and analyze.
     Noise(cta_host::noise::NoiseArgs),
     /// Talk to the beacon array board (STM32F103ZET6) by hand: identify, light beacons,
-    /// status, heartbeat; or serve a simulated board on a pseudo-terminal.
+    /// status, heartbeat; `--sim` for an in-process simulated board, or serve one on a
+    /// pseudo-terminal.
     Beacon(cta_host::beacon_cmd::BeaconArgs),
     /// Talk to the sensor board (STM32F103C8): identify, stream spots, load a calibration
     /// and constellation, read poses; simulated board; the pose accuracy table.

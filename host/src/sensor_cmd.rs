@@ -677,11 +677,11 @@ pub fn run(args: &SensorArgs) -> Result<()> {
         },
         SensorCommand::Sensitivity { level, .. } => {
             link.call(SensorRequest::SetSensitivity(*level))?;
-            println!("sensitivity {level}");
+            println!("sensitivity {level}{}", set_note(&conn));
         }
         SensorCommand::Rate { hz, .. } => {
             link.call(SensorRequest::SetRate(*hz))?;
-            println!("rate {hz} Hz");
+            println!("rate {hz} Hz{}", set_note(&conn));
         }
         SensorCommand::Idle { .. } => {
             link.call(SensorRequest::SetMode(Mode::Idle))?;
@@ -811,6 +811,16 @@ fn sim_note(conn: &SensorConn) -> &'static str {
     }
 }
 
+/// After a setting: with `--sim` it is gone when the command ends.
+fn set_note(conn: &SensorConn) -> &'static str {
+    if conn.sim {
+        " on the simulated board (--sim: it lives for this command only, so the next command \
+         starts from its defaults; `cta sensor sim` keeps one running on a pty for --port)"
+    } else {
+        ""
+    }
+}
+
 /// Attitude angles (deg) about x, y, z of an MRP, `4 atan(|q|) q/|q|` (exact rotation
 /// vector; close to Euler angles only for small rotations).
 fn small_angles_deg(q: &Vector3<f64>) -> [f64; 3] {
@@ -917,10 +927,19 @@ fn run_sim(args: &SimArgs) -> Result<()> {
         link.call(SensorRequest::LoadConstellation(cta_constellation()))?;
     }
     println!("simulated sensor board on {}", sim.path());
-    println!(
-        "try: cta sensor --port {} pose --count 5   (Ctrl-C stops the board)",
-        sim.path()
-    );
+    if args.configured {
+        println!(
+            "try: cta sensor --port {} pose --count 5   (Ctrl-C stops the board)",
+            sim.path()
+        );
+    } else {
+        // Pose mode needs a calibration and a constellation, which this board has not got.
+        println!(
+            "try: cta sensor --port {} stream --count 5   (Ctrl-C stops the board; poses need \
+             a calibration and a constellation: load them, or start with --configured)",
+            sim.path()
+        );
+    }
     std::io::stdout().flush()?;
     let start = Instant::now();
     loop {
