@@ -663,7 +663,7 @@ pub fn calibrate(
     let cal = nf.calibration;
     cal.validate().map_err(|e| {
         anyhow!(
-            "the fitted calibration is outside what the board accepts: {e:?}; the data do not \
+            "the fitted calibration is outside what the board accepts: {e}; the data do not \
              look like a NorthStar on the CTA (check the file's columns and units)"
         )
     })?;
@@ -834,6 +834,9 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
         }
     }
     let all = Dataset::read(&a.file).map_err(|e| anyhow!("{e}"))?;
+    for w in all.warnings() {
+        eprintln!("warning: {w}");
+    }
     let ds = match &a.separations {
         None => all.clone(),
         Some(s) => {

@@ -657,6 +657,9 @@ pub struct FitArgs {
 /// Load and restrict a dataset.
 pub fn load(file: &Path, separations: Option<&str>) -> Result<Dataset> {
     let ds = Dataset::read(file).map_err(|e| anyhow!("{e}"))?;
+    for w in ds.warnings() {
+        eprintln!("warning: {w}");
+    }
     match separations {
         None => Ok(ds),
         Some(s) => {

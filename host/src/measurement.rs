@@ -636,6 +636,50 @@ impl Dataset {
         v
     }
 
+    /// Warnings about values that read without error but do not look like the CTA in
+    /// inches: separations beyond [`FAR_SEPARATION_IN`] (a file in millimetres?), and beacons
+    /// far from the plate (`beacon_z_in` given from the plate, not in N). Each names the file
+    /// and the first line; every analysis command prints them before its results.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        let file = self.path.display();
+        if let Some(s) = self
+            .samples
+            .iter()
+            .find(|s| s.separation_in > FAR_SEPARATION_IN)
+        {
+            let max = self
+                .separations()
+                .last()
+                .copied()
+                .unwrap_or(s.separation_in);
+            w.push(format!(
+                "{file}:{}: separation_in {} in (the file's largest {max} in), far beyond the \
+                 CTA's 0-30 in: is the file in millimetres (divide by 25.4) or centimetres (by \
+                 2.54)? Every length column is in inches",
+                s.line, s.separation_in
+            ));
+        }
+        let off: Vec<&Sample> = self
+            .samples
+            .iter()
+            .filter(|s| (s.r[2] - s.separation_in).abs() > (0.25 * s.separation_in).max(1.0))
+            .collect();
+        if let Some(s) = off.first() {
+            w.push(format!(
+                "{file}:{}: beacon_z_in {} in with separation_in {} in ({} of {} rows like \
+                 it): beacon positions are in the sensor-board frame N, so on the CTA \
+                 beacon_z_in is the plate's separation, not 0",
+                s.line,
+                s.r[2],
+                s.separation_in,
+                off.len(),
+                self.samples.len()
+            ));
+        }
+        w
+    }
+
     /// The file's separation nearest to `want`, when one lies within [`SEP_MATCH_IN`]: a
     /// swept file records the measured mean of the four corner readings (`10.0125` for a
     /// nominal 10 in), so a requested `10` must find it.
@@ -779,6 +823,11 @@ pub fn fmt_list(v: &[f64]) -> String {
 /// plan's `separations_in`): the count is computed before anything is expanded, so a range
 /// like `1..1e12` or `2..30:0.0000001` is refused at once instead of filling the memory.
 pub const MAX_SEPARATIONS: usize = 10_000;
+
+/// Separations above this (in) are far beyond the CTA (0-30 in) and the sweep plans' 60 in
+/// limit, and beyond the 100 in of the README's Figure 57 example: [`Dataset::warnings`]
+/// asks whether the file is in millimetres.
+pub const FAR_SEPARATION_IN: f64 = 120.0;
 
 /// How far (in) a requested separation may lie from a recorded one and still select it: a
 /// few times the scatter of a measured plate position (the mean of four corner readings,
@@ -1283,6 +1332,29 @@ mod tests {
         assert_eq!(got.samples[0].separation_in, 25.0125);
         assert_eq!(m.nearest_separation(19.95), Some(20.0));
         assert_eq!(m.nearest_separation(24.8), None);
+        assert!(back.warnings().is_empty(), "{:?}", back.warnings());
+        // A file in millimetres, and beacon z given from the plate: read, but warned about,
+        // naming the file and the first line.
+        let mut mm = back.clone();
+        for s in &mut mm.samples {
+            s.separation_in *= 25.4;
+            s.r = s.r.map(|v| v * 25.4);
+        }
+        let w = mm.warnings();
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].starts_with("t.csv:3: separation_in 508 in (the file's largest 635 in)"),
+            "{w:?}"
+        );
+        assert!(w[0].contains("millimetres"), "{w:?}");
+        let mut z0 = back.clone();
+        z0.samples[1].r[2] = 0.0;
+        let w = z0.warnings();
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].starts_with("t.csv:4: beacon_z_in 0 in with separation_in 25 in (1 of 2 rows"),
+            "{w:?}"
+        );
         let e = back.select(&[30.0]).unwrap_err();
         assert!(
             e.contains("separation(s) 30 not in the file, nor any within 0.1 in (it has 20, 25)"),

@@ -736,6 +736,9 @@ fn panel(f: &Factor, log_x: bool) -> Panel {
 /// Run `cta noise`.
 pub fn run(args: &NoiseArgs) -> anyhow::Result<()> {
     let ds = Dataset::read(&args.file).map_err(anyhow::Error::msg)?;
+    for w in ds.warnings() {
+        eprintln!("warning: {w}");
+    }
     let r = analyze_noise(&ds).map_err(anyhow::Error::msg)?;
     // The report first: a plot that cannot be written loses nothing.
     if args.json {

@@ -1188,7 +1188,8 @@ pub fn analyze(
         candidates: opts.candidates.clone(),
         max_effects: opts.max_effects,
     };
-    let sel = select::select_with_folds(&data, &sel_opts, &fold_seps, progress)?;
+    let sel = select::select_with_folds(&data, &sel_opts, &fold_seps, progress)
+        .map_err(|e| format!("{file}: {e}"))?;
     let mut untested: Vec<Untested> = sel
         .untested
         .iter()
@@ -1688,6 +1689,9 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<()> {
     };
     bar.set_message(format!("reading {}", args.file.display()));
     let mut ds = Dataset::read(&args.file).map_err(anyhow::Error::msg)?;
+    for w in ds.warnings() {
+        bar.suspend(|| eprintln!("warning: {w}"));
+    }
     if let Some(s) = &args.separations {
         let seps = parse_separations(s).map_err(anyhow::Error::msg)?;
         ds = ds.select(&seps).map_err(anyhow::Error::msg)?;
