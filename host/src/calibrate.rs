@@ -482,7 +482,8 @@ pub fn calibrate(
     let seps = ds.separations();
     if seps.len() < 2 {
         bail!(
-            "{}: the near-field fit needs at least 2 separations (has {}): the face angle and \
+            "{}: the near-field fit needs at least 2 separations (it has only {} in): the face \
+             angle and \
              the cell offset show only in how the outputs change with range",
             ds.path.display(),
             fmt_list(&seps)

@@ -114,8 +114,20 @@ impl FitReport {
     /// Load a saved fit.
     pub fn load(path: &Path) -> Result<FitReport, String> {
         let s = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let mut r: FitReport = serde_json::from_str(&s)
-            .map_err(|e| format!("{}: not a CTA fit file: {e}", path.display()))?;
+        let mut r: FitReport = serde_json::from_str(&s).map_err(|e| {
+            // A sensor calibration (`cta calibrate --out`) is the usual mix-up.
+            let cal = serde_json::from_str::<serde_json::Value>(&s)
+                .is_ok_and(|v| v.get("near_field").is_some() && v.get("h").is_some());
+            if cal {
+                format!(
+                    "{}: this is a sensor calibration (`cta calibrate --out`), not a fit: give a \
+                     file saved by `cta fit --save`",
+                    path.display()
+                )
+            } else {
+                format!("{}: not a CTA fit file: {e}", path.display())
+            }
+        })?;
         // A fit saved before the two named fields existed: derive them from `chi2_dof`.
         if r.residual_variance_counts2.is_none() && r.chi2_per_dof.is_none() {
             (r.residual_variance_counts2, r.chi2_per_dof) = split_variance(r.weights, r.chi2_dof);
@@ -515,6 +527,22 @@ mod tests {
         let r = FitReport::load(&p);
         std::fs::remove_file(&p).ok();
         r
+    }
+
+    /// A sensor calibration given where a fit belongs is named as such.
+    #[test]
+    fn a_calibration_file_is_not_taken_for_a_fit() {
+        let e = load_edited("cal", |v| {
+            *v = serde_json::json!({"d": [0.6, 0.1, 0.06], "p": [0, 0, 0], "h": 19000.0,
+                "noise": 32.8, "near_field": {"s": 0.175}});
+        })
+        .unwrap_err();
+        assert!(
+            e.contains("this is a sensor calibration (`cta calibrate --out`), not a fit"),
+            "{e}"
+        );
+        let e = load_edited("other", |v| *v = serde_json::json!({"h": 1})).unwrap_err();
+        assert!(e.contains("not a CTA fit file"), "{e}");
     }
 
     /// Every way GLSDC stops is said in words.

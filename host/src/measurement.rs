@@ -287,6 +287,11 @@ impl fmt::Display for ReadError {
             } => {
                 write!(f, "{}:{line}: column `{column}`: `{value}` ", path.display())?;
                 match reason {
+                    Reason::NotFinite if value == column => write!(
+                        f,
+                        "is the column's name: a second header line (two files joined?): \
+                         delete it"
+                    ),
                     Reason::NotFinite => write!(f, "is not a finite number"),
                     Reason::NotInteger(r) => write!(f, "is not an integer in {r}"),
                     Reason::OutOfRange(r) => write!(f, "is out of range (allowed: {r})"),
@@ -1109,6 +1114,13 @@ mod tests {
         assert_eq!(d.samples[0].line, 6);
         let e = read(&format!("# c\n\n{H}\n# x\n\n20,0,0,20,1,NaN\n")).unwrap_err();
         assert!(e.to_string().starts_with("m.csv:6: column `y`"), "{e}");
+        // Two files joined: the second header is named as one.
+        let e = read(&format!("{H}\n20,0,0,20,1,2\n{H}\n20,0,0,20,1,3\n")).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("m.csv:3: column `separation_in`: `separation_in` is the column's name: a second header line"),
+            "{e}"
+        );
     }
 
     #[test]
