@@ -350,6 +350,133 @@ struct RawTiming {
     give_up_s: Option<Spanned<f64>>,
 }
 
+/// The kind of value a plan key takes, for [`check_types`].
+#[derive(Clone, Copy)]
+enum Kind {
+    /// Text in quotes.
+    Text,
+    /// A whole number.
+    Whole,
+    /// A number (whole or not).
+    Number,
+    /// A list of whole numbers.
+    WholeList,
+    /// A list of numbers.
+    NumberList,
+    /// Checked by [`Plan::parse`] itself (several forms are allowed).
+    Any,
+    /// The `[timing]` table.
+    Timing,
+}
+
+/// Every plan key with the kind of its value and an example, as said in a type error:
+/// ``key `samples`: expected a whole number, e.g. 20, got 5.5``.
+const KINDS: [(&str, Kind, &str); 20] = [
+    ("name", Kind::Text, "\"lab run 1\""),
+    ("separations_in", Kind::Any, ""),
+    ("layout", Kind::Text, "\"single\""),
+    ("quad_spacing_in", Kind::Number, "11"),
+    ("beacons", Kind::Any, ""),
+    ("frequencies_hz", Kind::NumberList, "[4050]"),
+    ("power_levels", Kind::WholeList, "[2]"),
+    ("sensitivities", Kind::WholeList, "[4]"),
+    ("samples", Kind::Whole, "20"),
+    ("settle_ms", Kind::Whole, "200"),
+    ("rate_hz", Kind::Whole, "10"),
+    ("timing", Kind::Timing, ""),
+    ("timing.request_timeout_ms", Kind::Whole, "500"),
+    ("timing.retries", Kind::Whole, "2"),
+    ("timing.report_timeout_ms", Kind::Whole, "2000"),
+    ("timing.no_signal_reports", Kind::Whole, "20"),
+    ("timing.max_reports", Kind::Whole, "80"),
+    ("timing.heartbeat_ms", Kind::Whole, "2000"),
+    ("timing.backoff_max_s", Kind::Number, "30"),
+    ("timing.give_up_s", Kind::Number, "3600"),
+];
+
+/// A TOML value as a type error shows it: numbers, booleans and dates as written, text in
+/// quotes, lists and tables by name.
+fn shown(v: &toml::de::DeValue<'_>) -> String {
+    use toml::de::DeValue;
+    match v {
+        DeValue::String(s) => format!("{s:?}"),
+        DeValue::Integer(i) => i.to_string(),
+        DeValue::Float(f) => f.to_string(),
+        DeValue::Boolean(b) => b.to_string(),
+        DeValue::Datetime(d) => d.to_string(),
+        DeValue::Array(_) => "a list".into(),
+        DeValue::Table(_) => "a table".into(),
+    }
+}
+
+/// Check that every known key of the plan has a value of the right kind, before the plan is
+/// read into [`Raw`] (whose own type errors, from serde, name no key and speak Rust: "invalid
+/// type: floating point `5.5`, expected i64"). The first wrong value in the file fails: its
+/// key, its span and the message (``expected a whole number, e.g. 20, got 5.5``). Syntax
+/// errors, unknown and missing keys are left to the reading into [`Raw`].
+fn check_types(src: &str) -> Result<(), (String, std::ops::Range<usize>, String)> {
+    use toml::de::{DeTable, DeValue};
+    let Ok(doc) = DeTable::parse(src) else {
+        return Ok(());
+    };
+    let mut values: Vec<(String, &Spanned<DeValue<'_>>)> = Vec::new();
+    for (k, v) in doc.get_ref() {
+        values.push((k.get_ref().to_string(), v));
+        if let (true, DeValue::Table(t)) = (k.get_ref() == "timing", v.get_ref()) {
+            values.extend(
+                t.iter()
+                    .map(|(k, v)| (format!("timing.{}", k.get_ref()), v)),
+            );
+        }
+    }
+    values.sort_by_key(|(_, v)| v.span().start);
+    let number = |v: &DeValue<'_>| matches!(v, DeValue::Integer(_) | DeValue::Float(_));
+    let whole = |v: &DeValue<'_>| matches!(v, DeValue::Integer(_));
+    for (key, v) in values {
+        let Some(&(_, kind, example)) = KINDS.iter().find(|(k, _, _)| *k == key) else {
+            continue;
+        };
+        let fail = |at: &Spanned<DeValue<'_>>, expected: String| {
+            // A number in quotes: say so.
+            let hint = match at.get_ref() {
+                DeValue::String(s) if s.trim().parse::<f64>().is_ok() => {
+                    " (text: write a number without quotes)"
+                }
+                _ => "",
+            };
+            Err((
+                key.clone(),
+                at.span(),
+                format!("expected {expected}, got {}{hint}", shown(at.get_ref())),
+            ))
+        };
+        let list = |is: &dyn Fn(&DeValue<'_>) -> bool, each: &str| match v.get_ref() {
+            DeValue::Array(a) => match a.iter().find(|x| !is(x.get_ref())) {
+                Some(x) => fail(x, format!("{each} in the list, e.g. {example}")),
+                None => Ok(()),
+            },
+            _ => fail(v, format!("a list, e.g. {example}")),
+        };
+        match kind {
+            Kind::Text if !matches!(v.get_ref(), DeValue::String(_)) => {
+                fail(v, format!("text in quotes, e.g. {example}"))?
+            }
+            Kind::Whole if !whole(v.get_ref()) => {
+                fail(v, format!("a whole number, e.g. {example}"))?
+            }
+            Kind::Number if !number(v.get_ref()) => fail(v, format!("a number, e.g. {example}"))?,
+            Kind::WholeList => list(&whole, "whole numbers")?,
+            Kind::NumberList => list(&number, "numbers")?,
+            Kind::Timing if !matches!(v.get_ref(), DeValue::Table(_)) => fail(
+                v,
+                "a table: a `[timing]` line, then its keys one per line".into(),
+            )?,
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 impl Plan {
     /// Read and validate a plan file.
     pub fn load(path: &Path) -> Result<Plan, PlanError> {
@@ -366,6 +493,12 @@ impl Plan {
     /// Parse and validate plan text; `file` names it in errors.
     pub fn parse(file: &str, src: &str) -> Result<Plan, PlanError> {
         let line_of = |offset: usize| src[..offset.min(src.len())].matches('\n').count() + 1;
+        check_types(src).map_err(|(key, span, message)| PlanError {
+            file: file.into(),
+            line: Some(line_of(span.start)),
+            key: Some(key),
+            message,
+        })?;
         let raw: Raw = toml::from_str(src).map_err(|e| {
             // toml's messages name the key ("unknown field `x`", "missing field `y`"); we add
             // the line of its span.
@@ -842,6 +975,80 @@ settle_ms = 0
         assert_eq!(e.line, Some(11));
         let e = Plan::parse("p.toml", &SHORT.replace("[20, 25]", "\"30..2\"")).unwrap_err();
         assert_eq!(e.key.as_deref(), Some("separations_in"));
+    }
+
+    #[test]
+    fn type_errors_name_the_key_and_say_what_is_expected_in_words() {
+        let said = |from: &str, to: &str| {
+            assert!(SHORT.contains(from), "{from}");
+            Plan::parse("q.toml", &SHORT.replace(from, to))
+                .unwrap_err()
+                .to_string()
+        };
+        assert_eq!(
+            said("samples = 5", "samples = 5.5"),
+            "q.toml:8: key `samples`: expected a whole number, e.g. 20, got 5.5"
+        );
+        assert_eq!(
+            said("samples = 5", "samples = \"10\""),
+            "q.toml:8: key `samples`: expected a whole number, e.g. 20, got \"10\" (text: write \
+             a number without quotes)"
+        );
+        assert_eq!(
+            said("power_levels = [1, 2]", "power_levels = 2"),
+            "q.toml:6: key `power_levels`: expected a list, e.g. [2], got 2"
+        );
+        assert_eq!(
+            said("power_levels = [1, 2]", "power_levels = [1, 1.5]"),
+            "q.toml:6: key `power_levels`: expected whole numbers in the list, e.g. [2], got 1.5"
+        );
+        assert_eq!(
+            said("frequencies_hz = [4050]", "frequencies_hz = 4050"),
+            "q.toml:5: key `frequencies_hz`: expected a list, e.g. [4050], got 4050"
+        );
+        assert_eq!(
+            said("name = \"t\"", "name = 7"),
+            "q.toml:2: key `name`: expected text in quotes, e.g. \"lab run 1\", got 7"
+        );
+        assert_eq!(
+            said("settle_ms = 0", "settle_ms = true"),
+            "q.toml:9: key `settle_ms`: expected a whole number, e.g. 200, got true"
+        );
+        // [timing] keys, and the table itself.
+        let t = |timing: &str| {
+            Plan::parse("q.toml", &format!("{SHORT}[timing]\n{timing}\n"))
+                .unwrap_err()
+                .to_string()
+        };
+        assert_eq!(
+            t("retries = [3]"),
+            "q.toml:11: key `timing.retries`: expected a whole number, e.g. 2, got a list"
+        );
+        assert_eq!(
+            t("give_up_s = \"1h\""),
+            "q.toml:11: key `timing.give_up_s`: expected a number, e.g. 3600, got \"1h\""
+        );
+        let e = Plan::parse("q.toml", &format!("{SHORT}timing = 5\n")).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("timing"));
+        assert!(e.message.starts_with("expected a table"), "{e}");
+        // The first wrong value in the file is the one reported.
+        let e = Plan::parse(
+            "q.toml",
+            &SHORT
+                .replace("samples = 5", "samples = 5.5")
+                .replace("[1, 2]", "2"),
+        )
+        .unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("power_levels"));
+        // Numbers where a number may be whole or not; other errors are unchanged.
+        let p = Plan::parse(
+            "q.toml",
+            &format!("layout = \"quad\"\nquad_spacing_in = 12\n{SHORT}[timing]\ngive_up_s = 60\n"),
+        )
+        .unwrap();
+        assert_eq!(p.layout, Layout::Quad { spacing: 12.0 });
+        assert_eq!(p.give_up_s, 60.0);
+        assert!(said("samples = 5", "samples = 0").contains("0 is not a number of samples"));
     }
 
     #[test]
