@@ -15,8 +15,9 @@
 //! is journalled. A refusal by a board (a plan the board cannot do) stops the run with the
 //! board's message.
 
-use std::io::{BufRead, Write};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::io::{BufRead, IsTerminal, Write};
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
@@ -32,8 +33,22 @@ use super::store::{now, Event, PointStatus, RunDir, SeparationEntry};
 use crate::link::{open_serial, Link, LinkConfig, LinkError};
 use crate::measurement::Sample;
 
-/// Set by the Ctrl-C handler; checked between and inside points.
+/// Set by the signal handler (Ctrl-C, SIGTERM, SIGHUP: see `sweep::run`); checked between and
+/// inside points, and while waiting for the operator.
 pub static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// The signal that set [`INTERRUPTED`] first (0: none, or set without a signal).
+pub static SIGNAL: AtomicI32 = AtomicI32::new(0);
+
+/// What stopped the sweep, as the summary, the error and the journal say it: `Ctrl-C` for
+/// SIGINT (and when [`INTERRUPTED`] was set without a signal), `SIGTERM`, `SIGHUP`.
+pub fn interruption() -> &'static str {
+    match SIGNAL.load(Ordering::SeqCst) {
+        libc::SIGTERM => "SIGTERM",
+        libc::SIGHUP => "SIGHUP",
+        _ => "Ctrl-C",
+    }
+}
 
 type Port = Box<dyn SerialPort>;
 
@@ -162,24 +177,69 @@ impl Operator for SimOperator<'_> {
 }
 
 /// Prompts on the terminal (stderr) and reads the answers from stdin.
+///
+/// Stdin is read on a helper thread, one line at a time, so that a wait for the operator can
+/// be interrupted: Ctrl-C (or SIGTERM, SIGHUP) at a prompt stops the run at once, and nothing
+/// is recorded for that prompt.
 pub struct Prompt {
-    /// Progress bars to hide while asking.
-    pub bars: MultiProgress,
+    /// Progress bars to hide while asking (and the log, when stderr is not a terminal).
+    bars: Bars,
+    /// Lines of stdin (`None`: end of input), from the reader thread started at the first
+    /// question.
+    lines: Option<Receiver<std::io::Result<Option<String>>>>,
 }
 
+/// Why a question got no answer: the run was interrupted while waiting.
+#[derive(Debug, thiserror::Error)]
+#[error("interrupted while waiting for the operator")]
+pub struct AskInterrupted;
+
 impl Prompt {
-    fn ask(&self, question: &str) -> Result<String> {
-        self.bars.suspend(|| {
-            eprint!("{question}");
-            let _ = std::io::stderr().flush();
-            let mut s = String::new();
-            let n = std::io::stdin().lock().read_line(&mut s)?;
-            if n == 0 {
-                return Err(anyhow!(
-                    "stdin closed while waiting for the operator (use --yes for scripted runs)"
-                ));
+    /// Prompts hiding `bars` while they ask.
+    pub fn new(bars: &Bars) -> Prompt {
+        Prompt {
+            bars: bars.clone(),
+            lines: None,
+        }
+    }
+
+    fn ask(&mut self, question: &str) -> Result<String> {
+        let lines = self.lines.get_or_insert_with(|| {
+            let (tx, rx) = mpsc::channel();
+            std::thread::spawn(move || loop {
+                let mut s = String::new();
+                let r = std::io::stdin().lock().read_line(&mut s);
+                let end = !matches!(r, Ok(n) if n > 0);
+                if tx.send(r.map(|n| (n > 0).then_some(s))).is_err() || end {
+                    break;
+                }
+            });
+            rx
+        });
+        let log = self.bars.log_prefix();
+        self.bars.multi.suspend(|| {
+            match log {
+                // Not on a terminal: the question is a line of the log.
+                Some(prefix) => eprintln!("{prefix} waiting for the operator: {}", question.trim()),
+                None => eprint!("{question}"),
             }
-            Ok(s.trim().to_string())
+            let _ = std::io::stderr().flush();
+            loop {
+                if INTERRUPTED.load(Ordering::SeqCst) {
+                    eprintln!();
+                    return Err(AskInterrupted.into());
+                }
+                match lines.recv_timeout(Duration::from_millis(50)) {
+                    Ok(Ok(Some(s))) => return Ok(s.trim().to_string()),
+                    Ok(Err(e)) => return Err(anyhow!("cannot read the operator's answer: {e}")),
+                    Ok(Ok(None)) | Err(RecvTimeoutError::Disconnected) => {
+                        return Err(anyhow!(
+                        "stdin closed while waiting for the operator (use --yes for scripted runs)"
+                    ))
+                    }
+                    Err(RecvTimeoutError::Timeout) => {}
+                }
+            }
         })
     }
 }
@@ -378,19 +438,38 @@ impl<'a> Engine<'a> {
             _ => None,
         });
         bars.start(plan, from);
+        // An operator's answer, or `None` when the run was interrupted while waiting for it
+        // (then nothing is recorded for that question).
+        fn answered<T>(r: Result<T>) -> Result<Option<T>> {
+            match r {
+                Ok(v) => Ok(Some(v)),
+                Err(_) if INTERRUPTED.load(Ordering::SeqCst) => Ok(None),
+                Err(e) => Err(e),
+            }
+        }
         for i in from..plan.len() {
+            if INTERRUPTED.load(Ordering::SeqCst) {
+                self.quiet_off();
+                return Ok(Ending::Interrupted);
+            }
             let p = plan.point(i);
             if place != Some((p.sep_idx, p.quadrant)) {
                 let prev = previous_entry.take().filter(|e| e.sep_idx == p.sep_idx);
                 let moved = place.map(|(s, _)| s) != Some(p.sep_idx);
                 if moved || entry.is_none() {
-                    let e = operator.separation(&p, prev.as_ref())?;
+                    let Some(e) = answered(operator.separation(&p, prev.as_ref()))? else {
+                        self.quiet_off();
+                        return Ok(Ending::Interrupted);
+                    };
                     store.log(Event::Separation(e.clone()))?;
                     entry = Some(e);
                     bars.separation(plan, &p);
                 }
                 if plan.layout.quadrants() > 1 {
-                    let source = operator.quadrant(p.quadrant)?;
+                    let Some(source) = answered(operator.quadrant(p.quadrant))? else {
+                        self.quiet_off();
+                        return Ok(Ending::Interrupted);
+                    };
                     store.log(Event::Quadrant {
                         quadrant: p.quadrant,
                         source,
@@ -399,7 +478,10 @@ impl<'a> Engine<'a> {
                 place = Some((p.sep_idx, p.quadrant));
             }
             if power != Some(p.power) {
-                let source = operator.power(p.power)?;
+                let Some(source) = answered(operator.power(p.power))? else {
+                    self.quiet_off();
+                    return Ok(Ending::Interrupted);
+                };
                 store.log(Event::Power {
                     level: p.power,
                     source,
@@ -464,8 +546,17 @@ impl<'a> Engine<'a> {
                     self.stats.samples += rows.len() as u64;
                     self.stats.lost_reports += m.lost as u64;
                     bars.point_done();
+                    let per = plan.per_separation().max(1);
+                    if (i + 1) % per == 0 || i + 1 == plan.len() {
+                        bars.log(&format!(
+                            "separation {} in done: {}/{} points",
+                            p.separation,
+                            i + 1,
+                            plan.len()
+                        ));
+                    }
                 }
-                None if INTERRUPTED.load(Ordering::Relaxed) => {
+                None if INTERRUPTED.load(Ordering::SeqCst) => {
                     self.quiet_off();
                     return Ok(Ending::Interrupted);
                 }
@@ -512,7 +603,7 @@ impl<'a> Engine<'a> {
         let mut first_failure: Option<Instant> = None;
         let mut backoff = Duration::from_millis(100);
         loop {
-            if INTERRUPTED.load(Ordering::Relaxed) {
+            if INTERRUPTED.load(Ordering::SeqCst) {
                 return Ok(None);
             }
             attempts += 1;
@@ -532,6 +623,7 @@ impl<'a> Engine<'a> {
                 }
                 Err(Fault::Interrupted) => return Ok(None),
                 Err(Fault::Fatal(e)) => {
+                    bars.log(&format!("fault at point {}: {e:#}; stop", p.index));
                     store.log(Event::Fault {
                         at: now(),
                         point: p.index,
@@ -551,26 +643,36 @@ impl<'a> Engine<'a> {
             };
             let since = *first_failure.get_or_insert_with(Instant::now);
             if since.elapsed().as_secs_f64() > self.plan.give_up_s {
+                let action = format!("stop: no recovery within {} s", self.plan.give_up_s);
+                bars.log(&format!(
+                    "fault at point {}: {board}: {what}; {action}",
+                    p.index
+                ));
                 store.log(Event::Fault {
                     at: now(),
                     point: p.index,
                     board: board.into(),
                     what: what.clone(),
-                    action: format!("stop: no recovery within {} s", self.plan.give_up_s),
+                    action,
                 })?;
                 return Ok(None);
             }
             self.stats.faults += 1;
             self.stats.retries += 1;
+            let action = format!(
+                "pause {:.1} s, reconnect, retry point",
+                backoff.as_secs_f64()
+            );
+            bars.log(&format!(
+                "fault at point {}: {board}: {what}; {action}",
+                p.index
+            ));
             store.log(Event::Fault {
                 at: now(),
                 point: p.index,
                 board: board.into(),
                 what: what.clone(),
-                action: format!(
-                    "pause {:.1} s, reconnect, retry point",
-                    backoff.as_secs_f64()
-                ),
+                action,
             })?;
             bars.message(&format!(
                 "paused: {board}: {what}; retry in {:.1} s",
@@ -597,6 +699,15 @@ impl<'a> Engine<'a> {
             }
             if ok && matches!(fault, Fault::Lost(..)) {
                 self.stats.reconnects += 1;
+                let which = match board {
+                    "host" => "both boards",
+                    "beacon" => "beacon board",
+                    _ => "sensor board",
+                };
+                bars.log(&format!(
+                    "reconnected ({which}); measuring point {} again",
+                    p.index
+                ));
             }
             if !ok {
                 // Drop both links: the next attempt reconnects them after the backoff.
@@ -710,7 +821,7 @@ impl<'a> Engine<'a> {
                     plan.report_timeout_ms
                 )));
             }
-            if INTERRUPTED.load(Ordering::Relaxed) {
+            if INTERRUPTED.load(Ordering::SeqCst) {
                 return Err(Fault::Interrupted);
             }
             self.heartbeat()?;
@@ -739,26 +850,38 @@ fn fault_error(path: &str, f: Fault) -> anyhow::Error {
 fn sleep_interruptible(d: Duration) -> bool {
     let end = Instant::now() + d;
     while Instant::now() < end {
-        if INTERRUPTED.load(Ordering::Relaxed) {
+        if INTERRUPTED.load(Ordering::SeqCst) {
             return false;
         }
         std::thread::sleep((end - Instant::now()).min(Duration::from_millis(50)));
     }
-    !INTERRUPTED.load(Ordering::Relaxed)
+    !INTERRUPTED.load(Ordering::SeqCst)
 }
 
-/// The progress bars: the whole run and the current separation, with ETA.
+/// The progress bars: the whole run and the current separation, with ETA. When stderr is not
+/// a terminal (a run under `nohup`, `tee`, cron or systemd) there are no bars; plain log lines
+/// take their place ([`Bars::log`]): the start, each separation finished, each fault, retry
+/// and reconnection, each wait for the operator, the stop.
+#[derive(Clone)]
 pub struct Bars {
     /// The bars' container (prompts suspend it).
     pub multi: MultiProgress,
     total: ProgressBar,
     sep: ProgressBar,
+    /// Log lines instead of bars: when the session started.
+    log: Option<Instant>,
 }
 
 impl Bars {
-    /// Bars on stderr (hidden when `hidden` or when stderr is not a terminal).
-    pub fn new(hidden: bool) -> Bars {
-        let multi = MultiProgress::with_draw_target(if hidden {
+    /// Bars on stderr; with `quiet`, neither bars nor log lines. Log lines replace the bars
+    /// when stderr is not a terminal.
+    pub fn new(quiet: bool) -> Bars {
+        Bars::with(quiet, !quiet && !std::io::stderr().is_terminal())
+    }
+
+    /// Bars (hidden when `hidden` or when stderr is not a terminal), and log lines when `log`.
+    pub fn with(hidden: bool, log: bool) -> Bars {
+        let multi = MultiProgress::with_draw_target(if hidden || log {
             ProgressDrawTarget::hidden()
         } else {
             ProgressDrawTarget::stderr_with_hz(10)
@@ -774,7 +897,29 @@ impl Bars {
         let sep = multi.add(ProgressBar::new(0).with_style(style(
             "{prefix:>10} [{bar:40}] {pos}/{len} points  ETA {eta}",
         )));
-        Bars { multi, total, sep }
+        Bars {
+            multi,
+            total,
+            sep,
+            log: log.then(Instant::now),
+        }
+    }
+
+    /// The start of a log line, `cta sweep [+H:MM:SS]` (time since the session started);
+    /// `None` when not logging.
+    fn log_prefix(&self) -> Option<String> {
+        self.log.map(|t0| {
+            let s = t0.elapsed().as_secs();
+            format!("cta sweep [+{}:{:02}:{:02}]", s / 3600, s / 60 % 60, s % 60)
+        })
+    }
+
+    /// A line of the log on stderr (only when logging instead of drawing bars).
+    pub fn log(&self, line: &str) {
+        if let Some(prefix) = self.log_prefix() {
+            // Not `eprintln!`, which panics when stderr has gone (a closed pipe or terminal).
+            let _ = writeln!(std::io::stderr(), "{prefix} {line}");
+        }
     }
 
     fn start(&self, plan: &Plan, from: usize) {

@@ -23,7 +23,10 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use serde_json::json;
 
-use engine::{Bars, Ending, Engine, Operator, Prompt, Scripted, SimOperator, INTERRUPTED};
+use engine::{
+    interruption, Bars, Ending, Engine, Operator, Prompt, Scripted, SimOperator, INTERRUPTED,
+    SIGNAL,
+};
 use plan::Plan;
 use sim::{Faults, SimCta, SimSettings};
 use store::{now, Event, PointStatus, RunDir};
@@ -132,12 +135,7 @@ pub struct Summary {
 
 /// `cta sweep`.
 pub fn run(args: &SweepArgs) -> Result<()> {
-    let _ = ctrlc::set_handler(|| {
-        if INTERRUPTED.swap(true, Ordering::Relaxed) {
-            // Second Ctrl-C: leave now (everything committed is on disk).
-            std::process::exit(130);
-        }
-    });
+    catch_stop_signals();
     let s = sweep(args)?;
     print_summary(&s);
     match &s.ending {
@@ -148,6 +146,7 @@ pub fn run(args: &SweepArgs) -> Result<()> {
         ),
         // Not a success: `cta sweep ... && cta fit ...` must not go on with partial data.
         Ending::Interrupted => Err(Interrupted {
+            signal: interruption(),
             dir: s.dir.clone(),
             next_point: s.next_point,
             points: s.points,
@@ -156,17 +155,53 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     }
 }
 
-/// The error [`run`] returns when Ctrl-C stopped the sweep: the run is saved and resumable but
+/// The signal handler of a sweep: the first SIGINT, SIGTERM or SIGHUP asks the run to stop
+/// cleanly (LEDs off, sensor idle, the stop journalled); a second one leaves at once (everything
+/// committed is on disk). Only async-signal-safe work here: atomics and `_exit`.
+extern "C" fn on_stop_signal(sig: libc::c_int) {
+    let _ = SIGNAL.compare_exchange(0, sig, Ordering::SeqCst, Ordering::SeqCst);
+    if INTERRUPTED.swap(true, Ordering::SeqCst) {
+        // SAFETY: _exit is async-signal-safe.
+        unsafe { libc::_exit(128 + sig) }
+    }
+}
+
+/// Catch SIGINT (Ctrl-C), SIGTERM (`kill`, systemd, `docker stop`) and SIGHUP (a closed terminal
+/// or SSH session) with [`on_stop_signal`]. A signal ignored when the sweep started stays
+/// ignored: under `nohup` a hang-up does not stop the run.
+fn catch_stop_signals() {
+    for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+        // SAFETY: plain sigaction calls with a zeroed, then filled, struct; the handler only
+        // touches atomics and calls _exit.
+        unsafe {
+            let mut old: libc::sigaction = std::mem::zeroed();
+            if libc::sigaction(sig, std::ptr::null(), &mut old) == 0
+                && old.sa_sigaction == libc::SIG_IGN
+            {
+                continue;
+            }
+            let mut sa: libc::sigaction = std::mem::zeroed();
+            sa.sa_sigaction = on_stop_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+            sa.sa_flags = libc::SA_RESTART;
+            libc::sigemptyset(&mut sa.sa_mask);
+            libc::sigaction(sig, &sa, std::ptr::null_mut());
+        }
+    }
+}
+
+/// The error [`run`] returns when Ctrl-C (or SIGTERM, SIGHUP) stopped the sweep: the run is saved and resumable but
 /// incomplete, so the command must not exit with success. The binary exits with
 /// [`Interrupted::EXIT_CODE`] when it finds this error (`e.downcast_ref::<Interrupted>()`),
 /// otherwise with its generic error status.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
-    "interrupted (Ctrl-C) at point {next_point} of {points}; the run is saved: continue with \
+    "interrupted ({signal}) at point {next_point} of {points}; the run is saved: continue with \
      `cta sweep --resume {}`",
     .dir.display()
 )]
 pub struct Interrupted {
+    /// What stopped it: `Ctrl-C`, `SIGTERM` or `SIGHUP`.
+    pub signal: &'static str,
     /// The run directory.
     pub dir: PathBuf,
     /// Next point to measure.
@@ -176,7 +211,9 @@ pub struct Interrupted {
 }
 
 impl Interrupted {
-    /// Exit status for an interrupted sweep: 128 + SIGINT, the shell's convention.
+    /// Exit status for an interrupted sweep, whichever signal stopped it: 130, 128 + SIGINT,
+    /// the shell's convention for a command stopped by Ctrl-C (the sweep stopped itself
+    /// cleanly; it was not killed by the signal).
     pub const EXIT_CODE: i32 = 130;
 }
 
@@ -185,9 +222,10 @@ fn print_summary(s: &Summary) {
     let state = match &s.ending {
         Ending::Complete => "complete".to_string(),
         Ending::Interrupted => format!(
-            "interrupted at point {} of {} (continue with `cta sweep --resume {}`)",
+            "interrupted at point {} of {} by {} (continue with `cta sweep --resume {}`)",
             s.next_point,
             s.points,
+            interruption(),
             s.dir.display()
         ),
         Ending::GaveUp(_) => format!(
@@ -220,7 +258,8 @@ fn print_summary(s: &Summary) {
 /// Run (or resume) a sweep; returns the session summary. [`run`] is this plus the Ctrl-C
 /// handler and the printed summary.
 pub fn sweep(args: &SweepArgs) -> Result<Summary> {
-    INTERRUPTED.store(false, Ordering::Relaxed);
+    INTERRUPTED.store(false, Ordering::SeqCst);
+    SIGNAL.store(0, Ordering::SeqCst);
     let t0 = Instant::now();
     let sync = !args.no_sync;
     let command: Vec<String> = std::env::args().collect();
@@ -390,10 +429,25 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         let mut operator: Box<dyn Operator + '_> = match &sim {
             Some(s) => Box::new(SimOperator(s)),
             None if args.yes => Box::new(Scripted),
-            None => Box::new(Prompt {
-                bars: bars.multi.clone(),
-            }),
+            None => Box::new(Prompt::new(&bars)),
         };
+        bars.log(&format!(
+            "sweep {}: plan `{}`, {} points ({} per separation), {} on the {}",
+            store.dir.display(),
+            plan.name,
+            plan.len(),
+            plan.per_separation(),
+            if from == 0 {
+                "starting".to_string()
+            } else {
+                format!("resuming at point {from}")
+            },
+            if sim.is_some() {
+                "simulated CTA"
+            } else {
+                "CTA hardware"
+            },
+        ));
         engine.run(&mut store, operator.as_mut(), from, &bars)
     })();
     bars.finish();
@@ -414,12 +468,12 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     let next = store.next_point();
     let reason = match &ending {
         Ending::Complete => "complete".to_string(),
-        Ending::Interrupted => "interrupted (Ctrl-C)".to_string(),
+        Ending::Interrupted => format!("interrupted ({})", interruption()),
         Ending::GaveUp(w) => format!("gave up: {w}"),
     };
     store.log(Event::Stop {
         at: now(),
-        reason,
+        reason: reason.clone(),
         next_point: next,
     })?;
     write_manifest(
@@ -431,6 +485,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             "stopped"
         },
     )?;
+    bars.log(&format!("stopped: {reason}; {next}/{} points", plan.len()));
     Ok(Summary {
         dir: store.dir.clone(),
         ending,

@@ -1,0 +1,343 @@
+//! `cta sweep` and the signals that end it, and what it prints when stderr is not a terminal:
+//!
+//! * SIGTERM and SIGHUP stop a sweep like Ctrl-C: LEDs off, sensor idle, the stop journalled,
+//!   the manifest `stopped`, the summary printed, status 130.
+//! * Ctrl-C (or SIGTERM) at an operator prompt stops at once, recording nothing for it.
+//! * With stderr not a terminal, plain log lines replace the progress bars.
+//!
+//! The sweeps run in this test binary re-executed as a child (`child_hardware_run`,
+//! `child_log_run`), which calls `sweep::run` (the `cta sweep` command: signal handler,
+//! summary, result) and exits the way the binary does. The hardware runs use the simulated
+//! boards as if they were real ones (`--beacon`/`--sensor` given their ports), so the operator
+//! is asked, and the child checks the boards' state itself once the sweep returns.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use cta_core::wire::beacon::{Beacon, BeaconRequest, BeaconResponse};
+use cta_core::wire::sensor::{SensorProtocol, SensorRequest, SensorResponse};
+use cta_host::link::{open_serial, Link, LinkConfig};
+use cta_host::sweep::plan::Plan;
+use cta_host::sweep::sim::{SimCta, SimSettings};
+use cta_host::sweep::{self, Interrupted, SweepArgs};
+use cta_tests::{child, child_paths, journal, journal_points, write_plan, TestDir};
+
+/// Slow enough (the simulated sensor at 50 Hz in real time) that the run is still going when
+/// the signal comes.
+const PLAN: &str = r#"
+name = "signal test"
+separations_in = "10..30"
+beacons = "all"
+samples = 2
+settle_ms = 0
+rate_hz = 50
+"#;
+
+/// Generous: a loaded machine must not fail the tests.
+const PATIENCE: Duration = Duration::from_secs(120);
+
+/// How the child ends: as host/src/main.rs does with the command's result.
+macro_rules! exit_like_the_binary {
+    ($r:expr) => {
+        match $r {
+            Ok(()) => std::process::exit(0),
+            Err(e) => {
+                eprintln!("cta: error: {e:#}");
+                let code = e
+                    .downcast_ref::<Interrupted>()
+                    .map_or(1, |_| Interrupted::EXIT_CODE);
+                std::process::exit(code);
+            }
+        }
+    };
+}
+
+/// Prints `board check: N lit, sensor Idle` (what the boards say once the sweep returned).
+fn print_board_state(sim: &SimCta) {
+    let config = LinkConfig::default();
+    let port = open_serial(&sim.beacon_path().display().to_string()).unwrap();
+    let mut beacon: Link<Beacon, _> = Link::new(port, config);
+    let lit = match beacon.call(BeaconRequest::GetLeds).unwrap() {
+        Some(BeaconResponse::Leds(modes)) => modes.iter().filter(|m| m.is_lit()).count(),
+        other => panic!("GetLeds: {other:?}"),
+    };
+    let port = open_serial(&sim.sensor_path().display().to_string()).unwrap();
+    let mut sensor: Link<SensorProtocol, _> = Link::new(port, config);
+    let mode = match sensor.call(SensorRequest::Status).unwrap() {
+        Some(SensorResponse::Status(s)) => s.mode,
+        other => panic!("Status: {other:?}"),
+    };
+    println!("board check: {lit} lit, sensor {mode:?}");
+}
+
+/// `cta sweep --plan PLAN --out OUT --beacon B --sensor S --quiet [--yes]` on simulated boards
+/// taken for real ones; `--yes` when `yes` exists. Only in the re-executed child.
+#[test]
+fn child_hardware_run() {
+    let Some([out, plan, yes]) = child_paths("CTA_SWEEP_SIGNAL_CHILD") else {
+        return;
+    };
+    let p = Plan::load(&plan).unwrap();
+    let sim = SimCta::spawn(
+        &p,
+        &SimSettings {
+            realtime: true,
+            ..SimSettings::default()
+        },
+    )
+    .unwrap();
+    let a = SweepArgs {
+        plan: Some(plan),
+        out: Some(out),
+        beacon: Some(sim.beacon_path().display().to_string()),
+        sensor: Some(sim.sensor_path().display().to_string()),
+        yes: yes.exists(),
+        quiet: true,
+        no_sync: true,
+        ..SweepArgs::default()
+    };
+    let r = sweep::run(&a);
+    print_board_state(&sim);
+    exit_like_the_binary!(r);
+}
+
+/// Collects a child's stderr as it comes.
+fn collect(mut from: impl Read + Send + 'static) -> Arc<Mutex<String>> {
+    let text = Arc::new(Mutex::new(String::new()));
+    let t = text.clone();
+    std::thread::spawn(move || {
+        let mut buf = [0u8; 4096];
+        while let Ok(n) = from.read(&mut buf) {
+            if n == 0 {
+                break;
+            }
+            t.lock()
+                .unwrap()
+                .push_str(&String::from_utf8_lossy(&buf[..n]));
+        }
+    });
+    text
+}
+
+/// Wait until `ready()` or panic (killing the child) after [`PATIENCE`].
+fn wait_for(child: &mut Child, what: &str, mut ready: impl FnMut() -> bool) {
+    let t0 = Instant::now();
+    while !ready() {
+        if t0.elapsed() > PATIENCE || child.try_wait().unwrap().is_some() {
+            let _ = child.kill();
+            panic!("{what}: never happened (or the sweep ended early)");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Send `signal` (`INT`, `TERM`, `HUP`) to the child and wait for it to end (panicking,
+/// after killing it, if it does not within [`PATIENCE`]). Returns its status code and stdout.
+fn signal_and_wait(mut child: Child, signal: &str) -> (Option<i32>, String) {
+    let ok = Command::new("kill")
+        .args([&format!("-{signal}"), &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    let t0 = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if t0.elapsed() > PATIENCE {
+            let _ = child.kill();
+            panic!("SIG{signal}: the sweep did not stop");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let mut stdout = String::new();
+    child
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut stdout)
+        .unwrap();
+    (child.wait().unwrap().code(), stdout)
+}
+
+/// Start `child_hardware_run` on `PLAN` into `dir/run`; stdin a pipe left open (nobody
+/// answers), stdout and stderr piped. Returns the child, the run directory and the stderr
+/// collected so far.
+fn start_hardware_run(dir: &Path, yes: bool) -> (Child, PathBuf, Arc<Mutex<String>>) {
+    let plan = write_plan(dir, PLAN);
+    let run = dir.join("run");
+    let yes_marker = dir.join("yes");
+    if yes {
+        std::fs::write(&yes_marker, "").unwrap();
+    }
+    let mut child = child(
+        "child_hardware_run",
+        "CTA_SWEEP_SIGNAL_CHILD",
+        &[&run, &plan, &yes_marker],
+    )
+    .stdin(Stdio::piped())
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped())
+    .spawn()
+    .unwrap();
+    let stderr = collect(child.stderr.take().unwrap());
+    (child, run, stderr)
+}
+
+/// Whether this process ignores SIGHUP (the tests run under `nohup`): its children then
+/// ignore it too, and so does the sweep, on purpose.
+fn sighup_ignored() -> bool {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("SigIgn:"))
+        .and_then(|m| u64::from_str_radix(m.trim(), 16).ok())
+        .is_some_and(|mask| mask & 1 != 0)
+}
+
+/// The run stopped cleanly, interrupted by `name`: summary, error, journal, manifest, boards.
+#[track_caller]
+fn assert_clean_stop(
+    run: &Path,
+    name: &str,
+    code: Option<i32>,
+    stdout: &str,
+    stderr: &Mutex<String>,
+) {
+    // Give the reader thread the last bytes: the child has exited.
+    std::thread::sleep(Duration::from_millis(200));
+    let stderr = stderr.lock().unwrap().clone();
+    assert_eq!(
+        code,
+        Some(Interrupted::EXIT_CODE),
+        "stdout: {stdout}\nstderr: {stderr}"
+    );
+    let hint = format!("cta sweep --resume {}", run.display());
+    assert!(
+        stdout.contains("interrupted at point")
+            && stdout.contains(&format!(" by {name} (continue with `{hint}`)")),
+        "{stdout}"
+    );
+    assert!(
+        stderr.contains(&format!("cta: error: interrupted ({name}) at point")),
+        "{stderr}"
+    );
+    let j = journal(run);
+    assert!(
+        j.contains(&format!("\"reason\":\"interrupted ({name})\"")),
+        "{j}"
+    );
+    let m = std::fs::read_to_string(run.join("manifest.json")).unwrap();
+    assert!(m.contains("\"state\": \"stopped\""), "{m}");
+    assert!(
+        stdout.contains("board check: 0 lit, sensor Idle"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn sigterm_and_sighup_stop_a_sweep_like_ctrl_c() {
+    let mut signals = vec![("TERM", "SIGTERM"), ("INT", "Ctrl-C")];
+    if sighup_ignored() {
+        eprintln!("SIGHUP is ignored here (nohup?): its case is left out");
+    } else {
+        signals.push(("HUP", "SIGHUP"));
+    }
+    for (signal, name) in signals {
+        let d = TestDir::new(&format!("sweep-signal-{signal}"));
+        let (mut child, run, stderr) = start_hardware_run(&d, true);
+        wait_for(&mut child, "3 points committed", || {
+            journal_points(&run) >= 3
+        });
+        let (code, stdout) = signal_and_wait(child, signal);
+        assert_clean_stop(&run, name, code, &stdout, &stderr);
+    }
+}
+
+#[test]
+fn a_signal_at_the_operator_prompt_stops_at_once_and_records_nothing() {
+    for (signal, name) in [("INT", "Ctrl-C"), ("TERM", "SIGTERM")] {
+        let d = TestDir::new(&format!("sweep-prompt-{signal}"));
+        let (mut child, run, stderr) = start_hardware_run(&d, false);
+        let asked = || {
+            stderr
+                .lock()
+                .unwrap()
+                .contains("Move the plate to 10 in (all LEDs are off)")
+        };
+        wait_for(&mut child, "the plate prompt", asked);
+        // The child's stdin stays open: nobody answers.
+        let (code, stdout) = signal_and_wait(child, signal);
+        assert_clean_stop(&run, name, code, &stdout, &stderr);
+        assert!(stdout.contains("at point 0 of 2100"), "{stdout}");
+        // Nothing was entered: no separation, no point.
+        let j = journal(&run);
+        assert!(!j.contains("\"event\":\"separation\""), "{j}");
+        assert_eq!(journal_points(&run), 0);
+    }
+}
+
+/// `cta sweep --plan PLAN --out OUT --sim-fault vanish=sensor@10:500`, not quiet, stderr piped
+/// by the parent. Only in the re-executed child.
+#[test]
+fn child_log_run() {
+    let Some([out, plan]) = child_paths("CTA_SWEEP_LOG_CHILD") else {
+        return;
+    };
+    let a = SweepArgs {
+        plan: Some(plan),
+        out: Some(out),
+        sim_fault: Some("vanish=sensor@10:500".into()),
+        no_sync: true,
+        ..SweepArgs::default()
+    };
+    exit_like_the_binary!(sweep::run(&a));
+}
+
+#[test]
+fn without_a_terminal_the_sweep_logs_lines_instead_of_bars() {
+    let d = TestDir::new("sweep-log-lines");
+    let plan = write_plan(
+        &d,
+        "name = \"log\"\nseparations_in = [10, 20]\nbeacons = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9]\n\
+         samples = 3\nsettle_ms = 0\n",
+    );
+    let run = d.join("run");
+    let out = child("child_log_run", "CTA_SWEEP_LOG_CHILD", &[&run, &plan])
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "stdout: {stdout}\nstderr: {stderr}");
+    let lines: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("cta sweep [+"))
+        .collect();
+    let has = |s: &str| lines.iter().any(|l| l.contains(s));
+    assert!(
+        has(&format!(
+            "] sweep {}: plan `log`, 20 points (10 per separation), starting on the simulated CTA",
+            run.display()
+        )),
+        "{stderr}"
+    );
+    assert!(has("fault at point 9: sensor: "), "{stderr}");
+    assert!(has("pause 0.1 s, reconnect, retry point"), "{stderr}");
+    // How many attempts the reconnection takes depends on timing: at least one says so.
+    assert!(has("reconnected ("), "{stderr}");
+    assert!(has("; measuring point 9 again"), "{stderr}");
+    assert!(has("separation 10 in done: 10/20 points"), "{stderr}");
+    assert!(has("separation 20 in done: 20/20 points"), "{stderr}");
+    assert!(has("stopped: complete; 20/20 points"), "{stderr}");
+    // The start comes first and the stop last; no progress bar was drawn.
+    assert!(lines[0].contains("starting"), "{stderr}");
+    assert!(lines.last().unwrap().contains("stopped"), "{stderr}");
+    assert!(
+        !stderr.contains("[===") && !stderr.contains("ETA"),
+        "{stderr}"
+    );
+    // The summary stays on stdout.
+    assert!(stdout.contains("complete"), "{stdout}");
+    assert!(stdout.contains("reconnections: 1"), "{stdout}");
+}
