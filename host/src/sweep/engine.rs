@@ -16,8 +16,9 @@
 //! board's message.
 
 use std::io::{BufRead, IsTerminal, Write};
-use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::sync::{Arc, LazyLock};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
@@ -33,17 +34,19 @@ use super::store::{now, Event, PointStatus, RunDir, SeparationEntry};
 use crate::link::{open_serial, Link, LinkConfig, LinkError};
 use crate::measurement::Sample;
 
-/// Set by the signal handler (Ctrl-C, SIGTERM, SIGHUP: see `sweep::run`); checked between and
-/// inside points, and while waiting for the operator.
-pub static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+/// Set by the signal handlers (Ctrl-C, SIGTERM, SIGHUP: see `sweep::run`); checked between
+/// and inside points, and while waiting for the operator. Shared with `signal_hook`'s flag
+/// handlers, hence the `Arc`.
+pub static INTERRUPTED: LazyLock<Arc<AtomicBool>> =
+    LazyLock::new(|| Arc::new(AtomicBool::new(false)));
 
-/// The signal that set [`INTERRUPTED`] first (0: none, or set without a signal).
-pub static SIGNAL: AtomicI32 = AtomicI32::new(0);
+/// The signal that set [`INTERRUPTED`] (0: none, or set without a signal).
+pub static SIGNAL: LazyLock<Arc<AtomicUsize>> = LazyLock::new(|| Arc::new(AtomicUsize::new(0)));
 
 /// What stopped the sweep, as the summary, the error and the journal say it: `Ctrl-C` for
 /// SIGINT (and when [`INTERRUPTED`] was set without a signal), `SIGTERM`, `SIGHUP`.
 pub fn interruption() -> &'static str {
-    match SIGNAL.load(Ordering::SeqCst) {
+    match i32::try_from(SIGNAL.load(Ordering::SeqCst)).unwrap_or(0) {
         libc::SIGTERM => "SIGTERM",
         libc::SIGHUP => "SIGHUP",
         _ => "Ctrl-C",

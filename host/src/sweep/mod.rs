@@ -18,6 +18,7 @@ pub mod store;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
+use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
@@ -155,37 +156,36 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     }
 }
 
-/// The signal handler of a sweep: the first SIGINT, SIGTERM or SIGHUP asks the run to stop
-/// cleanly (LEDs off, sensor idle, the stop journalled); a second one leaves at once (everything
-/// committed is on disk). Only async-signal-safe work here: atomics and `_exit`.
-extern "C" fn on_stop_signal(sig: libc::c_int) {
-    let _ = SIGNAL.compare_exchange(0, sig, Ordering::SeqCst, Ordering::SeqCst);
-    if INTERRUPTED.swap(true, Ordering::SeqCst) {
-        // SAFETY: _exit is async-signal-safe.
-        unsafe { libc::_exit(128 + sig) }
+/// Catch SIGINT (Ctrl-C), SIGTERM (`kill`, systemd, `docker stop`) and SIGHUP (a closed
+/// terminal or SSH session) with `signal_hook`'s flag handlers: the first asks the run to stop
+/// cleanly (LEDs off, sensor idle, the stop journalled; [`SIGNAL`] says which), a second one
+/// leaves at once with 128 + the signal (everything committed is on disk). A signal ignored
+/// when the sweep started stays ignored: under `nohup` a hang-up does not stop the run.
+fn catch_stop_signals() {
+    use signal_hook::flag;
+    for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+        if ignored(sig) {
+            continue;
+        }
+        // In this order: the second signal finds the flag set and exits; the first sets it.
+        let registered =
+            flag::register_conditional_shutdown(sig, 128 + sig, Arc::clone(&INTERRUPTED))
+                .and_then(|_| flag::register_usize(sig, Arc::clone(&SIGNAL), sig as usize))
+                .and_then(|_| flag::register(sig, Arc::clone(&INTERRUPTED)));
+        if let Err(e) = registered {
+            eprintln!(
+                "warning: cannot catch signal {sig} ({e}): it would stop the sweep uncleanly"
+            );
+        }
     }
 }
 
-/// Catch SIGINT (Ctrl-C), SIGTERM (`kill`, systemd, `docker stop`) and SIGHUP (a closed terminal
-/// or SSH session) with [`on_stop_signal`]. A signal ignored when the sweep started stays
-/// ignored: under `nohup` a hang-up does not stop the run.
-fn catch_stop_signals() {
-    for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
-        // SAFETY: plain sigaction calls with a zeroed, then filled, struct; the handler only
-        // touches atomics and calls _exit.
-        unsafe {
-            let mut old: libc::sigaction = std::mem::zeroed();
-            if libc::sigaction(sig, std::ptr::null(), &mut old) == 0
-                && old.sa_sigaction == libc::SIG_IGN
-            {
-                continue;
-            }
-            let mut sa: libc::sigaction = std::mem::zeroed();
-            sa.sa_sigaction = on_stop_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
-            sa.sa_flags = libc::SA_RESTART;
-            libc::sigemptyset(&mut sa.sa_mask);
-            libc::sigaction(sig, &sa, std::ptr::null_mut());
-        }
+/// Whether `sig` is ignored (SIG_IGN), as `nohup` leaves SIGHUP.
+fn ignored(sig: libc::c_int) -> bool {
+    // SAFETY: a read-only sigaction query into a zeroed struct.
+    unsafe {
+        let mut old: libc::sigaction = std::mem::zeroed();
+        libc::sigaction(sig, std::ptr::null(), &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN
     }
 }
 
