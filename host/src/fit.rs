@@ -18,9 +18,23 @@ pub enum Weights {
     /// `W = I`: every sample is one observation (the thesis's choice).
     None,
     /// Point means weighted by `n / variance` from the repeated samples of each point, with
-    /// a floor of 1/12 count^2 (the quantisation of integer counts).
+    /// a floor of 1/12 count^2 (the quantisation of integer counts). Needs at least
+    /// [`REPEAT_MIN_SAMPLES`] samples per point.
     Repeat,
+    /// Point means weighted by `n / variance` with the one-sample variance pooled per
+    /// separation and axis (over the points with no sample at the 16-bit rail), floored at
+    /// 1/12 count^2: `cta calibrate`'s and `cta analyze`'s weights, good from 2 samples.
+    Pooled,
 }
+
+/// The fewest samples per point `--weights repeat` takes. A variance from `n` samples has
+/// `n - 1` degrees of freedom; its inverse (the weight) has an infinite mean with 3 samples
+/// or fewer, and two equal integer samples give a zero variance (floored at 1/12 count^2): a
+/// few points whose samples happen to agree then carry the fit, tens of sigma off.
+pub const REPEAT_MIN_SAMPLES: usize = 4;
+
+/// A chi2/dof above this is warned about even when no expectation is known.
+pub const CHI2_FAR: f64 = 2.0;
 
 impl Weights {
     /// How the text output names the weighting.
@@ -28,6 +42,9 @@ impl Weights {
         match self {
             Weights::None => "unweighted",
             Weights::Repeat => "weighted by the spread of the repeated samples of each point",
+            Weights::Pooled => {
+                "weighted by the noise of the repeated samples pooled per separation and axis"
+            }
         }
     }
 
@@ -35,7 +52,7 @@ impl Weights {
     pub fn observations(self) -> &'static str {
         match self {
             Weights::None => "reports",
-            Weights::Repeat => "point means",
+            Weights::Repeat | Weights::Pooled => "point means",
         }
     }
 }
@@ -81,17 +98,23 @@ pub struct FitReport {
     /// Unweighted residual RMS, counts.
     pub rms_counts: f64,
     /// With `none` weights: the residual variance per degree of freedom, counts^2 (the
-    /// sigmas are scaled by it); `null` with `repeat` weights.
+    /// sigmas are scaled by it); `null` with `repeat` or `pooled` weights.
     #[serde(default)]
     pub residual_variance_counts2: Option<f64>,
-    /// With `repeat` weights: chi-square per degree of freedom (about 1 when the model
-    /// holds; above [`crate::calibrate::CHI2_WARN`] the 1-sigma are too small by about its
-    /// square root); `null` with `none` weights.
+    /// With `repeat` or `pooled` weights: chi-square per degree of freedom (about
+    /// `chi2_expected` when the model holds; above [`crate::calibrate::CHI2_WARN`] times it
+    /// the 1-sigma are too small by about the square root of the ratio); `null` with `none`
+    /// weights.
     #[serde(default)]
     pub chi2_per_dof: Option<f64>,
+    /// What a right model gives as `chi2_per_dof` with these weights ([`chi2_expected`]);
+    /// `null` with `none` weights (and in files written before it).
+    #[serde(default)]
+    pub chi2_expected: Option<f64>,
     /// Kept for readers of earlier fit files: the weighted residual variance per degree of
     /// freedom whatever the weighting, i.e. the one of `residual_variance_counts2` and
-    /// `chi2_per_dof` that is set. A chi-square per degree of freedom only with `repeat`.
+    /// `chi2_per_dof` that is set. A chi-square per degree of freedom only with `repeat` or
+    /// `pooled`.
     pub chi2_dof: f64,
     /// Iterations.
     pub iterations: usize,
@@ -211,7 +234,7 @@ impl FitReport {
 fn split_variance(weights: Weights, variance_factor: f64) -> (Option<f64>, Option<f64>) {
     match weights {
         Weights::None => (Some(variance_factor), None),
-        Weights::Repeat => (None, Some(variance_factor)),
+        Weights::Repeat | Weights::Pooled => (None, Some(variance_factor)),
     }
 }
 
@@ -219,7 +242,7 @@ fn split_variance(weights: Weights, variance_factor: f64) -> (Option<f64>, Optio
 /// inverse of its own sample variance from `n` samples, whose mean is `(n - 1) / (n - 3)`
 /// times the inverse true variance (an inverse chi-square), so chi2/dof averages that over
 /// the points (1.29 with 10 samples, 3 with 4). `None` when a point has 3 samples or fewer
-/// (the mean is infinite: no line to compare with).
+/// (the mean is infinite: no line to compare with; `--weights repeat` refuses such files).
 pub fn repeat_chi2_expected(ds: &Dataset) -> Option<f64> {
     let (mut sum, mut k) = (0.0, 0usize);
     for p in ds.points() {
@@ -233,25 +256,123 @@ pub fn repeat_chi2_expected(ds: &Dataset) -> Option<f64> {
     (k > 0).then(|| sum / k as f64)
 }
 
-/// The warning for a fit whose chi2/dof (with `repeat` weights) is above
-/// [`crate::calibrate::CHI2_WARN`] times what a right model gives with these weights
-/// (`expected`, [`repeat_chi2_expected`]), in `cta calibrate`'s words; `file` is the
-/// measurement file to analyze. `None` with `none` weights (no noise to compare with), or
-/// without an expectation.
+/// The chi2/dof a right model gives with `weights` on `ds`: with `repeat`
+/// [`repeat_chi2_expected`]; with `pooled` the same law for a variance pooled over `nu`
+/// degrees of freedom, `nu / (nu - 2)`, averaged over the points and axes (1.02 with 100
+/// points of 2 samples at a separation); `None` with `none` weights (no noise to compare with).
+pub fn chi2_expected(ds: &Dataset, weights: Weights) -> Option<f64> {
+    match weights {
+        Weights::None => None,
+        Weights::Repeat => repeat_chi2_expected(ds),
+        Weights::Pooled => {
+            let pool = pooled_noise(ds);
+            let (mut sum, mut k) = (0.0, 0usize);
+            for p in ds.points() {
+                let nu = pool
+                    .get(&p.first.separation_in.to_bits())
+                    .map_or(0, |(_, dof)| *dof) as f64;
+                if nu <= 2.0 {
+                    return None;
+                }
+                sum += nu / (nu - 2.0);
+                k += 1;
+            }
+            (k > 0).then(|| sum / k as f64)
+        }
+    }
+}
+
+/// The warning for a weighted fit whose chi2/dof is above [`crate::calibrate::CHI2_WARN`]
+/// times what a right model gives with these weights (the fit's `chi2_expected`, else
+/// `expected`), in `cta calibrate`'s words; `file` is the measurement file to analyze.
+/// Without an expectation, above [`CHI2_FAR`]: far above anything a right model gives. `None`
+/// with `none` weights (no noise to compare with).
 pub fn chi2_warning(rep: &FitReport, file: &Path, expected: Option<f64>) -> Option<String> {
     let c = rep.chi2_per_dof?;
-    let e = expected?;
-    (c > crate::calibrate::CHI2_WARN * e).then(|| {
-        crate::calibrate::misfit_warning(
-            &format!(
-                "chi2/dof {c:.2} (a right model gives {e:.2} with weights from each point's own \
-                 samples)"
-            ),
-            c / e,
-            "pinhole model (eq 65: d, p, H)",
-            file,
-        )
-    })
+    let model = "pinhole model (eq 65: d, p, H)";
+    let whose = match rep.weights {
+        Weights::Pooled => "the noise pooled per separation",
+        _ => "each point's own samples",
+    };
+    match rep.chi2_expected.or(expected) {
+        Some(e) => (c > crate::calibrate::CHI2_WARN * e).then(|| {
+            crate::calibrate::misfit_warning(
+                &format!("chi2/dof {c:.2} (a right model gives {e:.2} with weights from {whose})"),
+                c / e,
+                model,
+                file,
+            )
+        }),
+        None => (c > CHI2_FAR).then(|| {
+            crate::calibrate::misfit_warning(
+                &format!(
+                    "chi2/dof {c:.2} (far above the 1 a right model gives with weights from \
+                     {whose})"
+                ),
+                c,
+                model,
+                file,
+            )
+        }),
+    }
+}
+
+/// The one-sample noise pooled per separation over the points with no sample at the 16-bit
+/// rail ([`crate::measurement::any_sample_pinned`], as `cta calibrate` pools it): separation
+/// (as bits) to `([sum of squared deviations X, Y], degrees of freedom)`.
+pub fn pooled_noise(ds: &Dataset) -> BTreeMap<u64, ([f64; 2], usize)> {
+    let mut out: BTreeMap<u64, ([f64; 2], usize)> = BTreeMap::new();
+    for p in ds.points() {
+        let rows: Vec<_> = p.rows.iter().map(|&i| &ds.samples[i]).collect();
+        if crate::measurement::any_sample_pinned(rows.iter().copied()) {
+            continue;
+        }
+        let n = rows.len() as f64;
+        let mean = [
+            rows.iter().map(|s| s.x).sum::<f64>() / n,
+            rows.iter().map(|s| s.y).sum::<f64>() / n,
+        ];
+        let e = out.entry(p.first.separation_in.to_bits()).or_default();
+        for s in &rows {
+            e.0[0] += (s.x - mean[0]).powi(2);
+            e.0[1] += (s.y - mean[1]).powi(2);
+        }
+        e.1 += rows.len() - 1;
+    }
+    out
+}
+
+/// The one-sample variance of `axis` pooled at separation `sep` in `pool`
+/// ([`pooled_noise`]), `None` without repeated samples there.
+pub fn pooled_variance(
+    pool: &BTreeMap<u64, ([f64; 2], usize)>,
+    sep: f64,
+    axis: usize,
+) -> Option<f64> {
+    let (ss, dof) = pool.get(&sep.to_bits())?;
+    (*dof > 0).then(|| ss[axis] / *dof as f64)
+}
+
+/// The point means of `ds`, each weighted by `n / var(separation, axis)` floored at 1/12
+/// count^2 (absolute weights).
+pub fn point_means(ds: &Dataset, var: &dyn Fn(f64, usize) -> f64) -> Vec<Obs<f64>> {
+    ds.points()
+        .iter()
+        .map(|p| {
+            let n = p.rows.len() as f64;
+            let mut mean = [0.0; 2];
+            for &i in &p.rows {
+                mean[0] += ds.samples[i].x / n;
+                mean[1] += ds.samples[i].y / n;
+            }
+            let sep = p.first.separation_in;
+            Obs {
+                r: Vector3::from(p.first.r),
+                y: mean,
+                w: [0, 1].map(|a| n / var(sep, a).max(1.0 / 12.0)),
+            }
+        })
+        .collect()
 }
 
 /// Build the GLSDC observations from a dataset.
@@ -270,9 +391,20 @@ pub fn observations(ds: &Dataset, weights: Weights) -> Result<Vec<Obs<f64>>, Str
             let mut out = Vec::new();
             for p in ds.points() {
                 let n = p.rows.len();
-                if n < 2 {
+                if n < REPEAT_MIN_SAMPLES {
+                    let many = if n == 1 {
+                        "one".to_string()
+                    } else {
+                        n.to_string()
+                    };
                     return Err(format!(
-                        "{}:{}: --weights repeat needs repeated samples, this point has one (use --weights none)",
+                        "{}:{}: --weights repeat needs repeated samples, at least {REPEAT_MIN_SAMPLES} \
+                         per point, and this point has {many}: a variance from so few samples is \
+                         too rough to weight by (its inverse has an infinite mean; two equal \
+                         integer samples give a variance of 0), so the points whose samples \
+                         happen to agree would carry the fit, tens of sigma off. Use --weights \
+                         pooled (the noise pooled per separation, as `cta calibrate` weights) or \
+                         --weights none",
                         ds.path.display(),
                         p.first.line
                     ));
@@ -296,12 +428,43 @@ pub fn observations(ds: &Dataset, weights: Weights) -> Result<Vec<Obs<f64>>, Str
             }
             Ok(out)
         }
+        Weights::Pooled => {
+            let pool = pooled_noise(ds);
+            if let Some(sep) = ds
+                .separations()
+                .into_iter()
+                .find(|&s| pooled_variance(&pool, s, 0).is_none())
+            {
+                return Err(format!(
+                    "{}: --weights pooled needs repeated samples at every separation, and {sep} \
+                     in has none (one sample per point, or every point at the 16-bit rail): use \
+                     --weights none",
+                    ds.path.display()
+                ));
+            }
+            Ok(point_means(ds, &|sep, a| {
+                pooled_variance(&pool, sep, a).unwrap_or(f64::NAN)
+            }))
+        }
     }
 }
 
 /// Fit eq 65 to `ds` (already restricted to the wanted separations).
 pub fn fit(ds: &Dataset, weights: Weights) -> Result<FitReport, String> {
     let obs = observations(ds, weights)?;
+    let mut rep = fit_observations(ds, weights, obs)?;
+    rep.chi2_expected = chi2_expected(ds, weights);
+    Ok(rep)
+}
+
+/// Fit eq 65 to observations `obs` made from `ds` with `weights` (absolute unless `none`):
+/// what [`fit`] does after [`observations`], for a caller with weights of its own (`cta
+/// calibrate`'s pinhole stage). `chi2_expected` is left unset.
+pub fn fit_observations(
+    ds: &Dataset,
+    weights: Weights,
+    obs: Vec<Obs<f64>>,
+) -> Result<FitReport, String> {
     let mut beacons: Vec<[u64; 3]> = obs
         .iter()
         .map(|o| [o.r.x.to_bits(), o.r.y.to_bits(), o.r.z.to_bits()])
@@ -350,7 +513,7 @@ pub fn fit(ds: &Dataset, weights: Weights) -> Result<FitReport, String> {
         head.h(),
     );
     let settings = Settings {
-        weights_absolute: weights == Weights::Repeat,
+        weights_absolute: weights != Weights::None,
         ..Settings::default()
     };
     let problem = Fit { obs: &obs };
@@ -410,6 +573,7 @@ pub fn fit(ds: &Dataset, weights: Weights) -> Result<FitReport, String> {
         rms_counts: sol.rms,
         residual_variance_counts2: split_variance(weights, sol.variance_factor).0,
         chi2_per_dof: split_variance(weights, sol.variance_factor).1,
+        chi2_expected: None,
         chi2_dof: sol.variance_factor,
         iterations: sol.iterations,
         condition: sol.condition,
@@ -509,6 +673,7 @@ mod tests {
             rms_counts: 1.0,
             residual_variance_counts2: Some(1.0),
             chi2_per_dof: None,
+            chi2_expected: None,
             chi2_dof: 1.0,
             iterations: 5,
             condition: 1e3,
@@ -579,8 +744,26 @@ mod tests {
         // 10 samples per point: a right model gives 9/7 = 1.29.
         r.chi2_per_dof = Some(1.31);
         assert_eq!(chi2_warning(&r, f, Some(9.0 / 7.0)), None);
-        r.chi2_per_dof = Some(2.25);
+        // Without an expectation (none is known below 4 samples per point): only far above 1.
+        r.chi2_per_dof = Some(1.9);
         assert_eq!(chi2_warning(&r, f, None), None);
+        r.chi2_per_dof = Some(88.25);
+        let w = chi2_warning(&r, f, None).unwrap();
+        assert!(
+            w.starts_with("chi2/dof 88.25 (far above the 1 a right model gives")
+                && w.contains("the residuals are 9.4x the noise"),
+            "{w}"
+        );
+        // The fit's own expectation goes before the caller's.
+        r.chi2_expected = Some(3.0);
+        assert_eq!(
+            chi2_warning(&r, f, Some(1.0)).map(|w| w[..25].to_string()),
+            Some("chi2/dof 88.25 (a right m".into())
+        );
+        r.chi2_per_dof = Some(3.5);
+        assert_eq!(chi2_warning(&r, f, Some(1.0)), None);
+        r.chi2_expected = None;
+        r.chi2_per_dof = Some(2.25);
         let w = chi2_warning(&r, f, Some(1.0)).unwrap();
         assert!(
             w.starts_with("chi2/dof 2.25 (a right model gives 1.00")
