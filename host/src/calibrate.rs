@@ -4,9 +4,11 @@
 //! Two fits, as the lab would do them by hand (REFERENCE.md: start the near-field fit from
 //! the 7-parameter fit to avoid false minima):
 //!
-//! 1. **Pinhole** (eq 65, `d, p, H`; [`crate::fit::fit`]) on the far separations (25 and 30
-//!    in when the file has them, or measured values within 0.1 in, else its two largest): the chip's `pinhole` model and the
-//!    near-field fit's start.
+//! 1. **Pinhole** (eq 65, `d, p, H`; [`crate::fit::fit_observations`]) on the far separations
+//!    (25 and 30 in when the file has them, or measured values within 0.1 in, else its two
+//!    largest): the chip's `pinhole` model and the near-field fit's start. Its point means are
+//!    weighted as the near-field fit's below (`cta fit --weights pooled`), and its chi2/dof is
+//!    printed.
 //! 2. **Near-field** (eqs 60-63, `d, p`, the face angle `a`, the cell offset `s`, the cell
 //!    gains `gx, gy` of [`NearField::gain`] and the cell offsets `bx, by` of
 //!    [`NearField::bias`], with the calibration's `beta` and beacon pattern held) on every
@@ -434,6 +436,9 @@ pub struct CalibrationReport {
     pub file: CalibrationFile,
     /// Pinhole fit: `H`, counts (its 1-sigma is `fitted.sigma.H`).
     pub pinhole_h: f64,
+    /// Pinhole fit: chi-square per degree of freedom (point means weighted as the near-field
+    /// fit's, so about 1 when the pinhole model explains the far separations to the noise).
+    pub pinhole_chi2_dof: f64,
     /// Pinhole fit warnings.
     pub pinhole_warnings: Vec<String>,
     /// Where the noise figure came from.
@@ -594,16 +599,24 @@ pub fn calibrate(
     let far = all
         .select(&pinhole_seps)
         .map_err(|e| anyhow!("pinhole separations: {e}"))?;
-    let repeated = far.points().iter().all(|p| p.rows.len() >= 2);
-    let ph = fit::fit(
-        &far,
-        if repeated {
-            Weights::Repeat
-        } else {
-            Weights::None
-        },
-    )
-    .map_err(|e| anyhow!("pinhole fit at {} in: {e}", fmt_list(&pinhole_seps)))?;
+    // Weighted as the near-field stage is: the noise pooled per separation and axis (or
+    // --noise), never each point's own few samples, whose inverse variances are too rough to
+    // weight by (with 2 samples H came out 18 sigma low). A pinhole separation outside
+    // --separations has its noise pooled from the pinhole data.
+    let far_pool = fit::pooled_noise(&far);
+    let var_ph = |sep: f64, axis: usize| -> f64 {
+        measured
+            .then(|| {
+                pooled
+                    .var(sep, axis)
+                    .or_else(|| fit::pooled_variance(&far_pool, sep, axis))
+            })
+            .flatten()
+            .unwrap_or(noise * noise)
+    };
+    let ph = fit::fit_observations(&far, Weights::Pooled, fit::point_means(&far, &var_ph))
+        .map_err(|e| anyhow!("pinhole fit at {} in: {e}", fmt_list(&pinhole_seps)))?;
+    let pinhole_chi2_dof = ph.chi2_per_dof.unwrap_or(f64::NAN);
     let xp = ph.x();
     let start = Calibration {
         d: [xp[0], xp[1], xp[2]].map(|v| v as f32),
@@ -792,6 +805,7 @@ pub fn calibrate(
             },
         },
         pinhole_h: xp.h(),
+        pinhole_chi2_dof,
         pinhole_warnings: ph.warnings.clone(),
         noise_source,
         iterations: nf.iterations,
@@ -941,8 +955,9 @@ fn print_report(rep: &CalibrationReport, out: Option<Option<&Path>>) {
     let pm = |v: f32, n: &str| crate::analyze::digits::pm_parts(f64::from(v), f.sigma[n]);
     let (h, hs) = crate::analyze::digits::pm_parts(rep.pinhole_h, f.sigma["H"]);
     println!(
-        "  pinhole (eq 65) at {} in: H = {h} ± {hs} counts",
+        "  pinhole (eq 65) at {} in: H = {h} ± {hs} counts (chi2/dof {:.2})",
         fmt_list(&f.pinhole_separations),
+        rep.pinhole_chi2_dof,
     );
     println!("  near-field (eqs 60-63), started from it:");
     let row = |n: &str, v: f32, unit: &str, what: &str| {
