@@ -102,7 +102,8 @@ pub struct Factor {
     pub factor: String,
     /// Groups (empty when the file does not record the factor).
     pub groups: Vec<Group>,
-    /// Largest over smallest group std (both axes), 1 when uniform.
+    /// Largest over smallest group std (both axes), 1 when uniform; `NaN` (`null` in JSON)
+    /// with fewer than 2 groups of 2 or more degrees of freedom (no ratio between groups).
     pub spread_ratio: f64,
     /// Bartlett's homogeneity statistic of the group variances, X and Y (chi-square with
     /// `test_dof` degrees of freedom when only sampling separates the groups); `NaN` when
@@ -139,6 +140,9 @@ pub struct NoiseReport {
     /// Standard deviation of the point variances within a separation relative to what
     /// sampling alone gives (1 = homogeneous within a separation).
     pub within_separation_dispersion: f64,
+    /// The same within a separation and a setting (modulation frequency, power level,
+    /// sensitivity): near 1 when only the settings make the noise differ within a separation.
+    pub within_setting_dispersion: f64,
     /// The weighting it implies.
     pub weighting: String,
     /// Spot magnitude repeatability (`None` when the file records no magnitudes).
@@ -175,6 +179,11 @@ pub struct MagnitudeNoise {
     /// By separation: (separation in, percent, points).
     pub by_separation: Vec<(f64, f64, usize)>,
 }
+
+/// Samples per point from which a point's own variance is good enough to weight by
+/// (`cta analyze --weights point`): to 47 % at 10 samples, with its inverse biased high by
+/// 9/7; at 5 samples 71 % and 2x, which turns clean data into "unexplained structure".
+pub const POINT_MIN_SAMPLES: usize = 10;
 
 /// The NorthStar reports magnitudes as 16-bit counts: at this value the magnitude is pinned
 /// (a bright spot), and a point with any pinned sample is left out of the repeatability.
@@ -268,7 +277,7 @@ fn factor(name: &str, groups: Vec<Group>) -> Factor {
     };
     Factor {
         factor: name.into(),
-        spread_ratio: if lo > 0.0 && lo.is_finite() {
+        spread_ratio: if g.len() >= 2 && lo > 0.0 && lo.is_finite() {
             hi / lo
         } else {
             f64::NAN
@@ -309,7 +318,12 @@ fn by_bins(
     let mut bins: Vec<Vec<&Pt>> = vec![Vec::new(); edges.len() - 1];
     for p in pts.iter().filter(|p| p.n > 1) {
         if let Some(v) = get(&p.first) {
-            if let Some(b) = (0..edges.len() - 1).find(|&b| v >= edges[b] && v < edges[b + 1]) {
+            // Bins are [lo, hi), the last one [lo, hi]: a magnitude at the 16-bit ceiling is
+            // the last bin's upper edge.
+            let last = edges.len() - 2;
+            if let Some(b) = (0..edges.len() - 1)
+                .find(|&b| v >= edges[b] && (v < edges[b + 1] || (b == last && v == edges[b + 1])))
+            {
                 bins[b].push(p);
             }
         }
@@ -487,6 +501,14 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
             let e = edges.last().copied().unwrap_or(hi) * 2.0;
             edges.push(e);
         }
+        // Magnitudes are 16-bit counts: the last bin ends at the ceiling, not beyond it.
+        let k = edges.len();
+        if hi <= MAGNITUDE_CEILING
+            && edges[k - 1] > MAGNITUDE_CEILING
+            && edges[k - 2] < MAGNITUDE_CEILING
+        {
+            edges[k - 1] = MAGNITUDE_CEILING;
+        }
         factors.push(by_bins(
             "signal magnitude",
             &pts,
@@ -531,12 +553,105 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
     } else {
         f64::NAN
     };
-    let others_differ = factors[1..].iter().any(|f| f.significant);
-    let weighting = if dispersion > 1.3 || (others_differ && !factors[0].significant) {
-        format!(
-            "the noise differs within a separation (dispersion {dispersion:.2}, 1 = homogeneous): \
-             weight each point by its own variance, `cta analyze --weights point` (needs ~10+ \
-             samples per point for stable weights)"
+    // The same dispersion within a separation and a setting (frequency, power, sensitivity):
+    // near 1 when the settings alone make the noise differ within a separation.
+    let setting = |s: &Sample| {
+        [s.frequency_hz, s.power, s.sensitivity].map(|v| v.unwrap_or(f64::NAN).to_bits())
+    };
+    let mut by_setting: BTreeMap<(u64, [u64; 3]), (f64, f64, usize)> = BTreeMap::new();
+    for p in &rep {
+        let e = by_setting
+            .entry((p.first.separation_in.to_bits(), setting(&p.first)))
+            .or_default();
+        e.0 += p.ss[0];
+        e.1 += p.ss[1];
+        e.2 += p.n - 1;
+    }
+    let (mut z2, mut cnt) = (0.0, 0.0);
+    for p in rep.iter().filter(|p| p.n >= 3) {
+        let (sx, sy, dof) = by_setting[&(p.first.separation_in.to_bits(), setting(&p.first))];
+        // A point alone in its setting has nothing to be compared with.
+        if dof <= p.n - 1 {
+            continue;
+        }
+        for (a, ss) in [sx, sy].into_iter().enumerate() {
+            let pooled = ss / dof as f64;
+            if pooled > 0.0 {
+                let r = p.ss[a] / (p.n - 1) as f64 / pooled;
+                z2 += (r - 1.0).powi(2) / (2.0 / (p.n - 1) as f64);
+                cnt += 1.0;
+            }
+        }
+    }
+    let setting_dispersion = if cnt > 0.0 {
+        (z2 / cnt).sqrt()
+    } else {
+        f64::NAN
+    };
+    // Samples per point, the median over the points with repeated samples.
+    let mut ns: Vec<usize> = rep.iter().map(|p| p.n).collect();
+    ns.sort_unstable();
+    let n_typ = ns[ns.len() / 2];
+    let settings_differ: Vec<&Factor> = factors
+        .iter()
+        .filter(|f| {
+            f.significant
+                && ["modulation frequency", "power level", "sensitivity setting"]
+                    .contains(&f.factor.as_str())
+        })
+        .collect();
+    // Angle or magnitude: the noise depends on the beacon's place or signal, point by point.
+    let signal_differs = factors[1..3].iter().any(|f| f.significant);
+    let point_advice = |what: String, keep: &str| {
+        if n_typ >= POINT_MIN_SAMPLES {
+            format!(
+                "{what}: weight each point by its own variance, `cta analyze --weights point` \
+                 ({n_typ} samples per point; ~{POINT_MIN_SAMPLES}+ are needed for stable weights)"
+            )
+        } else {
+            format!(
+                "{what}, but with {n_typ} samples per point a point's own variance is too rough to \
+                 weight by (good to {:.0} %, and its inverse biases chi-square high by \
+                 (n - 1)/(n - 3)), so `--weights point` would report structure that is not there: \
+                 it needs ~{POINT_MIN_SAMPLES}+ samples per point. Keep {keep} and read a chi2/dof a little above 1 with this in mind, or record more \
+                 samples per point",
+                100.0 * (2.0 / (n_typ as f64 - 1.0)).sqrt()
+            )
+        }
+    };
+    let weighting = if !settings_differ.is_empty() {
+        let names = settings_differ
+            .iter()
+            .map(|f| format!("{} (max/min {:.2})", f.factor, f.spread_ratio))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let mut w = format!(
+            "the noise differs between settings within a separation: {names} (dispersion of \
+             point variances {dispersion:.2} within a separation, {setting_dispersion:.2} within \
+             a separation and setting; 1 = homogeneous): weight by the variance pooled per \
+             separation and setting, `cta analyze --weights setting` (or analyze each setting \
+             on its own)"
+        );
+        // Angle and magnitude differ with the settings too (power and sensitivity set the
+        // signal): only a dispersion left within a setting says the points differ.
+        if setting_dispersion > 1.3 {
+            w.push_str("; ");
+            w.push_str(&point_advice(
+                format!(
+                    "the noise also differs from point to point within a setting (dispersion \
+                     {setting_dispersion:.2})"
+                ),
+                "`cta analyze --weights setting`",
+            ));
+        }
+        w
+    } else if dispersion > 1.3 || (signal_differs && !factors[0].significant) {
+        point_advice(
+            format!(
+                "the noise differs within a separation (dispersion {dispersion:.2}, 1 = \
+                 homogeneous)"
+            ),
+            "`cta analyze --weights separation` (the default)",
         )
     } else if factors[0].significant {
         "the noise changes with separation: weight by the variance pooled per separation \
@@ -561,6 +676,7 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
         xy_correlation: corr,
         factors,
         within_separation_dispersion: dispersion,
+        within_setting_dispersion: setting_dispersion,
         weighting,
     })
 }
@@ -618,11 +734,12 @@ pub fn render_text(r: &NoiseReport) -> String {
         } else {
             "one group: nothing to compare".into()
         };
-        let _ = writeln!(
-            s,
-            "by {} (max/min {:.2}, {test}):",
-            f.factor, f.spread_ratio
-        );
+        let ratio = if f.spread_ratio.is_finite() {
+            format!("max/min {:.2}, ", f.spread_ratio)
+        } else {
+            String::new()
+        };
+        let _ = writeln!(s, "by {} ({ratio}{test}):", f.factor);
         let _ = writeln!(
             s,
             "  {:<16} {:>7} {:>8} {:>10} {:>10}",
@@ -637,9 +754,19 @@ pub fn render_text(r: &NoiseReport) -> String {
         }
         let _ = writeln!(s);
     }
+    let within_setting = if r.within_setting_dispersion.is_finite()
+        && (r.within_setting_dispersion - r.within_separation_dispersion).abs() > 0.005
+    {
+        format!(
+            "; within a separation and setting: {:.2}",
+            r.within_setting_dispersion
+        )
+    } else {
+        String::new()
+    };
     let _ = writeln!(
         s,
-        "within-separation dispersion of point variances: {:.2} (1 = homogeneous)",
+        "within-separation dispersion of point variances: {:.2} (1 = homogeneous){within_setting}",
         r.within_separation_dispersion
     );
     let _ = writeln!(s, "weighting: {}", r.weighting);
@@ -899,6 +1026,111 @@ mod tests {
             r.left_out
         );
         assert_eq!(r.left_out.by_separation, vec![(first.separation_in, 1)]);
+    }
+
+    /// Add +/-`a` counts (alternating over the samples) to X and Y of the points `pick`
+    /// chooses (by point index), and set their `power` by the same choice (1 or 2) when
+    /// `power`.
+    fn noisier(ds: &mut Dataset, a: f64, power: bool, pick: impl Fn(usize) -> bool) {
+        let points = ds.points();
+        for (k, p) in points.iter().enumerate() {
+            let on = pick(k);
+            for (j, &i) in p.rows.iter().enumerate() {
+                let s = &mut ds.samples[i];
+                if power {
+                    s.power = Some(if on { 2.0 } else { 1.0 });
+                }
+                if on {
+                    let d = if j % 2 == 0 { a } else { -a };
+                    s.x += d;
+                    s.y += d;
+                }
+            }
+        }
+    }
+
+    /// Noise that differs between power levels within a separation (a Ch VI sweep): pool per
+    /// separation and setting, never per point (5 or 10 samples per point; the reviewer's
+    /// 5-sample sweep turned clean data into "unexplained structure" with `point`).
+    #[test]
+    fn settings_that_differ_recommend_setting_weights() {
+        let mut ds = two_separations();
+        noisier(&mut ds, 40.0, true, |k| k % 2 == 0);
+        let r = analyze_noise(&ds).unwrap();
+        assert!(r.within_separation_dispersion > 1.3, "{r:?}");
+        assert!(r.within_setting_dispersion < 1.3, "{r:?}");
+        assert!(
+            r.weighting.contains("differs between settings")
+                && r.weighting.contains("power level")
+                && r.weighting.contains("`cta analyze --weights setting`")
+                && !r.weighting.contains("--weights point`"),
+            "{}",
+            r.weighting
+        );
+    }
+
+    /// Noise that differs from point to point: `point` only from 10 samples per point.
+    #[test]
+    fn point_weights_only_with_enough_samples() {
+        for (samples, point) in [(5, false), (20, true)] {
+            let mut ds = SimConfig {
+                separations: vec![5.0, 20.0],
+                noise: 30.0,
+                samples,
+                ..Default::default()
+            }
+            .run()
+            .0;
+            noisier(&mut ds, 60.0, false, |k| k % 3 == 0);
+            let r = analyze_noise(&ds).unwrap();
+            assert!(r.within_separation_dispersion > 1.3, "{r:?}");
+            let w = &r.weighting;
+            assert_eq!(w.contains("`cta analyze --weights point`"), point, "{w}");
+            if !point {
+                assert!(
+                    w.contains("with 5 samples per point a point's own variance is too rough")
+                        && w.contains("Keep `cta analyze --weights separation` (the default)"),
+                    "{w}"
+                );
+            }
+        }
+    }
+
+    /// Magnitude bins stop at the 16-bit ceiling (and hold a magnitude at it); a factor with
+    /// one group gives no max/min (that would be X over Y, not between groups).
+    #[test]
+    fn magnitude_bins_end_at_the_ceiling_and_one_group_has_no_ratio() {
+        let mut ds = two_separations();
+        let first = ds.samples[0];
+        for s in ds.samples.iter_mut() {
+            s.power = Some(2.0);
+            if s.separation_in == first.separation_in && s.r == first.r {
+                s.magnitude = Some(MAGNITUDE_CEILING);
+            }
+        }
+        let r = analyze_noise(&ds).unwrap();
+        let mag = r
+            .factors
+            .iter()
+            .find(|f| f.factor == "signal magnitude")
+            .unwrap();
+        let top = mag.groups.last().unwrap();
+        assert!(top.label.ends_with("-65535"), "{:?}", mag.groups);
+        assert_eq!(
+            mag.groups.iter().map(|g| g.points).sum::<usize>(),
+            r.points_repeated
+        );
+        let power = r
+            .factors
+            .iter()
+            .find(|f| f.factor == "power level")
+            .unwrap();
+        assert!(power.spread_ratio.is_nan(), "{power:?}");
+        let text = render_text(&r);
+        assert!(
+            text.contains("by power level (one group: nothing to compare):"),
+            "{text}"
+        );
     }
 
     #[test]

@@ -9,7 +9,11 @@
 //!   per axis. Pooling ~100 points gives a variance good to a few percent, where one point's
 //!   5-sample variance is good to only ~60 % and its inverse is heavy-tailed (that would bias
 //!   chi-square). Noise that changes with separation (the thesis's Ch VI question) is kept.
-//! - `point`: each point's own sample variance (needs several samples per point; use `cta
+//! - `setting`: the sample variance pooled over the points of one separation and one setting
+//!   (modulation frequency, power level, sensitivity), per axis: for a sweep mixing settings
+//!   whose noise differs (a Ch VI sweep), where `separation` would mix them and `point` has too
+//!   few samples per point.
+//! - `point`: each point's own sample variance (needs ~10+ samples per point; use `cta
 //!   noise` first to see whether the noise varies within a separation).
 //! - `global`: one pooled variance per axis for the whole file.
 //!
@@ -39,6 +43,9 @@ pub const VARIANCE_FLOOR: f64 = 1.0 / 12.0;
 pub enum Weights {
     /// Sample variance pooled per separation and axis (default).
     Separation,
+    /// Sample variance pooled per separation, setting (frequency, power, sensitivity) and
+    /// axis.
+    Setting,
     /// Each point's own sample variance.
     Point,
     /// One pooled variance per axis for the whole file.
@@ -110,6 +117,8 @@ impl Data {
             beacon: Option<u32>,
             line: usize,
             pinned: bool,
+            /// The setting: frequency, power, sensitivity (as bits, NaN when not recorded).
+            setting: [u64; 3],
         }
         let mut acc: Vec<Acc> = Vec::with_capacity(groups.len());
         for g in &groups {
@@ -140,20 +149,30 @@ impl Data {
                 beacon: g.first.beacon,
                 line: g.first.line,
                 pinned,
+                setting: [g.first.frequency_hz, g.first.power, g.first.sensitivity]
+                    .map(|v| v.unwrap_or(f64::NAN).to_bits()),
             });
         }
         let repeated = acc.iter().any(|a| a.n > 1);
         // Pooled variances per separation and globally.
         let mut pool = vec![([0.0f64; 2], 0usize); seps.len()];
         let mut gpool = ([0.0f64; 2], 0usize);
+        let mut spool: std::collections::BTreeMap<(usize, [u64; 3]), ([f64; 2], usize)> =
+            std::collections::BTreeMap::new();
         for a in acc.iter().filter(|a| !a.pinned && a.n > 1) {
+            let sp = spool.entry((a.sep, a.setting)).or_default();
             for k in 0..2 {
                 pool[a.sep].0[k] += a.ss[k];
                 gpool.0[k] += a.ss[k];
+                sp.0[k] += a.ss[k];
             }
             pool[a.sep].1 += a.n - 1;
             gpool.1 += a.n - 1;
+            sp.1 += a.n - 1;
         }
+        let sep_var = |sep: usize, k: usize| {
+            (pool[sep].1 > 0).then(|| (pool[sep].0[k] / pool[sep].1 as f64).max(VARIANCE_FLOOR))
+        };
         let gvar = |k: usize| {
             if gpool.1 > 0 {
                 (gpool.0[k] / gpool.1 as f64).max(VARIANCE_FLOOR)
@@ -171,9 +190,11 @@ impl Data {
             }
             match weights {
                 Weights::Point if a.n > 1 => (a.ss[k] / (a.n - 1) as f64).max(VARIANCE_FLOOR),
-                Weights::Separation if pool[a.sep].1 > 0 => {
-                    (pool[a.sep].0[k] / pool[a.sep].1 as f64).max(VARIANCE_FLOOR)
-                }
+                Weights::Setting => match spool.get(&(a.sep, a.setting)) {
+                    Some((ss, dof)) if *dof > 0 => (ss[k] / *dof as f64).max(VARIANCE_FLOOR),
+                    _ => sep_var(a.sep, k).unwrap_or_else(|| gvar(k)),
+                },
+                Weights::Separation => sep_var(a.sep, k).unwrap_or_else(|| gvar(k)),
                 _ => gvar(k),
             }
         };
@@ -191,6 +212,9 @@ impl Data {
                 Weights::Separation => {
                     "noise from repeated samples, pooled per separation and axis".into()
                 }
+                Weights::Setting => "noise from repeated samples, pooled per separation, setting \
+                                     (frequency, power, sensitivity) and axis"
+                    .into(),
                 Weights::Point => "noise from each point's repeated samples".into(),
                 Weights::Global => {
                     "noise from repeated samples, pooled over the file per axis".into()
@@ -219,6 +243,12 @@ impl Data {
         let noise_by_sep = (0..seps.len())
             .map(|s| {
                 let probe = acc.iter().find(|a| a.sep == s && !a.pinned);
+                // Pooled per setting, the separation's noise is the one over its settings.
+                if let (Weights::Setting, Some(_), true, None) = (weights, probe, repeated, noise) {
+                    if let (Some(x), Some(y)) = (sep_var(s, 0), sep_var(s, 1)) {
+                        return [x.sqrt(), y.sqrt()];
+                    }
+                }
                 match probe {
                     Some(a) => [var_of(a, 0).sqrt(), var_of(a, 1).sqrt()],
                     None => [f64::NAN; 2],
@@ -254,5 +284,64 @@ impl Data {
     /// The separations as a compact list.
     pub fn seps_text(&self) -> String {
         fmt_list(&self.seps)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulate::SimConfig;
+
+    /// `setting` pools per separation and setting: points of a noisier power level get
+    /// their level's smaller weight, where `separation` gives every point of a separation one.
+    #[test]
+    fn setting_weights_pool_per_separation_and_setting() {
+        let mut ds = SimConfig {
+            separations: vec![5.0, 20.0],
+            noise: 30.0,
+            samples: 5,
+            ..Default::default()
+        }
+        .run()
+        .0;
+        for (k, p) in ds.points().iter().enumerate() {
+            for (j, &i) in p.rows.iter().enumerate() {
+                let s = &mut ds.samples[i];
+                s.power = Some(if k % 2 == 0 { 2.0 } else { 1.0 });
+                if k % 2 == 0 {
+                    s.x += if j % 2 == 0 { 60.0 } else { -60.0 };
+                }
+            }
+        }
+        let w = |weights: Weights, power: f64| -> Vec<f64> {
+            let d = Data::from_dataset(&ds, weights, None).unwrap();
+            let mut out: Vec<f64> = d
+                .points
+                .iter()
+                .filter(|p| {
+                    let sep = d.seps[p.sep];
+                    let s = ds
+                        .samples
+                        .iter()
+                        .find(|s| s.separation_in == sep && Vector3::from(s.r) == p.r)
+                        .unwrap();
+                    s.power == Some(power) && sep == 20.0
+                })
+                .map(|p| p.w[0] / p.n as f64)
+                .collect();
+            out.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
+            out
+        };
+        // One weight per separation and setting; the noisy level's noise is ~3x the other's.
+        let (loud, quiet) = (w(Weights::Setting, 2.0), w(Weights::Setting, 1.0));
+        assert_eq!((loud.len(), quiet.len()), (1, 1), "{loud:?} {quiet:?}");
+        assert!(quiet[0] / loud[0] > 4.0, "{loud:?} {quiet:?}");
+        assert_eq!(w(Weights::Separation, 2.0), w(Weights::Separation, 1.0));
+        let d = Data::from_dataset(&ds, Weights::Setting, None).unwrap();
+        assert!(
+            d.noise_note.contains("per separation, setting"),
+            "{}",
+            d.noise_note
+        );
     }
 }
