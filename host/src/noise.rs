@@ -571,7 +571,7 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
     for p in rep.iter().filter(|p| p.n >= 3) {
         let (sx, sy, dof) = by_setting[&(p.first.separation_in.to_bits(), setting(&p.first))];
         // A point alone in its setting has nothing to be compared with.
-        if dof <= p.n - 1 {
+        if dof < p.n {
             continue;
         }
         for (a, ss) in [sx, sy].into_iter().enumerate() {
