@@ -639,7 +639,9 @@ pub struct FitArgs {
     /// Use only these separations (list or range, e.g. `25,30`); default: all in the file.
     #[arg(long)]
     pub separations: Option<String>,
-    /// Weighting: `none` (W = I, every report) or `repeat` (point means, 1/variance).
+    /// Weighting: `none` (W = I, every report), `pooled` (point means, by the noise pooled per
+    /// separation and axis, as calibrate weights) or `repeat` (point means, each by its own
+    /// samples' variance: at least 4 per point).
     #[arg(long, value_enum, default_value_t = Weights::None)]
     pub weights: Weights,
     /// Save the fit (parameters, covariance) as JSON for `cta evaluate`. An earlier saved

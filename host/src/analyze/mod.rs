@@ -94,7 +94,8 @@ pub struct AnalyzeArgs {
     /// Analyze only these separations (e.g. `2..30:2`).
     #[arg(long, value_name = "SEPS")]
     pub separations: Option<String>,
-    /// How repeated samples weight the point means: pooled per `separation`, per `point`, or
+    /// How repeated samples weight the point means: pooled per `separation`, per separation
+    /// and `setting` (frequency, power, sensitivity: `cta noise` says when), per `point`, or
     /// `global`.
     #[arg(long, value_enum, default_value = "separation")]
     pub weights: Weights,
