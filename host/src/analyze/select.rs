@@ -70,6 +70,25 @@ pub struct Trial {
     pub fit: Option<Box<(Model, FitResult)>>,
 }
 
+impl Trial {
+    /// A trial before its fit: no chi-square gain, so the BIC charges only its `k`
+    /// parameters (`ln_m`: log of the residual count).
+    fn unfitted(round: usize, cand: Cand, k: usize, ln_m: f64) -> Self {
+        Trial {
+            round,
+            cand,
+            dchi2: 0.0,
+            k,
+            dbic: -(k as f64) * ln_m,
+            cv_rms: None,
+            cv_chi2: None,
+            accepted: false,
+            failure: None,
+            fit: None,
+        }
+    }
+}
+
 /// One accepted effect.
 #[derive(Debug, Clone)]
 pub struct Step {
@@ -472,18 +491,7 @@ fn forward(
         let mut scored: Vec<(usize, FitResult)> = Vec::new();
         for (c, r) in results {
             let k = added_params(&model, c);
-            let mut t = Trial {
-                round,
-                cand: c,
-                dchi2: 0.0,
-                k,
-                dbic: -(k as f64) * ln_m,
-                cv_rms: None,
-                cv_chi2: None,
-                accepted: false,
-                failure: None,
-                fit: None,
-            };
+            let mut t = Trial::unfitted(round, c, k, ln_m);
             match r {
                 Ok(Some(f)) => {
                     t.dchi2 = cur.chi2 - f.chi2;
@@ -632,18 +640,7 @@ fn on_top(
     for d in dropped {
         let c = d.cand;
         let k = added_params(&model, c);
-        let mut t = Trial {
-            round: last,
-            cand: c,
-            dchi2: 0.0,
-            k,
-            dbic: -(k as f64) * ln_m,
-            cv_rms: None,
-            cv_chi2: None,
-            accepted: false,
-            failure: None,
-            fit: None,
-        };
+        let mut t = Trial::unfitted(last, c, k, ln_m);
         let m2 = model.with(c);
         match start(&model, c, &cur, data, &all).map(|x0| fit_all(&m2, data, &all, &x0)) {
             None => {}
