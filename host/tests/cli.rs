@@ -31,6 +31,14 @@ fn json(o: &Output) -> serde_json::Value {
     serde_json::from_slice(&o.stdout).expect("JSON output")
 }
 
+/// `cta simulate --out OUT ARGS...`, which must succeed.
+fn simulate(out: &Path, args: &[&str]) {
+    let mut all = vec!["simulate", "--out", s(out)];
+    all.extend_from_slice(args);
+    let o = cta(&all);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 fn fails_with(o: &Output, needle: &str) {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "expected failure, got success: {err}");
@@ -428,9 +436,6 @@ fn calibrate_writes_what_the_board_loads() {
     let cal = d.join("cal.json");
     let sim = |out: &Path, extra: &[&str]| {
         let mut args = vec![
-            "simulate",
-            "--out",
-            s(out),
             "--separations",
             "2..30:2,25",
             "--samples",
@@ -445,8 +450,7 @@ fn calibrate_writes_what_the_board_loads() {
             "5",
         ];
         args.extend_from_slice(extra);
-        let o = cta(&args);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        simulate(out, &args);
     };
     sim(&csv, &[]);
     let r = json(&cta(&["calibrate", s(&csv), "--out", s(&cal), "--json"]));
@@ -656,9 +660,6 @@ fn fit_names_its_spread_by_the_weighting() {
     let sim = |name: &str, extra: &[&str]| {
         let out = d.join(name);
         let mut args = vec![
-            "simulate",
-            "--out",
-            s(&out),
             "--separations",
             "20,25",
             // Many samples: weights from few are noisy, and their chi2/dof is biased high
@@ -671,8 +672,7 @@ fn fit_names_its_spread_by_the_weighting() {
             "3",
         ];
         args.extend_from_slice(extra);
-        let o = cta(&args);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        simulate(&out, &args);
         out
     };
     let far = sim("far.csv", &["--far-field"]);
@@ -755,20 +755,19 @@ fn fit_names_its_spread_by_the_weighting() {
 fn fit_with_few_samples_refuses_repeat_and_pools() {
     let d = tmpdir("fit-few");
     let two = d.join("w2-3.csv");
-    let o = cta(&[
-        "simulate",
-        "--out",
-        s(&two),
-        "--separations",
-        "25,30",
-        "--noise",
-        "32.8",
-        "--samples",
-        "2",
-        "--seed",
-        "3",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    simulate(
+        &two,
+        &[
+            "--separations",
+            "25,30",
+            "--noise",
+            "32.8",
+            "--samples",
+            "2",
+            "--seed",
+            "3",
+        ],
+    );
     fails_with(
         &cta(&["fit", s(&two), "--weights", "repeat"]),
         "needs repeated samples, at least 4 per point, and this point has 2",
@@ -804,20 +803,19 @@ fn fit_with_few_samples_refuses_repeat_and_pools() {
 fn calibrate_pinhole_stage_pools_the_noise() {
     let d = tmpdir("cal-two");
     let csv = d.join("c2s.csv");
-    let o = cta(&[
-        "simulate",
-        "--out",
-        s(&csv),
-        "--separations",
-        "2..30",
-        "--noise",
-        "32.8",
-        "--samples",
-        "2",
-        "--seed",
-        "3",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    simulate(
+        &csv,
+        &[
+            "--separations",
+            "2..30",
+            "--noise",
+            "32.8",
+            "--samples",
+            "2",
+            "--seed",
+            "3",
+        ],
+    );
     let r = json(&cta(&["calibrate", s(&csv), "--json"]));
     let h = r["pinhole_h"].as_f64().unwrap();
     let c = r["pinhole_chi2_dof"].as_f64().unwrap();

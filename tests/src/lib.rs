@@ -61,6 +61,17 @@ impl Drop for TestDir {
     }
 }
 
+/// A plan slow enough (the simulated sensor at 50 Hz in real time, two samples per point)
+/// that a run is still going when a test interrupts it a few points in.
+pub const SLOW_PLAN: &str = r#"
+name = "slow test"
+separations_in = "10..30"
+beacons = "all"
+samples = 2
+settle_ms = 0
+rate_hz = 50
+"#;
+
 /// Write `text` to `dir/plan.toml`; returns its path.
 pub fn write_plan(dir: &Path, text: &str) -> PathBuf {
     let p = dir.join("plan.toml");

@@ -10,18 +10,9 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cta_host::sweep::{self, Interrupted, SweepArgs};
-use cta_tests::{child, child_paths, journal, journal_points, sweep_args, write_plan, TestDir};
-
-/// Slow enough (the simulated sensor at 50 Hz, two samples per point) that the run is still
-/// going when the signal comes; it is interrupted after a few points.
-const PLAN: &str = r#"
-name = "interrupt test"
-separations_in = "10..30"
-beacons = "all"
-samples = 2
-settle_ms = 0
-rate_hz = 50
-"#;
+use cta_tests::{
+    child, child_paths, journal, journal_points, sweep_args, write_plan, TestDir, SLOW_PLAN,
+};
 
 /// Runs `cta sweep --plan PLAN --out OUT` as the binary would (only in the re-executed child).
 #[test]
@@ -50,7 +41,7 @@ fn child_run() {
 #[test]
 fn ctrl_c_exits_non_zero_with_the_resume_hint() {
     let d = TestDir::new("sweep-interrupt");
-    let plan = write_plan(&d, PLAN);
+    let plan = write_plan(&d, SLOW_PLAN);
     let run = d.join("run");
     let mut child = child("child_run", "CTA_SWEEP_INT_CHILD", &[&run, &plan])
         .stdout(Stdio::piped())

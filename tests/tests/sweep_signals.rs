@@ -23,18 +23,7 @@ use cta_host::link::{open_serial, Link, LinkConfig};
 use cta_host::sweep::plan::Plan;
 use cta_host::sweep::sim::{SimCta, SimSettings};
 use cta_host::sweep::{self, Interrupted, SweepArgs};
-use cta_tests::{child, child_paths, journal, journal_points, write_plan, TestDir};
-
-/// Slow enough (the simulated sensor at 50 Hz in real time) that the run is still going when
-/// the signal comes.
-const PLAN: &str = r#"
-name = "signal test"
-separations_in = "10..30"
-beacons = "all"
-samples = 2
-settle_ms = 0
-rate_hz = 50
-"#;
+use cta_tests::{child, child_paths, journal, journal_points, write_plan, TestDir, SLOW_PLAN};
 
 /// Generous: a loaded machine must not fail the tests.
 const PATIENCE: Duration = Duration::from_secs(120);
@@ -160,11 +149,11 @@ fn signal_and_wait(mut child: Child, signal: &str) -> (Option<i32>, String) {
     (child.wait().unwrap().code(), stdout)
 }
 
-/// Start `child_hardware_run` on `PLAN` into `dir/run`; stdin a pipe left open (nobody
+/// Start `child_hardware_run` on `SLOW_PLAN` into `dir/run`; stdin a pipe left open (nobody
 /// answers), stdout and stderr piped. Returns the child, the run directory and the stderr
 /// collected so far.
 fn start_hardware_run(dir: &Path, yes: bool) -> (Child, PathBuf, Arc<Mutex<String>>) {
-    let plan = write_plan(dir, PLAN);
+    let plan = write_plan(dir, SLOW_PLAN);
     let run = dir.join("run");
     let yes_marker = dir.join("yes");
     if yes {
