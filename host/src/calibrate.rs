@@ -453,24 +453,22 @@ pub struct CalibrationReport {
     pub warnings: Vec<String>,
 }
 
-/// The pooled one-sample noise: per separation and axis `(sum of squares, dof)`.
-struct Pooled(BTreeMap<u64, [(f64, usize); 2]>);
+/// The pooled one-sample noise per separation ([`fit::pooled_noise`], the rule `cta fit
+/// --weights pooled` uses): its variance and degrees of freedom, and the file's overall noise.
+struct Pooled(BTreeMap<u64, ([f64; 2], usize)>);
 
 impl Pooled {
     fn var(&self, sep: f64, axis: usize) -> Option<f64> {
-        let (ss, dof) = self.0.get(&sep.to_bits())?[axis];
-        (dof > 0).then(|| ss / dof as f64)
+        fit::pooled_variance(&self.0, sep, axis)
     }
     /// The degrees of freedom behind [`Self::var`] (0 without it).
-    fn dof(&self, sep: f64, axis: usize) -> usize {
-        self.0.get(&sep.to_bits()).map_or(0, |a| a[axis].1)
+    fn dof(&self, sep: f64) -> usize {
+        self.0.get(&sep.to_bits()).map_or(0, |(_, dof)| *dof)
     }
     fn overall(&self) -> Option<f64> {
-        let (ss, dof) = self
-            .0
-            .values()
-            .flatten()
-            .fold((0.0, 0), |(s, d), (a, b)| (s + a, d + b));
+        let (ss, dof) = self.0.values().fold((0.0, 0), |(s, d), (ss, dof)| {
+            (s + ss[0] + ss[1], d + 2 * dof)
+        });
         (dof > 0).then(|| (ss / dof as f64).sqrt())
     }
 }
@@ -502,7 +500,7 @@ pub fn calibrate(
         n: usize,
     }
     let mut pts = Vec::new();
-    let mut pooled = Pooled(BTreeMap::new());
+    let pooled = Pooled(fit::pooled_noise(ds));
     let mut pinned = 0;
     for p in ds.points() {
         let rows: Vec<_> = p.rows.iter().map(|&i| &ds.samples[i]).collect();
@@ -515,18 +513,6 @@ pub fn calibrate(
             rows.iter().map(|s| s.x).sum::<f64>() / n as f64,
             rows.iter().map(|s| s.y).sum::<f64>() / n as f64,
         ];
-        let e = pooled
-            .0
-            .entry(p.first.separation_in.to_bits())
-            .or_insert([(0.0, 0); 2]);
-        for (axis, slot) in e.iter_mut().enumerate() {
-            let v = |s: &&crate::measurement::Sample| if axis == 0 { s.x } else { s.y };
-            slot.0 += rows
-                .iter()
-                .map(|s| (v(s) - mean[axis]).powi(2))
-                .sum::<f64>();
-            slot.1 += n - 1;
-        }
         pts.push(Pt {
             sep: p.first.separation_in,
             r: Vector3::from(p.first.r),
@@ -692,12 +678,12 @@ pub fn calibrate(
     let mut by: BTreeMap<u64, (usize, f64, f64, usize, f64, f64)> = BTreeMap::new();
     // The relative variance of the weights' noise estimate at a separation (0: given).
     let noise_rel_var = |sep: f64| -> f64 {
-        let per_axis = |a: usize| match (measured, pooled.dof(sep, a)) {
-            (true, nu) if nu > 0 => 2.0 / nu as f64,
+        // The mean of the two axes' weight errors (2/nu each, the same nu), over 2:
+        // (2/nu + 2/nu) / 4.
+        match (measured, pooled.dof(sep)) {
+            (true, nu) if nu > 0 => 1.0 / nu as f64,
             _ => 0.0,
-        };
-        // The mean of the two axes' weight errors.
-        (per_axis(0) + per_axis(1)) / 4.0
+        }
     };
     for (p, o) in pts.iter().zip(&obs) {
         let e = by.entry(p.sep.to_bits()).or_default();
