@@ -37,3 +37,16 @@ pub mod demo;
 pub mod noise;
 // `cta sweep`: autonomous, resumable CTA data collection over serial (and the simulated CTA).
 pub mod sweep;
+
+/// What the binary does with a command's error: prints `cta: error: ...` with its causes and
+/// exits with 1, or an interrupted sweep's [`sweep::Interrupted::exit_code`] (128 + the
+/// signal). Returns on success.
+pub fn exit_on_error(r: anyhow::Result<()>) {
+    if let Err(e) = r {
+        eprintln!("cta: error: {e:#}");
+        let code = e
+            .downcast_ref::<sweep::Interrupted>()
+            .map_or(1, |i| i.exit_code);
+        std::process::exit(code);
+    }
+}

@@ -119,12 +119,5 @@ fn main() {
         Cmd::Beacon(a) => cta_host::beacon_cmd::run(a),
         Cmd::Sensor(a) => cta_host::sensor_cmd::run(a),
     };
-    if let Err(e) = r {
-        eprintln!("cta: error: {e:#}");
-        // An interrupted sweep exits like a shell command stopped by Ctrl-C (130).
-        let code = e
-            .downcast_ref::<cta_host::sweep::Interrupted>()
-            .map_or(1, |_| cta_host::sweep::Interrupted::EXIT_CODE);
-        std::process::exit(code);
-    }
+    cta_host::exit_on_error(r);
 }

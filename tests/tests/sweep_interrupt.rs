@@ -9,7 +9,7 @@
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use cta_host::sweep::{self, Interrupted, SweepArgs};
+use cta_host::sweep::{self, SweepArgs};
 use cta_tests::{
     child, child_paths, journal, journal_points, sweep_args, write_plan, TestDir, SLOW_PLAN,
 };
@@ -26,16 +26,8 @@ fn child_run() {
         ..sweep_args(&plan, &out)
     };
     // What host/src/main.rs does with the command's result.
-    match sweep::run(&a) {
-        Ok(()) => std::process::exit(0),
-        Err(e) => {
-            eprintln!("cta: error: {e:#}");
-            let code = e
-                .downcast_ref::<Interrupted>()
-                .map_or(1, |_| Interrupted::EXIT_CODE);
-            std::process::exit(code);
-        }
-    }
+    cta_host::exit_on_error(sweep::run(&a));
+    std::process::exit(0);
 }
 
 #[test]
@@ -67,7 +59,7 @@ fn ctrl_c_exits_non_zero_with_the_resume_hint() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(
         out.status.code(),
-        Some(Interrupted::EXIT_CODE),
+        Some(130),
         "stdout: {stdout}\nstderr: {stderr}"
     );
     // The summary and the error both say how to continue.

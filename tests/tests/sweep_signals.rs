@@ -22,27 +22,11 @@ use cta_core::wire::sensor::{SensorProtocol, SensorRequest, SensorResponse};
 use cta_host::link::{open_serial, Link, LinkConfig};
 use cta_host::sweep::plan::Plan;
 use cta_host::sweep::sim::{SimCta, SimSettings};
-use cta_host::sweep::{self, Interrupted, SweepArgs};
+use cta_host::sweep::{self, SweepArgs};
 use cta_tests::{child, child_paths, journal, journal_points, write_plan, TestDir, SLOW_PLAN};
 
 /// Generous: a loaded machine must not fail the tests.
 const PATIENCE: Duration = Duration::from_secs(120);
-
-/// How the child ends: as host/src/main.rs does with the command's result.
-macro_rules! exit_like_the_binary {
-    ($r:expr) => {
-        match $r {
-            Ok(()) => std::process::exit(0),
-            Err(e) => {
-                eprintln!("cta: error: {e:#}");
-                let code = e
-                    .downcast_ref::<Interrupted>()
-                    .map_or(1, |_| Interrupted::EXIT_CODE);
-                std::process::exit(code);
-            }
-        }
-    };
-}
 
 /// Prints `board check: N lit, sensor Idle` (what the boards say once the sweep returned).
 fn print_board_state(sim: &SimCta) {
@@ -90,7 +74,8 @@ fn child_hardware_run() {
     };
     let r = sweep::run(&a);
     print_board_state(&sim);
-    exit_like_the_binary!(r);
+    cta_host::exit_on_error(r);
+    std::process::exit(0);
 }
 
 /// Collects a child's stderr as it comes.
@@ -196,11 +181,13 @@ fn assert_clean_stop(
     // Give the reader thread the last bytes: the child has exited.
     std::thread::sleep(Duration::from_millis(200));
     let stderr = stderr.lock().unwrap().clone();
-    assert_eq!(
-        code,
-        Some(Interrupted::EXIT_CODE),
-        "stdout: {stdout}\nstderr: {stderr}"
-    );
+    // 128 + the signal, as a shell reports a command that signal stopped.
+    let expected = match name {
+        "SIGTERM" => 143,
+        "SIGHUP" => 129,
+        _ => 130,
+    };
+    assert_eq!(code, Some(expected), "stdout: {stdout}\nstderr: {stderr}");
     let hint = format!("cta sweep --resume {}", run.display());
     assert!(
         stdout.contains("interrupted at point")
@@ -280,7 +267,8 @@ fn child_log_run() {
         no_sync: true,
         ..SweepArgs::default()
     };
-    exit_like_the_binary!(sweep::run(&a));
+    cta_host::exit_on_error(sweep::run(&a));
+    std::process::exit(0);
 }
 
 #[test]

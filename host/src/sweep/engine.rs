@@ -46,10 +46,18 @@ pub static SIGNAL: LazyLock<Arc<AtomicUsize>> = LazyLock::new(|| Arc::new(Atomic
 /// What stopped the sweep, as the summary, the error and the journal say it: `Ctrl-C` for
 /// SIGINT (and when [`INTERRUPTED`] was set without a signal), `SIGTERM`, `SIGHUP`.
 pub fn interruption() -> &'static str {
-    match i32::try_from(SIGNAL.load(Ordering::SeqCst)).unwrap_or(0) {
+    match interruption_signal() {
         libc::SIGTERM => "SIGTERM",
         libc::SIGHUP => "SIGHUP",
         _ => "Ctrl-C",
+    }
+}
+
+/// The number of the signal that stopped the sweep: SIGTERM, SIGHUP, else SIGINT (Ctrl-C).
+pub fn interruption_signal() -> i32 {
+    match i32::try_from(SIGNAL.load(Ordering::SeqCst)).unwrap_or(0) {
+        s @ (libc::SIGTERM | libc::SIGHUP) => s,
+        _ => libc::SIGINT,
     }
 }
 

@@ -25,8 +25,8 @@ use anyhow::{bail, Context, Result};
 use serde_json::json;
 
 use engine::{
-    interruption, Bars, Ending, Engine, Operator, Prompt, Scripted, SimOperator, INTERRUPTED,
-    SIGNAL,
+    interruption, interruption_signal, Bars, Ending, Engine, Operator, Prompt, Scripted,
+    SimOperator, INTERRUPTED, SIGNAL,
 };
 use plan::Plan;
 use sim::{Faults, SimCta, SimSettings};
@@ -148,6 +148,7 @@ pub fn run(args: &SweepArgs) -> Result<()> {
         // Not a success: `cta sweep ... && cta fit ...` must not go on with partial data.
         Ending::Interrupted => Err(Interrupted {
             signal: interruption(),
+            exit_code: 128 + interruption_signal(),
             dir: s.dir.clone(),
             next_point: s.next_point,
             points: s.points,
@@ -189,10 +190,10 @@ fn ignored(sig: libc::c_int) -> bool {
     }
 }
 
-/// The error [`run`] returns when Ctrl-C (or SIGTERM, SIGHUP) stopped the sweep: the run is saved and resumable but
-/// incomplete, so the command must not exit with success. The binary exits with
-/// [`Interrupted::EXIT_CODE`] when it finds this error (`e.downcast_ref::<Interrupted>()`),
-/// otherwise with its generic error status.
+/// The error [`run`] returns when Ctrl-C (or SIGTERM, SIGHUP) stopped the sweep: the run is
+/// saved and resumable but incomplete, so the command must not exit with success. The binary
+/// exits with its [`Interrupted::exit_code`] ([`crate::exit_on_error`]), otherwise with its generic
+/// error status.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
     "interrupted ({signal}) at point {next_point} of {points}; the run is saved: continue with \
@@ -202,19 +203,16 @@ fn ignored(sig: libc::c_int) -> bool {
 pub struct Interrupted {
     /// What stopped it: `Ctrl-C`, `SIGTERM` or `SIGHUP`.
     pub signal: &'static str,
+    /// Exit status: 128 + the signal's number, the shell's convention for a command a signal
+    /// stopped (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), so a script can tell them apart; the
+    /// sweep stopped itself cleanly, it was not killed.
+    pub exit_code: i32,
     /// The run directory.
     pub dir: PathBuf,
     /// Next point to measure.
     pub next_point: usize,
     /// Points in the plan.
     pub points: usize,
-}
-
-impl Interrupted {
-    /// Exit status for an interrupted sweep, whichever signal stopped it: 130, 128 + SIGINT,
-    /// the shell's convention for a command stopped by Ctrl-C (the sweep stopped itself
-    /// cleanly; it was not killed by the signal).
-    pub const EXIT_CODE: i32 = 130;
 }
 
 fn print_summary(s: &Summary) {
