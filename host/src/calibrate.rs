@@ -600,8 +600,22 @@ pub fn calibrate(
             .flatten()
             .unwrap_or(noise * noise)
     };
-    let ph = fit::fit_observations(&far, Weights::Pooled, fit::point_means(&far, &var_ph))
+    let mut ph = fit::fit_observations(&far, Weights::Pooled, fit::point_means(&far, &var_ph))
         .map_err(|e| anyhow!("pinhole fit at {} in: {e}", fmt_list(&pinhole_seps)))?;
+    // Judged as `cta fit --weights pooled` judges the same data: the same weights, the same
+    // expectation (1 with --noise), the same warning line.
+    ph.chi2_expected = if measured {
+        fit::chi2_expected(&far, Weights::Pooled)
+    } else {
+        Some(1.0)
+    };
+    if let Some(w) = fit::chi2_warning(&ph, &all.path, None) {
+        ph.warnings.push(format!(
+            "the pinhole stage at {} in: {w} Its H is what the chip's `pinhole` model uses; the \
+             near-field stage (its chi2/dof above) is judged on its own.",
+            fmt_list(&ph.separations)
+        ));
+    }
     let pinhole_chi2_dof = ph.chi2_per_dof.unwrap_or(f64::NAN);
     let xp = ph.x();
     let start = Calibration {

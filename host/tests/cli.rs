@@ -564,6 +564,36 @@ fn calibrate_writes_what_the_board_loads() {
     }
     assert!(f["fitted"]["chi2_dof"].as_f64().unwrap() < 1.15, "{r}");
     assert!(r["pinhole_chi2_dof"].as_f64().unwrap() > 10.0, "{r}");
+    // ... and says so, as `cta fit --weights pooled` would on those separations.
+    let w = r["pinhole_warnings"].to_string();
+    assert!(
+        w.contains("the pinhole stage at 25, 30 in: chi2/dof") && w.contains("cta analyze"),
+        "{w}"
+    );
+
+    // Cells 0.5 in off the head's centre (proximity=0.5, nominal 0.175): the pinhole fit's d
+    // leaves beacons close in in a cell's shadow, so the near-field fit starts again from the
+    // nominal head pose, says so, and lands on the truth.
+    let wide = d.join("wide.csv");
+    sim(&wide, &["--effect", "proximity=0.5"]);
+    let r = json(&cta(&["calibrate", s(&wide), "--json"]));
+    let f = &r["file"];
+    let sigma = |n: &str| f["fitted"]["sigma"][n].as_f64().unwrap();
+    let w = r["warnings"].to_string();
+    assert!(
+        w.contains("the near-field fit started from the nominal head pose"),
+        "{w}"
+    );
+    let s_fit = f["near_field"]["s"].as_f64().unwrap();
+    assert!((s_fit - 0.5).abs() < 4.0 * sigma("s"), "s = {s_fit}");
+    for (k, (n, t)) in [("d1", 0.55), ("d2", 0.12), ("d3", 0.07)]
+        .into_iter()
+        .enumerate()
+    {
+        let v = f["d"][k].as_f64().unwrap();
+        assert!((v - t).abs() < 4.0 * sigma(n), "{n} = {v}, truth {t}");
+    }
+    assert!(f["fitted"]["chi2_dof"].as_f64().unwrap() < 1.15, "{r}");
 
     // A plate tilted 5 deg: absorbed by d and p (d1 off by ~40 sigma) except close in, so
     // chi2/dof stays under the warning line; the 2 in separation is flagged on its own.
