@@ -318,3 +318,46 @@ fn without_a_terminal_the_sweep_logs_lines_instead_of_bars() {
     assert!(stdout.contains("complete"), "{stdout}");
     assert!(stdout.contains("reconnections: 1"), "{stdout}");
 }
+
+/// `cta sweep ... 2>log` on a terminal: the question goes to the file, and is asked on the
+/// controlling terminal too, so the operator sees what the sweep waits for. Run under
+/// `script`, which gives the child a terminal of its own.
+#[test]
+fn with_stderr_in_a_file_the_question_is_asked_on_the_terminal() {
+    let d = TestDir::new("sweep-tty-prompt");
+    let plan = write_plan(&d, SLOW_PLAN);
+    let run = d.join("run");
+    let log = d.join("stderr.log");
+    let exe = std::env::current_exe().unwrap();
+    let cmd = format!(
+        "exec '{}' child_hardware_run --exact --nocapture --test-threads=1 2>'{}'",
+        exe.display(),
+        log.display()
+    );
+    let mut term = Command::new("script")
+        .args(["-qfec", &cmd, "/dev/null"])
+        .env(
+            "CTA_SWEEP_SIGNAL_CHILD",
+            format!(
+                "{}|{}|{}",
+                run.display(),
+                plan.display(),
+                d.join("no").display()
+            ),
+        )
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let screen = collect(term.stdout.take().unwrap());
+    let question = "Move the plate to 10 in (all LEDs are off)";
+    wait_for(&mut term, "the question on the terminal", || {
+        screen.lock().unwrap().contains(question)
+    });
+    let logged = std::fs::read_to_string(&log).unwrap();
+    // Closing the terminal hangs the sweep up: it stops cleanly.
+    let _ = term.kill();
+    let _ = term.wait();
+    assert!(logged.contains(question), "{logged}");
+}

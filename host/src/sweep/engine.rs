@@ -234,6 +234,13 @@ impl Prompt {
                 Some(prefix) => eprintln!("{prefix} waiting for the operator: {}", question.trim()),
                 None => eprint!("{question}"),
             }
+            // Asked on the controlling terminal too, if there is one, when stderr is not it:
+            // `cta sweep ... 2>log` must not wait on a question nobody sees.
+            if !std::io::stderr().is_terminal() {
+                if let Ok(mut tty) = std::fs::OpenOptions::new().write(true).open("/dev/tty") {
+                    let _ = write!(tty, "{question}");
+                }
+            }
             let _ = std::io::stderr().flush();
             loop {
                 if INTERRUPTED.load(Ordering::SeqCst) {
