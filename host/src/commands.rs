@@ -641,7 +641,7 @@ pub struct FitArgs {
     pub separations: Option<String>,
     /// Weighting: `none` (W = I, every report), `pooled` (point means, by the noise pooled per
     /// separation and axis, as calibrate weights) or `repeat` (point means, each by its own
-    /// samples' variance: at least 4 per point).
+    /// samples' variance: at least 6 per point; its 1-sigma from the sandwich covariance).
     #[arg(long, value_enum, default_value_t = Weights::None)]
     pub weights: Weights,
     /// Save the fit (parameters, covariance) as JSON for `cta evaluate`. An earlier saved
@@ -784,6 +784,13 @@ fn print_fit(rep: &FitReport, file: &Path) {
         rep.iterations,
         fit::describe_stop(&rep.stop),
         sig(rep.condition, 3)
+    );
+    println!(
+        "  note: d is the pinhole model's eye point, not the head's centre: on a NorthStar (cells \
+         0.175 in off centre, faces at 30 deg) near-field structure the pinhole model cannot \
+         hold puts that point about 1 in above the board at 20-100 in (Table 3: d3 = 1.06 to \
+         1.33 in; README, \"virtual eye\"), and the 1-sigma bound the point, not the head. `cta \
+         calibrate` fits the head itself."
     );
     for w in &rep.warnings {
         println!("warning: {w}");

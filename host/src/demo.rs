@@ -145,7 +145,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     commands::fit_cmd(&FitArgs {
         file: data.clone(),
         separations: Some("20..30:2".into()),
-        weights: Weights::Repeat,
+        weights: Weights::Pooled,
         save: Some(fit.clone()),
         force: false,
         json: false,

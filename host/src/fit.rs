@@ -30,8 +30,11 @@ pub enum Weights {
 /// The fewest samples per point `--weights repeat` takes. A variance from `n` samples has
 /// `n - 1` degrees of freedom; its inverse (the weight) has an infinite mean with 3 samples
 /// or fewer, and two equal integer samples give a zero variance (floored at 1/12 count^2): a
-/// few points whose samples happen to agree then carry the fit, tens of sigma off.
-pub const REPEAT_MIN_SAMPLES: usize = 4;
+/// few points whose samples happen to agree then carry the fit, tens of sigma off. Below 6
+/// samples the weight's variance is infinite: a few points still carry the fit, and even
+/// the sandwich 1-sigma (see [`fit`]) were 1.6x too small with 4 samples (far-field data,
+/// 20 seeds; 1.1x with 5, 6 and 10).
+pub const REPEAT_MIN_SAMPLES: usize = 6;
 
 /// A chi2/dof above this is warned about even when no expectation is known.
 pub const CHI2_FAR: f64 = 2.0;
@@ -241,7 +244,7 @@ fn split_variance(weights: Weights, variance_factor: f64) -> (Option<f64>, Optio
 /// The chi2/dof a right model gives with `repeat` weights: each point is weighted by the
 /// inverse of its own sample variance from `n` samples, whose mean is `(n - 1) / (n - 3)`
 /// times the inverse true variance (an inverse chi-square), so chi2/dof averages that over
-/// the points (1.29 with 10 samples, 3 with 4). `None` when a point has 3 samples or fewer
+/// the points (1.29 with 10 samples, 1.67 with 6). `None` when a point has 3 samples or fewer
 /// (the mean is infinite: no line to compare with; `--weights repeat` refuses such files).
 pub fn repeat_chi2_expected(ds: &Dataset) -> Option<f64> {
     let (mut sum, mut k) = (0.0, 0usize);
@@ -400,11 +403,11 @@ pub fn observations(ds: &Dataset, weights: Weights) -> Result<Vec<Obs<f64>>, Str
                     return Err(format!(
                         "{}:{}: --weights repeat needs repeated samples, at least {REPEAT_MIN_SAMPLES} \
                          per point, and this point has {many}: a variance from so few samples is \
-                         too rough to weight by (its inverse has an infinite mean; two equal \
-                         integer samples give a variance of 0), so the points whose samples \
-                         happen to agree would carry the fit, tens of sigma off. Use --weights \
-                         pooled (the noise pooled per separation, as `cta calibrate` weights) or \
-                         --weights none",
+                         too rough to weight by (its inverse has an infinite variance, or mean; \
+                         two equal integer samples give a variance of 0), so the points whose \
+                         samples happen to agree would carry the fit. Use --weights pooled (the \
+                         noise pooled per separation, as `cta calibrate` weights) or --weights \
+                         none",
                         ds.path.display(),
                         p.first.line
                     ));
@@ -517,7 +520,7 @@ pub fn fit_observations(
         ..Settings::default()
     };
     let problem = Fit { obs: &obs };
-    let sol = match glsdc::solve(&problem, x0, &settings) {
+    let mut sol = match glsdc::solve(&problem, x0, &settings) {
         Ok(s) => s,
         Err(glsdc::Error::RankDeficient { null, ratio, .. }) => {
             let mut s = String::new();
@@ -555,6 +558,17 @@ pub fn fit_observations(
             sol.condition
         ));
     }
+    if weights == Weights::Repeat {
+        // Each point's weight is its own variance from a few samples: (J'WJ)^-1 takes those
+        // rough variances for the truth and was 5-7x too small with 4 samples (1.2-1.6x with
+        // 10; far-field data, where eq 65 is exact). The sandwich does not: P B P with
+        // B = m/(m-n) sum (w r)^2 J'J, White's heteroscedasticity-consistent estimate (HC1),
+        // the scatter these weights give whatever the noise of each point.
+        if let Some(cov) = sandwich(&problem, &sol.x, &sol.covariance) {
+            sol.sigma = cov.diagonal().map(|v| v.max(0.0).sqrt());
+            sol.covariance = cov;
+        }
+    }
     let map = |v: &dyn Fn(usize) -> f64| {
         NAMES
             .iter()
@@ -581,6 +595,27 @@ pub fn fit_observations(
         observations: obs.len(),
         warnings,
     })
+}
+
+/// The sandwich covariance `P B P` of a weighted fit at `x`, `P` its `(J'WJ)^-1` and
+/// `B = m/(m - 7) sum_i (w_i r_i)^2 J_i' J_i` (White's HC1): the parameters' scatter whatever
+/// the weights, judged by the residuals. `None` when the model cannot be evaluated there.
+fn sandwich(
+    problem: &Fit<'_, f64>,
+    x: &nalgebra::SVector<f64, 7>,
+    p: &nalgebra::SMatrix<f64, 7, 7>,
+) -> Option<nalgebra::SMatrix<f64, 7, 7>> {
+    use cta_core::glsdc::Problem;
+    let mut b = nalgebra::SMatrix::<f64, 7, 7>::zeros();
+    let mut m = 0usize;
+    problem
+        .rows(x, true, &mut |r, w, j| {
+            let j = nalgebra::SVector::<f64, 7>::from_column_slice(j);
+            b += (w * r).powi(2) * j * j.transpose();
+            m += 1;
+        })
+        .ok()?;
+    (m > 7).then(|| p * (b * (m as f64 / (m - 7) as f64)) * p)
 }
 
 /// Figure 57 for one fit: per separation, the standard deviation over the reports of the

@@ -778,7 +778,7 @@ fn fit_names_its_spread_by_the_weighting() {
 }
 
 /// With 2 samples per point, each point's own variance is too rough to weight by (two equal
-/// integer samples give 0): `--weights repeat` refuses below 4 samples and names `pooled`,
+/// integer samples give 0): `--weights repeat` refuses below 6 samples and names `pooled`,
 /// which weights by the noise pooled per separation and lands on the truth (the reviewer's
 /// file: repeat gave d1 = 0.4284 +/- 0.0020 for 0.6 at chi2/dof 88, with no warning).
 #[test]
@@ -800,7 +800,7 @@ fn fit_with_few_samples_refuses_repeat_and_pools() {
     );
     fails_with(
         &cta(&["fit", s(&two), "--weights", "repeat"]),
-        "needs repeated samples, at least 4 per point, and this point has 2",
+        "needs repeated samples, at least 6 per point, and this point has 2",
     );
     fails_with(
         &cta(&["fit", s(&two), "--weights", "repeat"]),
@@ -822,6 +822,35 @@ fn fit_with_few_samples_refuses_repeat_and_pools() {
         );
     }
     assert_eq!(f["warnings"], serde_json::json!([]), "{f}");
+
+    // From 6 samples `repeat` is taken, and its 1-sigma (the sandwich) say it is the less
+    // precise weighting, as it is: each point's own variance is a rough weight. Its former
+    // (J'WJ)^-1 took those variances for the truth and claimed more than `pooled` (5-7x too
+    // small over 20 far-field seeds with 4 samples).
+    let six = d.join("w6.csv");
+    simulate(
+        &six,
+        &[
+            "--far-field",
+            "--separations",
+            "20,25",
+            "--noise",
+            "32.8",
+            "--samples",
+            "6",
+            "--seed",
+            "1",
+        ],
+    );
+    let r = json(&cta(&["fit", s(&six), "--weights", "repeat", "--json"]));
+    let p = json(&cta(&["fit", s(&six), "--weights", "pooled", "--json"]));
+    for n in ["d1", "d2", "d3", "p1", "p2", "p3", "H"] {
+        let (sr, sp) = (
+            r["sigma"][n].as_f64().unwrap(),
+            p["sigma"][n].as_f64().unwrap(),
+        );
+        assert!(sr > sp, "{n}: repeat {sr} against pooled {sp}");
+    }
 }
 
 /// `cta calibrate`'s pinhole stage weights its point means by the noise pooled per
