@@ -313,7 +313,7 @@ fn clean_data_rules_every_candidate_out() {
     assert_eq!(by("beacon_pattern").params[0].no_effect, Some(60.0));
     let text = cta_host::analyze::render_text(&a);
     assert!(
-        text.contains("ruled out (tried on top of the final model"),
+        text.contains("not named (tried on top of the final model"),
         "{text}"
     );
     assert!(
@@ -357,7 +357,7 @@ fn sub_threshold_effect_lies_in_the_ruled_out_interval() {
             .ruled_out
             .iter()
             .find(|r| r.effect == name)
-            .unwrap_or_else(|| panic!("{spec}: not among the ruled out"));
+            .unwrap_or_else(|| panic!("{spec}: not among the candidates not named"));
         for (p, t) in truth {
             let e = r.params.iter().find(|q| q.name == p).unwrap();
             println!(

@@ -63,8 +63,9 @@ VERDICTS:
   unexplained structure remains  the best extension still leaves chi2/dof > 1.2: nothing is
                       named with confidence; the output shows where the residuals are
   dropped             a cause named in an early round that the later causes made redundant
-  ruled out           every candidate tried on top of the final model and not accepted, with
+  not named           every candidate tried on top of the final model and not accepted, with
                       its estimate +/- 1-sigma: the data still allow about estimate +/- 2 sigma
+                      (one with dBIC > 10 says why it was not accepted: it may be there)
   correlation: DX,DY +0.71  under a candidate's estimates: two of its parameters correlate
                       (|rho| >= 0.5), so their 1-sigma alone mislead; `with the starting
                       model`: |rho| >= 0.9 with d, p or H. Every value +/- 1-sigma is rounded
@@ -167,8 +168,18 @@ pub struct Cause {
     pub params: ParamMap,
     /// Their 1-sigma.
     pub sigma: ParamMap,
-    /// Held-out RMS gain from adding this effect, counts.
+    /// Held-out RMS gain from adding this effect, counts (`heldout_rms_before -
+    /// heldout_rms_after`: noise included, so a cause that removes all of a small error reads
+    /// a small gain; `systematic_rms_before/after` is the measure).
     pub gain_rms_counts: f64,
+    /// The held-out RMS that noise alone gives on the same rows (the noise of the point
+    /// means), counts.
+    pub heldout_noise_rms: f64,
+    /// The systematic part of the held-out RMS before adding it, `sqrt(before^2 - noise^2)`
+    /// (0 when below the noise), counts.
+    pub systematic_rms_before: f64,
+    /// After.
+    pub systematic_rms_after: f64,
     /// Chi-square improvement on all data.
     pub dchi2: f64,
     /// BIC improvement (> 10 to be accepted).
@@ -419,6 +430,13 @@ impl Cause {
             .filter(|(n, _)| !n.contains('@'))
             .map(|(n, v)| {
                 let u = unit(&self.effect, n);
+                if v.is_nan() {
+                    // beacon_pattern's H_deg with m <= 0.
+                    return format!(
+                        "{n} = none (no half-intensity angle: the pattern does not fall off \
+                         the axis)"
+                    );
+                }
                 match self.sigma.get(n) {
                     Some(sg) => format!("{n} = {}{u}", pm(*v, *sg, pmark)),
                     None => format!("{n} = {}{u}", g(*v)),
@@ -628,6 +646,10 @@ pub struct Analysis {
     /// Points left out of both angle columns because one of the models cannot turn their
     /// output into a direction (measured output beyond what it predicts, near the rail).
     pub angle_left_out: usize,
+    /// The held-out RMS noise alone gives, over every held-out row, counts.
+    pub heldout_noise_rms: f64,
+    /// The RMS noise alone gives per separation (the noise of its point means), counts.
+    pub noise_rms_by_sep: Vec<f64>,
     /// Held-out RMS per separation before and after, counts.
     pub heldout_rms_by_sep_before: Vec<f64>,
     /// After.
@@ -1182,6 +1204,29 @@ pub fn analyze(
         }
         None => select::folds(nsep, opts.folds),
     };
+    // What noise alone gives as held-out RMS: every held-out row's variance (the point
+    // means' noise), over the separations the folds hold out.
+    let mut noise_ss = vec![(0.0, 0usize); nsep];
+    for p in &data.points {
+        noise_ss[p.sep].0 += 1.0 / p.w[0] + 1.0 / p.w[1];
+        noise_ss[p.sep].1 += 2;
+    }
+    let noise_rms_by_sep: Vec<f64> = noise_ss
+        .iter()
+        .map(|(ss, n)| (ss / (*n).max(1) as f64).sqrt())
+        .collect();
+    let heldout_noise_rms = {
+        let held: std::collections::BTreeSet<usize> = fold_seps.iter().flatten().copied().collect();
+        let (ss, n) = held.iter().fold((0.0, 0), |(a, b), &k| {
+            (a + noise_ss[k].0, b + noise_ss[k].1)
+        });
+        (ss / n.max(1) as f64).sqrt()
+    };
+    let systematic = |rms: f64| {
+        (rms * rms - heldout_noise_rms * heldout_noise_rms)
+            .max(0.0)
+            .sqrt()
+    };
     let min_pts = per_sep.iter().copied().min().unwrap_or(0);
     let sel_opts = select::Options {
         base: opts.from,
@@ -1242,6 +1287,9 @@ pub fn analyze(
             params,
             sigma,
             gain_rms_counts: st.cv_before.rms - st.cv_after.rms,
+            heldout_noise_rms,
+            systematic_rms_before: systematic(st.cv_before.rms),
+            systematic_rms_after: systematic(st.cv_after.rms),
             dchi2: st.dchi2,
             dbic: st.dbic,
             heldout_rms_before: st.cv_before.rms,
@@ -1407,6 +1455,8 @@ pub fn analyze(
         angle_std_before_deg: diag::angle_std_by_sep(&both(&ab), &data),
         angle_std_after_deg: diag::angle_std_by_sep(&both(&aa), &data),
         angle_left_out,
+        heldout_noise_rms,
+        noise_rms_by_sep,
         heldout_rms_by_sep_before: sel.base_cv.rms_by_sep.clone(),
         heldout_rms_by_sep_after: fcv.rms_by_sep.clone(),
         params_before: params_of(&sel.base_model, &sel.base_fit, &data.seps, true),
@@ -1459,12 +1509,14 @@ pub fn render_text(a: &Analysis) -> String {
         };
         let _ = writeln!(
             s,
-            "{}. {}{tag}: held-out RMS {:.1} -> {:.1} counts (gain {:.1}), dchi2 {:.0}, dBIC {:.0}, chi2/dof after {:.2}",
+            "{}. {}{tag}: held-out RMS {:.1} -> {:.1} counts ({:.1} from noise alone: systematic {:.1} -> {:.1}), dchi2 {:.0}, dBIC {:.0}, chi2/dof after {:.2}",
             k + 1,
             c.effect,
             c.heldout_rms_before,
             c.heldout_rms_after,
-            c.gain_rms_counts,
+            c.heldout_noise_rms,
+            c.systematic_rms_before,
+            c.systematic_rms_after,
             c.dchi2,
             c.dbic,
             c.chi2_dof_after
@@ -1490,7 +1542,7 @@ pub fn render_text(a: &Analysis) -> String {
     if !a.ruled_out.is_empty() {
         let _ = writeln!(
             s,
-            "{}ruled out (tried on top of the final model, not accepted): estimate +/- \
+            "{}not named (tried on top of the final model, not accepted): estimate +/- \
              1-sigma; the data allow about estimate +/- 2 sigma{}",
             if a.causes.is_empty() && a.tentative.is_empty() {
                 ""
@@ -1518,7 +1570,7 @@ pub fn render_text(a: &Analysis) -> String {
             }
         }
     } else if let Some(n) = &a.ruled_out_note {
-        let _ = writeln!(s, "\nruled out: none tried on top of the final model ({n})");
+        let _ = writeln!(s, "\nnot named: none tried on top of the final model ({n})");
     }
     if !a.structure.is_empty() {
         let _ = writeln!(s, "\nwhere the residuals stand out (chi2 per residual):");
@@ -1536,17 +1588,18 @@ pub fn render_text(a: &Analysis) -> String {
     );
     let _ = writeln!(
         s,
-        "\n sep(in)  angle std before  after (deg)   held-out RMS before  after (counts)"
+        "\n sep(in)  angle std before  after (deg)   held-out RMS before  after  noise alone (counts)"
     );
     for (k, sep) in a.separations.iter().enumerate() {
         let _ = writeln!(
             s,
-            " {:>6}   {:>16.4}  {:>11.4}   {:>19.1}  {:>14.1}",
+            " {:>6}   {:>16.4}  {:>11.4}   {:>19.1}  {:>5.1}  {:>11.1}",
             sep,
             a.angle_std_before_deg[k],
             a.angle_std_after_deg[k],
             a.heldout_rms_by_sep_before[k],
-            a.heldout_rms_by_sep_after[k]
+            a.heldout_rms_by_sep_after[k],
+            a.noise_rms_by_sep[k]
         );
     }
     if a.angle_left_out > 0 {
@@ -1847,7 +1900,7 @@ mod tests {
             let c = &a.causes[0];
             assert!(c.correlations.is_empty(), "{effect}: {:?}", c.correlations);
             let text = render_text(&a);
-            let named = text.split("ruled out").next().unwrap();
+            let named = text.split("not named (tried").next().unwrap();
             assert!(!named.contains("correlation:"), "{text}");
         }
     }
@@ -2079,6 +2132,39 @@ mod tests {
         );
     }
 
+    /// A cause's gain is measured against the noise: the held-out RMS with noise alone is
+    /// that of the point means (32.8 counts / sqrt(4 samples) = 16.4), and a tilt the model
+    /// then holds leaves a systematic part near 0, where the plain difference of held-out RMS
+    /// (about 1 count) said little.
+    #[test]
+    fn a_cause_measures_its_gain_against_the_noise() {
+        let a = run("beacon_tilt=3,45", 100);
+        let c = &a.causes[0];
+        assert!(
+            (c.heldout_noise_rms - 16.4).abs() < 0.5,
+            "{}",
+            c.heldout_noise_rms
+        );
+        assert_eq!(c.heldout_noise_rms, a.heldout_noise_rms);
+        assert!(
+            c.systematic_rms_before > 4.0 * c.systematic_rms_after.max(0.5),
+            "{} -> {}",
+            c.systematic_rms_before,
+            c.systematic_rms_after
+        );
+        assert!(c.heldout_rms_after > 0.95 * c.heldout_noise_rms);
+        let text = render_text(&a);
+        assert!(
+            text.contains(&format!(
+                "({:.1} from noise alone: systematic {:.1} -> {:.1})",
+                c.heldout_noise_rms, c.systematic_rms_before, c.systematic_rms_after
+            )),
+            "{text}"
+        );
+        assert_eq!(a.noise_rms_by_sep.len(), a.separations.len());
+        assert!(a.noise_rms_by_sep.iter().all(|v| (12.0..22.0).contains(v)));
+    }
+
     /// The analysis (defaults) of the setup of [`sim`] with two effects hidden at once.
     fn run_two(first: &str, second: &str, seed: u64) -> Analysis {
         let (ds, _) = SimConfig {
@@ -2125,7 +2211,7 @@ mod tests {
         );
         let at = text.find(&line).unwrap_or_else(|| panic!("{text}"));
         let last_cause = text.rfind("on the sensor board:").unwrap();
-        let ruled_out = text.find("ruled out").unwrap();
+        let ruled_out = text.find("not named (tried").unwrap();
         assert!(last_cause < at && at < ruled_out, "{text}");
         let json = serde_json::to_value(&a).unwrap();
         let j = &json["cross_correlations"][0];
@@ -2139,7 +2225,7 @@ mod tests {
         let shown = html
             .find(&format!("<i>{}</i>", line.trim()))
             .expect("in the report");
-        assert!(causes_table < shown && shown < html.find("<h2>Ruled out</h2>").unwrap());
+        assert!(causes_table < shown && shown < html.find("<h2>Not named</h2>").unwrap());
     }
 
     /// Hidden `cell_gain` and `face_angle` are both named and nearly independent in the final

@@ -195,10 +195,12 @@ impl Cand {
         match self {
             Cand::BeaconPattern => {
                 let m = v[0];
+                // m <= 0: no half-intensity angle (the pattern does not fall off the axis);
+                // NaN, which the text prints as "none" and JSON as null.
                 let h = if m > 0.0 {
                     deg((0.5f64.powf(1.0 / m)).acos())
                 } else {
-                    90.0
+                    f64::NAN
                 };
                 vec![("H_deg", h), ("m", m)]
             }
@@ -226,7 +228,7 @@ impl Cand {
     pub fn trial_report(self, base: Base, v: &[f64]) -> Vec<(&'static str, f64, Option<f64>)> {
         let absent = self.absent(base);
         match (self, base) {
-            (Cand::BeaconPattern, Base::Thesis) => {
+            (Cand::BeaconPattern, Base::Thesis) if v[0] > 0.0 => {
                 let h = self.report(base, v)[0].1;
                 vec![("H_deg", h, Some(60.0))]
             }
