@@ -9,7 +9,10 @@
 //! `dBIC > BIC_MIN` and the held-out chi-square drops. Per-separation corrections
 //! (`plate_offset`, `separation_error`) cannot be predicted for a separation never seen: on
 //! held-out separations they are estimated from that separation's data with everything else
-//! fixed, and the held-out RMS is corrected for those degrees of freedom.
+//! fixed, and the held-out RMS is corrected for those degrees of freedom. A global parameter
+//! the training separations do not constrain at all (saturation reached only at a held-out
+//! separation) is treated alike: held absent in the training fit, estimated on the held-out
+//! data (`train_fit`).
 //!
 //! Forward selection alone can keep a cause that only stood in for others: a flexible
 //! per-separation correction (`plate_offset`) absorbs most of a cell-gain plus cell-bias
@@ -215,6 +218,74 @@ pub fn folds(nsep: usize, folds: usize) -> Vec<Vec<usize>> {
     (0..f).map(|j| (j..nsep).step_by(f).collect()).collect()
 }
 
+/// The global parameters of `model` that the points in `subset` do not constrain at all: a
+/// step of the parameter's finite-difference size at `x` leaves every prediction unchanged
+/// (a zero Jacobian column: saturation whose level no point in `subset` reaches).
+fn unconstrained(model: &Model, data: &Data, subset: &[usize], x: &[f64]) -> Vec<usize> {
+    let steps = model.steps();
+    let Ok(y0) = model.predict(x, data, subset) else {
+        return Vec::new();
+    };
+    model
+        .effects
+        .iter()
+        .flat_map(|&e| model.global_indices(e))
+        .filter(|&i| {
+            let mut xp = x.to_vec();
+            xp[i] += steps[i];
+            model.predict(&xp, data, subset).is_ok_and(|y| y == y0)
+        })
+        .collect()
+}
+
+/// The training fit of one cross-validation fold, from the all-data fit `x`, and the global
+/// parameters it leaves out. A global parameter the training points do not constrain at all
+/// ([`unconstrained`]: saturation only reached at a held-out separation) is held at its
+/// effect's no-effect value: the model trained on these separations has not seen that effect.
+/// When the fit still fails, the newest effect is held absent as well (its parameters may be
+/// constrained only jointly with others). The caller estimates the left-out parameters from
+/// the held-out data (like per-separation corrections), or predicts without them.
+fn train_fit(
+    model: &Model,
+    data: &Data,
+    train: &[usize],
+    x: &[f64],
+) -> Result<(FitResult, Vec<usize>), FitFailure> {
+    let absent = |held: &[usize]| {
+        let mut xa = x.to_vec();
+        for &e in &model.effects {
+            for (i, v) in model.global_indices(e).zip(e.absent(model.base)) {
+                if held.contains(&i) {
+                    xa[i] = v;
+                }
+            }
+        }
+        xa
+    };
+    let mut held = unconstrained(model, data, train, x);
+    let first = match fit_all_except(model, data, train, &absent(&held), &held) {
+        Ok(f) => return Ok((f, held)),
+        Err(e) => e,
+    };
+    let newest: Vec<usize> = match model.effects.last() {
+        Some(&c) => model.global_indices(c).collect(),
+        None => Vec::new(),
+    };
+    if newest.is_empty() || newest.iter().all(|i| held.contains(i)) {
+        return Err(first);
+    }
+    for i in newest {
+        if !held.contains(&i) {
+            held.push(i);
+        }
+    }
+    held.sort_unstable();
+    match fit_all_except(model, data, train, &absent(&held), &held) {
+        Ok(f) => Ok((f, held)),
+        Err(_) => Err(first),
+    }
+}
+
 /// Cross-validate `model` (started from the all-data fit `x`) over `fold_seps`.
 pub fn cross_validate(
     model: &Model,
@@ -233,41 +304,52 @@ pub fn cross_validate(
             let test: Vec<usize> = (0..data.points.len())
                 .filter(|&i| held.contains(&data.points[i].sep))
                 .collect();
-            let f = match fit_all(model, data, &train, x) {
-                Ok(f) => f,
-                // The training separations may not constrain the newest effect at all (e.g.
-                // saturation that only shows at a held-out separation): then the model
-                // trained on them predicts without it, i.e. with the effect absent.
-                Err(e) => match model.effects.last() {
-                    Some(&c) if !c.global_names(model.base).is_empty() => {
-                        let mut xa = x.to_vec();
-                        let idx: Vec<usize> = model.global_indices(c).collect();
-                        for (i, v) in idx.iter().zip(c.absent(model.base)) {
-                            xa[*i] = v;
-                        }
-                        fit_all_except(model, data, &train, &xa, &idx).map_err(|_| {
-                            FitFailure(format!(
-                                "with separation(s) {} held out: {}",
-                                crate::measurement::fmt_list(
-                                    &held.iter().map(|&k| data.seps[k]).collect::<Vec<_>>()
-                                ),
-                                e.0
-                            ))
-                        })?
-                    }
-                    _ => return Err(e),
-                },
+            let where_ = || {
+                format!(
+                    "with separation(s) {} held out",
+                    crate::measurement::fmt_list(
+                        &held.iter().map(|&k| data.seps[k]).collect::<Vec<_>>()
+                    )
+                )
             };
-            let mut xt = f.x.clone();
+            let (f, unseen) = train_fit(model, data, &train, x)
+                .map_err(|e| FitFailure(format!("{}: {}", where_(), e.0)))?;
             let loc = locals(model, held);
+            let mut xt = f.x.clone();
             let mut nloc = 0;
-            if !loc.is_empty() && !test.is_empty() {
+            if test.is_empty() {
+                // Nothing to predict.
+            } else if !loc.is_empty() || !unseen.is_empty() {
+                // Per-separation corrections of the held-out separations, and the global
+                // parameters the training separations do not constrain, are estimated from
+                // the held-out data with everything else fixed (each one a degree of
+                // freedom less); a global one that the held-out data cannot fix either is
+                // left absent (the training fit's value).
                 for &i in &loc {
                     xt[i] = 0.0;
                 }
-                let g = fit(model, data, &test, &xt, &loc, false, &data.seps)?;
-                xt = g.x;
-                nloc = loc.len();
+                for &i in &unseen {
+                    xt[i] = x[i];
+                }
+                let mut free = loc.clone();
+                free.extend(&unseen);
+                match fit(model, data, &test, &xt, &free, false, &data.seps) {
+                    Ok(g) => {
+                        xt = g.x;
+                        nloc = free.len();
+                    }
+                    Err(e) if unseen.is_empty() => return Err(e),
+                    Err(_) => {
+                        xt = f.x.clone();
+                        if !loc.is_empty() {
+                            for &i in &loc {
+                                xt[i] = 0.0;
+                            }
+                            xt = fit(model, data, &test, &xt, &loc, false, &data.seps)?.x;
+                            nloc = loc.len();
+                        }
+                    }
+                }
             }
             let y = model
                 .predict(&xt, data, &test)
