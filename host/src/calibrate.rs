@@ -38,6 +38,7 @@ use cta_core::pose::{Calibration, NearField};
 use nalgebra::{DVector, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::analyze::wiring;
 use crate::fit::{self, Weights};
 use crate::measurement::{any_sample_pinned, fmt_list, mean_near_rail, parse_separations, Dataset};
 
@@ -601,7 +602,8 @@ pub fn calibrate(
             .unwrap_or(noise * noise)
     };
     let mut ph = fit::fit_observations(&far, Weights::Pooled, fit::point_means(&far, &var_ph))
-        .map_err(|e| anyhow!("pinhole fit at {} in: {e}", fmt_list(&pinhole_seps)))?;
+        .map_err(|e| anyhow!("pinhole fit at {} in: {e}", fmt_list(&pinhole_seps)))
+        .map_err(|e| anyhow!("{}", wiring::explain(all, e.to_string())))?;
     // Judged as `cta fit --weights pooled` judges the same data: the same weights, the same
     // expectation (1 with --noise), the same warning line.
     ph.chi2_expected = if measured {
@@ -664,13 +666,14 @@ pub fn calibrate(
                     b
                 }
                 (Ok(a), Err(_)) => a,
-                (Err(e), Err(e2)) => bail!(
+                (Err(e), Err(e2)) => Err(anyhow!(
                     "{e}; from the nominal head pose (d = {} in) too: {e2}. The data do not \
                      look like a NorthStar on the CTA (check the file's columns, units and \
                      --pattern-m; `cta analyze {}` shows what the models miss)",
                     d(&nominal),
                     ds.path.display()
-                ),
+                ))
+                .map_err(|e| anyhow!("{}", wiring::explain(all, e.to_string())))?,
             }
         }
     };

@@ -25,6 +25,7 @@ pub mod digits;
 pub mod model;
 pub mod report;
 pub mod select;
+pub mod wiring;
 
 use crate::measurement::{parse_separations, Dataset};
 use anyhow::Context;
@@ -1235,7 +1236,7 @@ pub fn analyze(
         max_effects: opts.max_effects,
     };
     let sel = select::select_with_folds(&data, &sel_opts, &fold_seps, progress)
-        .map_err(|e| format!("{file}: {e}"))?;
+        .map_err(|e| wiring::explain(ds, format!("{file}: {e}")))?;
     let mut untested: Vec<Untested> = sel
         .untested
         .iter()

@@ -1,0 +1,213 @@
+//! The common lab mistakes (a sign flipped, X and Y swapped, separations in cm or mm) make
+//! `cta analyze` and `cta calibrate` stop with an optimizer error; the error then names the
+//! mistake (host/src/analyze/wiring.rs). A clean file is unaffected.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn cta(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cta"))
+        .args(args)
+        .output()
+        .expect("run cta")
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("cta-wiring-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn fails_with(o: &Output, needles: &[&str]) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "expected failure, got success: {err}");
+    assert!(!err.contains("panicked"), "panic: {err}");
+    for needle in needles {
+        assert!(err.contains(needle), "stderr lacks `{needle}`: {err}");
+    }
+    let errors: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("cta: error"))
+        .collect();
+    assert_eq!(errors.len(), 1, "not one error line: {err}");
+}
+
+/// The reviewer's file: 2..30 in, 4 samples per point, noise 0.1 % of beta.
+fn simulate(out: &Path) {
+    let o = cta(&[
+        "simulate",
+        "--out",
+        s(out),
+        "--separations",
+        "2..30",
+        "--noise",
+        "32.8",
+        "--samples",
+        "4",
+        "--seed",
+        "11",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// One data row of a file being edited.
+struct Row<'a> {
+    header: &'a [String],
+    fields: Vec<String>,
+}
+
+impl Row<'_> {
+    /// The field in column `name`.
+    fn f(&mut self, name: &str) -> &mut String {
+        let i = self.header.iter().position(|c| c == name).unwrap();
+        &mut self.fields[i]
+    }
+}
+
+/// A copy of `src` at `dst` with `edit` applied to each data row.
+fn edited(src: &Path, dst: &Path, edit: &dyn Fn(&mut Row)) {
+    let text = std::fs::read_to_string(src).unwrap();
+    let mut out = String::new();
+    let mut header: Option<Vec<String>> = None;
+    for line in text.lines() {
+        if line.starts_with('#') || line.trim().is_empty() {
+            out.push_str(line);
+            out.push('\n');
+            continue;
+        }
+        let Some(h) = &header else {
+            header = Some(line.split(',').map(str::to_string).collect());
+            out.push_str(line);
+            out.push('\n');
+            continue;
+        };
+        let mut row = Row {
+            header: h,
+            fields: line.split(',').map(str::to_string).collect(),
+        };
+        edit(&mut row);
+        out.push_str(&row.fields.join(","));
+        out.push('\n');
+    }
+    std::fs::write(dst, out).unwrap();
+}
+
+fn num(f: &str) -> f64 {
+    f.parse().unwrap()
+}
+
+/// A count's sign flipped, kept in the signed 16-bit range (-32768 becomes 32767).
+fn negate(f: &mut String) {
+    *f = (-num(f)).min(32767.0).to_string();
+}
+
+fn scale(f: &mut String, k: f64) {
+    *f = ((num(f) * k * 1e6).round() / 1e6).to_string();
+}
+
+#[test]
+fn analyze_and_calibrate_name_the_mistake() {
+    let d = tmpdir("mistakes");
+    let base = d.join("base.csv");
+    simulate(&base);
+
+    // The clean file: analyze and calibrate succeed and say nothing about transforms.
+    for cmd in ["analyze", "calibrate"] {
+        let o = cta(&[cmd, s(&base)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{cmd}: {err}");
+        assert!(!err.contains("pinhole model"), "{cmd}: {err}");
+    }
+
+    type Edit = Box<dyn Fn(&mut Row)>;
+    let cases: Vec<(&str, Edit, &[&str], bool)> = vec![
+        (
+            "xflip",
+            Box::new(|r| negate(r.f("x"))),
+            &[
+                "fit the pinhole model with X's sign flipped (RMS 1",
+                "wiring",
+            ],
+            true,
+        ),
+        (
+            "yflip",
+            Box::new(|r| negate(r.f("y"))),
+            &[
+                "fit the pinhole model with Y's sign flipped (RMS 1",
+                "wiring",
+            ],
+            true,
+        ),
+        (
+            "swap",
+            Box::new(|r| {
+                let x = r.f("x").clone();
+                let y = std::mem::replace(r.f("y"), x);
+                *r.f("x") = y;
+            }),
+            &["better with X and Y swapped (RMS 1", "`x` and `y` columns"],
+            true,
+        ),
+        (
+            "sepcm",
+            Box::new(|r| {
+                scale(r.f("separation_in"), 2.54);
+                scale(r.f("beacon_z_in"), 2.54);
+            }),
+            &[
+                "cross-validation of the starting model failed",
+                "separation_in and beacon_z_in divided by 2.54 (i.e. at 21-30 in)",
+                "are the lengths in centimetres?",
+            ],
+            // calibrate fits this file (badly, with a 56 deg face angle): no error to hook.
+            false,
+        ),
+        (
+            "sepmm",
+            Box::new(|r| {
+                scale(r.f("separation_in"), 25.4);
+                scale(r.f("beacon_z_in"), 25.4);
+            }),
+            &[
+                "divided by 25.4 (i.e. at 21-30 in)",
+                "are the lengths in millimetres?",
+            ],
+            true,
+        ),
+    ];
+    for (name, edit, needles, calibrate_fails) in &cases {
+        let csv = d.join(format!("{name}.csv"));
+        edited(&base, &csv, edit.as_ref());
+        let o = cta(&["analyze", s(&csv)]);
+        fails_with(&o, needles);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("starting model"), "{name}: {err}");
+        if *calibrate_fails {
+            fails_with(&cta(&["calibrate", s(&csv)]), needles);
+        }
+    }
+}
+
+/// Both signs flipped is the head turned 180 deg about its boresight: a pose the models
+/// hold, so the file fits and nothing is said.
+#[test]
+fn a_turned_head_fits_as_it_is() {
+    let d = tmpdir("turned");
+    let base = d.join("base.csv");
+    simulate(&base);
+    let csv = d.join("xyflip.csv");
+    edited(&base, &csv, &|r| {
+        negate(r.f("x"));
+        negate(r.f("y"));
+    });
+    let o = cta(&["analyze", s(&csv)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("pinhole model"), "{err}");
+}
