@@ -13,7 +13,9 @@
 //!   fitted). A turn of the head about its boresight is one of the pinhole model's poses,
 //!   so transforms that differ by one (X flipped, and Y flipped with the head rolled
 //!   180 deg) fit as well (within [`SAME_FIT`]): of those, the one whose fitted head attitude
-//!   is nearest the nominal (the head mounted square to the board) is named.
+//!   is nearest the nominal (the head mounted square to the board) is named. When the data
+//!   as given fit as well but only with the head turned more than [`TURNED_DEG`], that is
+//!   said, with the reading that squares it.
 //! - **length unit**: `separation_in` and `beacon_z_in` divided by 2.54 (centimetres) or
 //!   25.4 (millimetres). The pinhole model takes such a file in its stride with a scale
 //!   height `H` as many times the NorthStar's (18918.6 counts): a fitted `H` more than
@@ -41,6 +43,10 @@ pub const SAME_FIT: f64 = 1.5;
 pub const H_OFF: f64 = 1.5;
 /// ...when a length transform brings it within this factor of it.
 pub const H_OK: f64 = 1.2;
+
+/// A fitted head attitude turned more than this from square to the board (degrees) is
+/// named when a reading of X and Y fits as well with the head square.
+pub const TURNED_DEG: f64 = 45.0;
 
 /// One way of reading the file's `x` and `y` columns.
 struct Orientation {
@@ -77,7 +83,7 @@ const ORIENTATIONS: [Orientation; 8] = [
         check: FLIP,
     },
     Orientation {
-        what: "with both X's and Y's signs flipped (the head turned 180 deg)",
+        what: "with both X's and Y's signs flipped",
         map: |[x, y]| [-x, -y],
         check: TURN,
     },
@@ -87,12 +93,12 @@ const ORIENTATIONS: [Orientation; 8] = [
         check: SWAP,
     },
     Orientation {
-        what: "with X and Y swapped and X's sign flipped (the head turned 90 deg)",
+        what: "with X and Y swapped and X's sign flipped",
         map: |[x, y]| [-y, x],
         check: TURN,
     },
     Orientation {
-        what: "with X and Y swapped and Y's sign flipped (the head turned 90 deg)",
+        what: "with X and Y swapped and Y's sign flipped",
         map: |[x, y]| [y, -x],
         check: TURN,
     },
@@ -248,6 +254,18 @@ pub fn diagnose(ds: &Dataset) -> Option<String> {
                     o.check
                 ));
                 used = chosen;
+            }
+            // As good as given, but only with the head turned far from square to the
+            // board: a head mounted turned about its boresight, or X and Y wired so.
+            Some(g) if g.turn_deg > TURNED_DEG && c.turn_deg < TURNED_DEG => {
+                said.push(format!(
+                    "The pinhole model fits the data as given only with the head turned {:.0} \
+                     deg from square to the board (RMS {} counts {at}), and as well with it \
+                     square {}: {TURN}.",
+                    g.turn_deg,
+                    counts(g.rms),
+                    o.what,
+                ));
             }
             Some(_) => {}
         }
