@@ -28,7 +28,7 @@
 //! The off-boresight angle here is geometric (no model): the angle of the beacon from the
 //! board normal seen from the N origin, `atan(hypot(x, y) / z)`.
 
-use crate::measurement::{any_sample_pinned, mean_near_rail, Dataset, Sample};
+use crate::measurement::{any_sample_pinned, mean_near_rail, Dataset, Glitches, Sample};
 use crate::plot::{render_svg, Panel, Series};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -135,6 +135,11 @@ pub struct NoiseReport {
     pub std_all: [f64; 2],
     /// Pooled X-Y correlation of the deviations.
     pub xy_correlation: f64,
+    /// The glitch check ([`Dataset::glitches`]): per axis the robust sigma (median absolute
+    /// deviation from each point's median) against the std, and the samples beyond
+    /// [`crate::measurement::GLITCH_SIGMA`] robust sigma with their lines. A std well above the
+    /// robust sigma is a heavy tail: glitches, which every figure here still includes.
+    pub glitches: Glitches,
     /// Noise by factor.
     pub factors: Vec<Factor>,
     /// Standard deviation of the point variances within a separation relative to what
@@ -674,6 +679,7 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
         points_single: pts.len() - rep.len(),
         std_all: [all.std_x, all.std_y],
         xy_correlation: corr,
+        glitches: ds.glitches(),
         factors,
         within_separation_dispersion: dispersion,
         within_setting_dispersion: setting_dispersion,
@@ -713,6 +719,7 @@ pub fn render_text(r: &NoiseReport) -> String {
         "one-sample std over the file: X {:.2}, Y {:.2} counts; X-Y correlation {:+.3}\n",
         r.std_all[0], r.std_all[1], r.xy_correlation
     );
+    let _ = write!(s, "{}", render_glitches(&r.glitches));
     for f in &r.factors {
         if f.groups.is_empty() {
             let _ = writeln!(s, "by {}: not recorded in the file\n", f.factor);
@@ -805,6 +812,83 @@ pub fn render_text(r: &NoiseReport) -> String {
                 );
             }
         }
+    }
+    s
+}
+
+/// The glitch lines of the table: robust sigma against std, and the heavy tail when there is one.
+fn render_glitches(g: &Glitches) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    if g.points_checked == 0 || g.axes.len() != 2 {
+        let _ = writeln!(
+            s,
+            "glitch check: no point with {} or more samples off the 16-bit rail (nothing to check)\n",
+            crate::measurement::GLITCH_MIN_SAMPLES
+        );
+        return s;
+    }
+    let (x, y) = (&g.axes[0], &g.axes[1]);
+    let floor = crate::measurement::GLITCH_FLOOR_COUNTS;
+    let ratio = if x.robust_sigma >= floor && y.robust_sigma >= floor {
+        format!(
+            "std / robust sigma X {:.2}, Y {:.2} (about 1 for Gaussian noise)",
+            x.std_with / x.robust_sigma,
+            y.std_with / y.robust_sigma
+        )
+    } else {
+        format!("a robust sigma below the {floor} count resolution: no ratio")
+    };
+    let _ = writeln!(
+        s,
+        "robust sigma (median absolute deviation from each point's median, {} points of {}+ \
+         samples): X {:.2}, Y {:.2} counts;\n  std over the same points X {:.2}, Y {:.2}: {ratio}",
+        g.points_checked,
+        crate::measurement::GLITCH_MIN_SAMPLES,
+        x.robust_sigma,
+        y.robust_sigma,
+        x.std_with,
+        y.std_with,
+    );
+    if g.samples == 0 {
+        let _ = writeln!(
+            s,
+            "  no sample lies more than {} robust sigma from its point's median: no glitches\n",
+            g.threshold_sigma
+        );
+    } else {
+        let lines = |a: &crate::measurement::AxisGlitches| {
+            let shown: Vec<String> = a.lines.iter().take(8).map(|l| l.to_string()).collect();
+            format!(
+                "{}{}",
+                shown.join(", "),
+                if a.lines.len() > 8 { ", ..." } else { "" }
+            )
+        };
+        let _ = writeln!(
+            s,
+            "  HEAVY TAIL: {} of {} samples lie more than {} robust sigma from their point's \
+             median (glitches: an ID mix-up, a corrupted report?), kept in every figure here:",
+            g.samples, g.samples_checked, g.threshold_sigma
+        );
+        for a in [x, y] {
+            if a.samples > 0 {
+                let _ = writeln!(
+                    s,
+                    "    {}: {} samples (lines {}); std {:.2} with them, {:.2} without ({:.1}-fold)",
+                    a.axis,
+                    a.samples,
+                    lines(a),
+                    a.std_with,
+                    a.std_without,
+                    a.inflation()
+                );
+            }
+        }
+        let _ = writeln!(
+            s,
+            "  every fit weights by the std: remove those lines, or re-measure\n"
+        );
     }
     s
 }
