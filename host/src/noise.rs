@@ -20,6 +20,13 @@
 //! shadow or saturated clips the spread, so such a point reads quieter than the sensor is (at
 //! 2 in on the simulated CTA, 58 of 100 points: they made constant noise look lower there).
 //!
+//! Every figure is a standard deviation, which a few glitches (an ID mix-up, a corrupted
+//! report) inflate many-fold, so it also gives per axis the robust sigma (the median absolute
+//! deviation from each point's median, [`Dataset::glitches`]) against the std, and the samples
+//! beyond [`crate::measurement::GLITCH_SIGMA`] robust sigma with their lines: a std well above
+//! the robust sigma is a heavy tail. Those samples stay in every figure (the load-time warning
+//! names them too); removing them is the user's call.
+//!
 //! It also gives the repeatability of the spot magnitude (the one-sample standard deviation
 //! of each point's magnitude relative to its mean, pooled overall and per separation): the
 //! figure `cta sensor floor --magnitude-noise` needs to tell what the magnitudes would add to
@@ -44,7 +51,10 @@ Y in counts with its standard error from sampling, whether the groups differ bey
 (Bartlett's test, 1 %), and the verdict says which weighting to use in `cta analyze --weights`.
 Points at the 16-bit rail (a coordinate at +/-32767 in any sample, or the mean within 3 sigma
 of it: a cell in shadow or saturated) are left out of everything, as `cta calibrate` does, and
-counted. Last, the repeatability of the spot magnitude (one-sample std over mean, in %): what
+counted. The robust sigma (median absolute deviation from each point's median, points of 3+
+samples) is given against the std per axis, with the samples more than 8 robust sigma from their
+point's median (glitches: an ID mix-up, a corrupted report) and their lines, which every figure
+still includes. Last, the repeatability of the spot magnitude (one-sample std over mean, in %): what
 `cta sensor floor --magnitude-noise` takes to tell what the magnitudes would add to the pose.
 
 EXAMPLE:
