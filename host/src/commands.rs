@@ -861,6 +861,16 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
                 // straight lines do not read as a measured curve.
                 series: vec![
                     Series::new("std of the error in angle", pts(&ev.angle_std_deg)).with_markers(),
+                    // Not in the thesis's figure, but part of the error: a bias common to
+                    // the beacons of a separation (attitude the fit absorbed), often larger.
+                    Series::new(
+                        "|mean| of the error in angle (not in Figure 57)",
+                        pts(&ev.angle_mean_deg.iter().map(|m| m.abs()).collect())
+                            .into_iter()
+                            .filter(|(_, m)| *m > 0.0)
+                            .collect(),
+                    )
+                    .with_markers(),
                     Series::dashed("mean CTA uncertainty (eq 36)", pts(&ev.cta_uncertainty_deg))
                         .with_markers(),
                 ],
@@ -911,6 +921,21 @@ fn print_evaluation(rep: &FitReport, ev: &fit::Evaluation) {
             mean,
             sig(ev.cta_uncertainty_deg[i], 3),
             n
+        );
+    }
+    // The thesis plots the std; a bias shared by a separation's beacons comes on top.
+    let worst = ev
+        .angle_mean_deg
+        .iter()
+        .zip(&ev.angle_std_deg)
+        .filter(|(_, s)| **s > 0.0)
+        .map(|(m, s)| m.abs() / s)
+        .fold(0.0f64, f64::max);
+    if worst > 1.0 {
+        println!(
+            "note: Figure 57 shows the std only; the mean error (a bias shared by a separation's \
+             beacons, e.g. attitude the fit absorbed) is up to {worst:.1}x the std here and \
+             adds to it (the plot draws both)"
         );
     }
 }
