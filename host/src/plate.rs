@@ -17,6 +17,7 @@ use cta_core::emulator::grid_position;
 use cta_core::pose::{
     cta_constellation, flat_constellation, four_array_constellation, Constellation,
 };
+use cta_core::schedule::NORTHSTAR_TABLE_MHZ;
 use nalgebra::Vector3;
 use serde::Serialize;
 
@@ -91,10 +92,10 @@ const BUILT_IN: [BuiltIn; 4] = [
         what: "the CTA constellation the chip is benchmarked on",
     },
     BuiltIn {
-        name: "one-20",
+        name: "one-19",
         plate: Plate::One,
-        beacons: one_20,
-        what: "one-10 and ten more: all 20 NorthStar channels on one array",
+        beacons: one_19,
+        what: "one-10 and nine more: every NorthStar frequency on one array",
     },
     BuiltIn {
         name: "four-10",
@@ -103,12 +104,68 @@ const BUILT_IN: [BuiltIn; 4] = [
         what: "spread over four arrays: five inner (seen from 2 in), five near the edge",
     },
     BuiltIn {
-        name: "four-20",
+        name: "four-19",
         plate: Plate::Four,
-        beacons: four_array_constellation,
-        what: "four-10 and ten more: all 20 NorthStar channels over four arrays",
+        beacons: four_19,
+        what: "four-10 and nine more: every NorthStar frequency over four arrays",
     },
 ];
+
+/// NorthStar channels that share a frequency in the default table
+/// ([`NORTHSTAR_TABLE_MHZ`], the hobbyists' table: ID k's LEDs at 4050 + 120 (k - 1) and
+/// 3090 + 120 (k - 1) Hz give ID 9's second LED, channel 19, the 4050 Hz of ID 1's first,
+/// channel 2): a detector sees one spot there and cannot tell which, so a constellation may
+/// use one channel of each pair. 19 distinct frequencies, not 20.
+pub fn shared_channels() -> Vec<(u8, u8)> {
+    let t = &NORTHSTAR_TABLE_MHZ;
+    let mut out = Vec::new();
+    for i in 0..t.len() {
+        for j in i + 1..t.len() {
+            if t[i] == t[j] {
+                out.push((i as u8, j as u8));
+            }
+        }
+    }
+    out
+}
+
+/// Refuses a constellation with two beacons on channels that share a frequency
+/// ([`shared_channels`]).
+pub fn check_channels(con: &Constellation) -> Result<()> {
+    let has = |id: u8| con.beacons.iter().any(|b| b.id == id);
+    for (a, b) in shared_channels() {
+        if has(a) && has(b) {
+            bail!(
+                "beacons on channels {a} and {b}: the NorthStar frequency table gives both {} Hz \
+                 (ID {}'s first LED and ID {}'s second), so the detector cannot tell them apart; \
+                 use one of them (the built-in one-19 and four-19 leave channel {b} out)",
+                NORTHSTAR_TABLE_MHZ[a as usize] as f64 / 1000.0,
+                a / 2,
+                b / 2
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `con` without its beacons on channel `id`.
+fn without(mut con: Constellation, id: u8) -> Constellation {
+    con.beacons.retain(|b| b.id != id);
+    con
+}
+
+/// The largest constellation on one array: [`one_20`] without channel 19 (the frequency of
+/// channel 2, [`shared_channels`]).
+fn one_19() -> Constellation {
+    without(one_20(), 19)
+}
+
+/// The largest constellation over four arrays: core's 20-beacon
+/// [`four_array_constellation`] (which the QEMU harness times, the chip's capacity) without
+/// channel 19 (the frequency of channel 2, [`shared_channels`]).
+fn four_19() -> Constellation {
+    without(four_array_constellation(), 19)
+}
 
 /// one-10 and ten more LEDs of the one-array grid (corners and the gaps between).
 fn one_20() -> Constellation {
@@ -170,8 +227,8 @@ pub fn built_in_constellation(name: &str) -> Result<Constellation> {
 /// constellation, on which plate, raised how far.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct SceneArgs {
-    /// The constellation: a built-in name (one-10, one-20, four-10, four-20: beacons on one
-    /// array or spread over four, 10 or all 20 NorthStar channels) or a JSON file (the shape
+    /// The constellation: a built-in name (one-10, one-19, four-10, four-19: beacons on one
+    /// array or spread over four, 10 or all 19 NorthStar frequencies) or a JSON file (the shape
     /// of `cta sensor template constellation`). Default one-10, the chip's benchmark.
     #[arg(long, value_name = "NAME|FILE")]
     pub constellation: Option<String>,
@@ -226,6 +283,7 @@ pub fn test_scene(
         None => {
             let con: Constellation = read_json(spec)?;
             con.validate().map_err(|e| anyhow::anyhow!("{spec}: {e}"))?;
+            check_channels(&con).map_err(|e| anyhow::anyhow!("{spec}: {e}"))?;
             let wide = con
                 .beacons
                 .iter()
@@ -324,7 +382,7 @@ mod tests {
         let s = test_scene(Some("four-10"), Some(Plate::One), 0.0).unwrap();
         assert!(s.label.contains("5 beacon(s) not on an LED"), "{}", s.label);
         // A depth moves the outer beacons only.
-        let s = test_scene(Some("four-20"), None, 2.0).unwrap();
+        let s = test_scene(Some("four-19"), None, 2.0).unwrap();
         assert!(s.con.beacons[..5].iter().all(|b| b.r[2] == 0.0));
         assert!(s.con.beacons[5..].iter().all(|b| b.r[2] == -2.0));
     }
@@ -348,13 +406,40 @@ mod tests {
         }
     }
 
+    /// Channels 2 and 19 share 4050 Hz in the NorthStar table: no built-in uses both, and a
+    /// file that does is refused, naming them.
+    #[test]
+    fn no_constellation_uses_two_channels_of_one_frequency() {
+        assert_eq!(shared_channels(), [(2, 19)]);
+        for b in &BUILT_IN {
+            let con = (b.beacons)();
+            check_channels(&con).unwrap_or_else(|e| panic!("{}: {e}", b.name));
+        }
+        assert_eq!(built_in_constellation("four-19").unwrap().beacons.len(), 19);
+        assert_eq!(built_in_constellation("one-19").unwrap().beacons.len(), 19);
+        let e = check_channels(&four_array_constellation())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("channels 2 and 19") && e.contains("4050 Hz"),
+            "{e}"
+        );
+        let path = std::env::temp_dir().join(format!("cta-shared-{}.json", std::process::id()));
+        std::fs::write(&path, serde_json::to_string(&one_20()).unwrap()).unwrap();
+        let e = test_scene(Some(path.to_str().unwrap()), None, 0.0)
+            .unwrap_err()
+            .to_string();
+        std::fs::remove_file(&path).unwrap();
+        assert!(e.contains("channels 2 and 19"), "{e}");
+    }
+
     #[test]
     fn unknown_name_lists_the_built_ins() {
         let e = test_scene(Some("four-30"), None, 0.0)
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("four-30") && e.contains("four-20") && e.contains("one-10"),
+            e.contains("four-30") && e.contains("four-19") && e.contains("one-10"),
             "{e}"
         );
     }

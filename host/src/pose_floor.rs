@@ -776,8 +776,9 @@ mod tests {
     }
 
     /// What the beacons' spread buys at 10 in, from the spots alone: on one array (one-10)
-    /// the best one-frame attitude ratio stays far below 5x; all 20 channels over four arrays
-    /// (four-20) lift it just above, by shrinking the floor more than the pinhole's error.
+    /// the best one-frame attitude ratio stays far below 5x; all 19 frequencies over four
+    /// arrays (four-19) lift it just above, by shrinking the floor more than the pinhole's
+    /// error.
     #[test]
     fn spread_and_channels_lift_the_best_ratio_at_10_in() {
         let run = |c: &str| {
@@ -795,7 +796,7 @@ mod tests {
             .rows[0]
                 .clone()
         };
-        let (one, four) = (run("one-10"), run("four-20"));
+        let (one, four) = (run("one-10"), run("four-19"));
         assert!(one.best_ratio_spots < 2.5, "{one:?}");
         assert!(four.best_ratio_spots > 5.0, "{four:?}");
         assert!(

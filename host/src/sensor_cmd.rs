@@ -172,11 +172,12 @@ pub enum SensorCommand {
     ///
     /// Constellation fields: `beacons`, each an `id` (the NorthStar channel, 0-19) and its
     /// position `r` (in, target frame); `boresight` the direction the LEDs face (target
-    /// frame). 4 to 20 beacons, distinct ids.
+    /// frame). 4 to 20 beacons, distinct ids, not both of channels 2 and 19 (the NorthStar
+    /// table gives both 4050 Hz).
     Template {
         /// Which one.
         kind: TemplateKind,
-        /// For `constellation`: which built-in (one-10, one-20, four-10, four-20; see
+        /// For `constellation`: which built-in (one-10, one-19, four-10, four-19; see
         /// `cta sensor accuracy --help`).
         #[arg(long, default_value = "one-10")]
         name: String,
@@ -266,8 +267,9 @@ pub enum SensorCommand {
     /// calibration is fitted to a simulated CTA sweep first, as the lab would do.
     ///
     /// The target's spread and beacon count decide the attitude figures: compare the
-    /// built-ins, e.g. `for c in one-10 one-20 four-10 four-20; do cta sensor accuracy
-    /// --constellation $c; done` (beacons on one array or over four, 10 or 20 channels).
+    /// built-ins, e.g. `for c in one-10 one-19 four-10 four-19; do cta sensor accuracy
+    /// --constellation $c; done` (beacons on one array or over four, 10 or all 19
+    /// frequencies).
     Accuracy(AccuracyArgs),
     /// Print the noise floor of one frame's pose: from the spots alone, and with the spot
     /// magnitudes as well (an assumed magnitude model, as a what-if).
@@ -647,6 +649,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
         }
         SensorCommand::LoadConstellation { file, .. } => {
             let con: Constellation = read_json(file)?;
+            crate::plate::check_channels(&con).map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
             let n = con.beacons.len();
             link.call(SensorRequest::LoadConstellation(con))
                 .with_context(|| format!("loading the constellation of {file}"))?;
@@ -688,9 +691,10 @@ pub fn run(args: &SensorArgs) -> Result<()> {
             println!("idle");
         }
         SensorCommand::Stream { count, json, .. } => {
+            catch_stop();
             link.call(SensorRequest::SetMode(Mode::Stream))?;
             let mut out = Ok(());
-            read_reports(&mut link, *count, |r| {
+            let r = read_reports(&mut link, *count, |r| {
                 if let SensorResponse::Spots(s) = r {
                     if *json {
                         if out.is_ok() {
@@ -700,19 +704,32 @@ pub fn run(args: &SensorArgs) -> Result<()> {
                         print_spots(&s);
                     }
                 }
-            })?;
+            });
+            back_to_idle(&mut link, r)?;
             out?;
-            link.call(SensorRequest::SetMode(Mode::Idle))?;
         }
         SensorCommand::Pose {
             model, count, json, ..
         } => {
+            catch_stop();
+            if matches!(model, ModelArg::NearField) {
+                if let Some(SensorResponse::Config(c)) = link.call(SensorRequest::GetConfig)? {
+                    if matches!(&c.calibration, Some(cal) if cal.near_field.is_none()) {
+                        eprintln!(
+                            "warning: the board's calibration has no near-field part \
+                             (`near_field` null): near-field poses use the nominal head (face \
+                             angles 30 deg, cells 0.175 in off centre, no gains or offsets); \
+                             load one from `cta calibrate`, or use --model pinhole"
+                        );
+                    }
+                }
+            }
             link.call(SensorRequest::SetMode(Mode::Pose((*model).into())))?;
             if !*json {
                 println!("{}", pose_header());
             }
             let mut out = Ok(());
-            read_reports(&mut link, *count, |r| {
+            let r = read_reports(&mut link, *count, |r| {
                 if let SensorResponse::Pose(p) = r {
                     if *json {
                         if out.is_ok() {
@@ -722,9 +739,9 @@ pub fn run(args: &SensorArgs) -> Result<()> {
                         println!("{}", pose_line(&p));
                     }
                 }
-            })?;
+            });
+            back_to_idle(&mut link, r)?;
             out?;
-            link.call(SensorRequest::SetMode(Mode::Idle))?;
         }
         SensorCommand::Sim(_)
         | SensorCommand::Accuracy(_)
@@ -832,17 +849,113 @@ fn small_angles_deg(q: &Vector3<f64>) -> [f64; 3] {
     [v.x.to_degrees(), v.y.to_degrees(), v.z.to_degrees()]
 }
 
-pub(crate) fn read_json<T: serde::de::DeserializeOwned>(file: &str) -> Result<T> {
+/// A calibration or constellation file. A key the type does not have is refused, naming it
+/// and the keys it has there: a typo (`gains` for `gain`, `nearfield` for `near_field`)
+/// would otherwise be dropped, and the board would store the nominal value in its place.
+/// `fitted` (what `cta calibrate` records of the fit, which the board ignores) is allowed at
+/// the top.
+pub(crate) fn read_json<T: serde::de::DeserializeOwned + serde::Serialize>(
+    file: &str,
+) -> Result<T> {
     let text = std::fs::read_to_string(file).with_context(|| format!("reading {file}"))?;
-    serde_json::from_str(&text).with_context(|| {
+    let t: T = serde_json::from_str(&text).with_context(|| {
         format!(
             "{file}: not a valid JSON document of the expected shape (see `cta sensor template`)"
         )
-    })
+    })?;
+    let given: serde_json::Value = serde_json::from_str(&text)?;
+    let known = serde_json::to_value(&t)?;
+    if let Some((key, keys)) = unknown_key(&given, &known, "", &["fitted"]) {
+        bail!(
+            "{file}: unknown key `{key}` (a typo? the keys there are {keys}; see `cta sensor \
+             template`)"
+        );
+    }
+    Ok(t)
 }
 
-/// Read unsolicited reports (seq SEQ_NONE) until `count` arrived (0: forever); fails after
-/// 5 s without a report.
+/// The first key of `given` (by path, `near_field.gains`, `beacons[3].pos`) that `known`
+/// (the same document as parsed and written back) lacks, with the keys `known` has there.
+/// `allow`: top-level keys to pass.
+fn unknown_key(
+    given: &serde_json::Value,
+    known: &serde_json::Value,
+    path: &str,
+    allow: &[&str],
+) -> Option<(String, String)> {
+    use serde_json::Value;
+    match (given, known) {
+        (Value::Object(g), Value::Object(k)) => {
+            for (name, v) in g {
+                let here = if path.is_empty() {
+                    name.clone()
+                } else {
+                    format!("{path}.{name}")
+                };
+                match k.get(name) {
+                    Some(kv) => {
+                        if let Some(found) = unknown_key(v, kv, &here, &[]) {
+                            return Some(found);
+                        }
+                    }
+                    None if allow.contains(&name.as_str()) => {}
+                    None => {
+                        let keys: Vec<String> = k.keys().map(|n| format!("`{n}`")).collect();
+                        return Some((here, keys.join(", ")));
+                    }
+                }
+            }
+            None
+        }
+        (Value::Array(g), Value::Array(k)) => g
+            .iter()
+            .zip(k)
+            .enumerate()
+            .find_map(|(i, (gv, kv))| unknown_key(gv, kv, &format!("{path}[{i}]"), &[])),
+        _ => None,
+    }
+}
+
+/// Set by Ctrl-C (SIGINT), SIGTERM or SIGHUP during `stream` and `pose` ([`catch_stop`]):
+/// [`read_reports`] then returns, and the board is set idle before the command ends.
+static STOP: std::sync::LazyLock<std::sync::Arc<std::sync::atomic::AtomicBool>> =
+    std::sync::LazyLock::new(Default::default);
+
+/// Catch Ctrl-C, SIGTERM and SIGHUP while reports stream: the first stops the reading (the
+/// board is then set idle: otherwise it would go on solving and sending until the next
+/// command), a second one leaves at once (128 + the signal).
+fn catch_stop() {
+    use signal_hook::{consts, flag};
+    for sig in [consts::SIGINT, consts::SIGTERM, consts::SIGHUP] {
+        let _ = flag::register_conditional_shutdown(sig, 128 + sig, STOP.clone())
+            .and_then(|_| flag::register(sig, STOP.clone()));
+    }
+}
+
+/// After `stream` or `pose` read their reports (or failed to): the board back to idle, and
+/// the reading's result, or the idle request's error.
+fn back_to_idle<S: std::io::Read + std::io::Write>(
+    link: &mut Link<SensorProtocol, S>,
+    read: Result<()>,
+) -> Result<()> {
+    let idle = link.call(SensorRequest::SetMode(Mode::Idle));
+    if STOP.load(std::sync::atomic::Ordering::SeqCst) {
+        eprintln!(
+            "stopped by a signal: the board is {}",
+            if idle.is_ok() {
+                "idle"
+            } else {
+                "still sending (it did not answer the idle request)"
+            }
+        );
+    }
+    read?;
+    idle?;
+    Ok(())
+}
+
+/// Read unsolicited reports (seq SEQ_NONE) until `count` arrived (0: forever) or a stop
+/// signal ([`catch_stop`]); fails after 5 s without a report.
 pub fn read_reports<S: std::io::Read + std::io::Write>(
     link: &mut Link<SensorProtocol, S>,
     count: u64,
@@ -850,7 +963,7 @@ pub fn read_reports<S: std::io::Read + std::io::Write>(
 ) -> Result<()> {
     let mut seen = 0u64;
     let mut last = Instant::now();
-    while count == 0 || seen < count {
+    while (count == 0 || seen < count) && !STOP.load(std::sync::atomic::Ordering::SeqCst) {
         match link.next_unsolicited(Duration::from_millis(100))? {
             Some(Response::Board(r @ (SensorResponse::Spots(_) | SensorResponse::Pose(_)))) => {
                 seen += 1;
@@ -1569,7 +1682,7 @@ mod tests {
                 trials: 8,
                 ranges: vec![30.0],
                 scene: SceneArgs {
-                    constellation: Some("four-20".into()),
+                    constellation: Some("four-19".into()),
                     plate: Some(plate),
                     depth: 0.0,
                 },

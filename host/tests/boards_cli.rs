@@ -498,3 +498,90 @@ fn documented_command_lines_parse() {
     }
     let _ = std::fs::remove_dir_all(&tmp);
 }
+
+/// A typo in a calibration or constellation key is refused, naming it and the keys there
+/// (it used to be dropped: `gains` left the cell gains at 0); a constellation on channels 2
+/// and 19, which share 4050 Hz in the NorthStar table, is refused; the built-in four-19 loads.
+#[test]
+fn board_files_with_unknown_keys_or_shared_channels_are_refused() {
+    let d = std::env::temp_dir().join(format!("cta-board-files-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let file = |name: &str, text: &str| {
+        let p = d.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.display().to_string()
+    };
+    let cal = ok(&cta(&["sensor", "template", "calibration"]));
+    let typo = file("cal.json", &cal.replace("\"gain\"", "\"gains\""));
+    assert_ne!(cal, std::fs::read_to_string(&typo).unwrap());
+    fails_with(
+        &cta(&["sensor", "--sim", "load-calibration", &typo]),
+        &["unknown key `near_field.gains`", "`gain`"],
+    );
+    let con = ok(&cta(&["sensor", "template", "constellation"]));
+    let typo = file("con.json", &con.replacen("\"id\"", "\"ID\"", 1));
+    fails_with(
+        &cta(&["sensor", "--sim", "load-constellation", &typo]),
+        &["con.json"],
+    );
+    // Channel 9 renamed 19: with channel 2 that is 4050 Hz twice.
+    let mut v: serde_json::Value = serde_json::from_str(&con).unwrap();
+    v["beacons"][9]["id"] = 19.into();
+    let shared = file("shared.json", &v.to_string());
+    fails_with(
+        &cta(&["sensor", "--sim", "load-constellation", &shared]),
+        &["channels 2 and 19", "4050 Hz"],
+    );
+    let four = file(
+        "four.json",
+        &ok(&cta(&[
+            "sensor",
+            "template",
+            "constellation",
+            "--name",
+            "four-19",
+        ])),
+    );
+    let out = ok(&cta(&["sensor", "--sim", "load-constellation", &four]));
+    assert!(out.contains("constellation of 19 beacons"), "{out}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Ctrl-C during `cta sensor pose --count 0` (until Ctrl-C) leaves the board idle, not
+/// solving and sending for ever.
+#[test]
+fn ctrl_c_during_pose_leaves_the_board_idle() {
+    let sim = Sim::start(&["sensor", "sim", "--configured"]);
+    let mut pose = Command::new(env!("CARGO_BIN_EXE_cta"))
+        .args(["sensor", "--port", &sim.path, "pose", "--count", "0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = BufReader::new(pose.stdout.take().unwrap());
+    let mut line = String::new();
+    // The header, then the first pose: the board is solving.
+    for _ in 0..2 {
+        line.clear();
+        out.read_line(&mut line).unwrap();
+    }
+    assert!(line.contains("Ok"), "{line}");
+    let killed = Command::new("kill")
+        .args(["-INT", &pose.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let o = pose.wait_with_output().unwrap();
+    assert!(
+        stderr(&o).contains("stopped by a signal: the board is idle"),
+        "{}",
+        stderr(&o)
+    );
+    let status = ok(&cta(&["sensor", "--port", &sim.path, "status"]));
+    assert!(
+        status
+            .lines()
+            .any(|l| l.starts_with("mode") && l.contains("Idle")),
+        "{status}"
+    );
+}
