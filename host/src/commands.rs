@@ -115,7 +115,7 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
     if a.profile == Profile::Quartic && thetas.iter().any(|t| *t > QUARTIC_VALID_DEG) {
         warnings.push(format!(
             "the printed eq 17 quartic is evaluated past {QUARTIC_VALID_DEG} deg, where it is no longer a radiation \
-             pattern (0 at 37.8 deg, -4.93 at 60 deg; REFERENCE.md 2.1): pattern errors there are not physical"
+             pattern (0 at 37.8 deg, -4.93 at 60 deg; README, thesis inconsistency 1): pattern errors there are not physical"
         ));
     }
     let noise = rad(a.noise_deg);
@@ -210,7 +210,7 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
                 coeff["pattern"][i].as_f64().unwrap_or(f64::NAN)
             );
         }
-        println!("All three errors make the beacon appear farther off boresight (convex pairing, REFERENCE.md 2.2).");
+        println!("All three errors make the beacon appear farther off boresight (convex pairing, README, thesis inconsistency 2).");
         for w in warnings {
             println!("warning: {w}");
         }
@@ -436,7 +436,7 @@ pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
             println!("  theta {t:>4} deg: {u:.3} deg in; near-field / CTA = {l:.1} (Lambertian), {q:.1} (printed quartic)");
         }
         println!("Note: the thesis's 3-D sensitivities (eqs 34/35) are singular at x = y = z; CTA uses the corrected");
-        println!("|d theta/d x| = sqrt(y^2+z^2)/|b|^2 (REFERENCE.md 2.4), about 1.4x larger.");
+        println!("|d theta/d x| = sqrt(y^2+z^2)/|b|^2 (README, thesis inconsistency 4), about 1.4x larger.");
     }
     if let Some(p) = &a.plot {
         let mut panels = Vec::new();

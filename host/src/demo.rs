@@ -120,7 +120,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     std::fs::write(&plan, DEMO_PLAN).with_context(|| format!("{}", plan.display()))?;
     println!(
         "\n== 3. Ch VI: an unattended sweep of the simulated CTA (both boards on pseudo-terminals), \
-         4-30 in, noise 0.1 % of beta, hidden effect `{}`",
+         4-30 in, noise 0.1 % of beta for a strong spot (growing as a spot dims, about 50 counts at 30 in), hidden effect `{}`",
         a.effect
     );
     let seed = a.seed.to_string();

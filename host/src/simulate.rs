@@ -109,6 +109,10 @@ pub struct Truth {
     pub separations: Vec<f64>,
     /// Noise 1-sigma, counts.
     pub noise_counts: f64,
+    /// How the noise varies, when it is not `noise_counts` everywhere (the sweep
+    /// simulator's grows as a spot dims).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_law: Option<String>,
     /// Spot magnitude noise, percent (1-sigma); 0 (also in files written before it existed):
     /// none.
     #[serde(default)]
@@ -375,6 +379,7 @@ impl SimConfig {
             separation_errors: phys.geometry.iter().map(|g| g.1).collect(),
             separations: self.separations.clone(),
             noise_counts: self.noise,
+            noise_law: None,
             magnitude_noise_percent: self.magnitude_noise,
             samples: self.samples,
             seed: self.seed,
