@@ -12,6 +12,7 @@
 //! cta beacon --port /dev/ttyUSB0 limits --deadman-ms 30000   # the cap stays as it is
 //! cta beacon --sim set 45 3               # against an in-process simulated board instead
 //! cta beacon --sim table                  # (it lives for that one command only)
+//! cta beacon --port /dev/ttyUSB0 table --default   # restore the NorthStar table
 //! cta beacon pins                         # the pin map
 //! ```
 //!
@@ -29,7 +30,9 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
-use cta_core::schedule::{grid_position, BEACON_PINS, RESERVED_PINS, SPARE_PIN};
+use cta_core::schedule::{
+    grid_position, BEACON_PINS, NORTHSTAR_TABLE_MHZ, RESERVED_PINS, SPARE_PIN,
+};
 use cta_core::wire::beacon::{
     Beacon, BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting, Limits, LED_COUNT,
     MAX_FREQS,
@@ -164,11 +167,16 @@ pub enum BeaconCommand {
         #[command(flatten)]
         conn: BeaconConn,
     },
-    /// Show the frequency table, or replace it (`--set 3040,2010,...` in Hz; all LEDs go off).
+    /// Show the frequency table, or replace it (`--set 3040,2010,...` in Hz, or `--default`
+    /// for the NorthStar table; all LEDs go off).
     Table {
         /// New table, comma-separated frequencies in Hz.
-        #[arg(long, value_delimiter = ',')]
+        #[arg(long, value_delimiter = ',', conflicts_with = "default")]
         set: Option<Vec<f64>>,
+        /// Restore the default table: the 20 NorthStar frequencies (3040, 2010, 4050, 3090,
+        /// 4170, ... Hz; entries 2k and 2k + 1 for ID k), the table `cta sweep` needs.
+        #[arg(long)]
+        default: bool,
         #[command(flatten)]
         conn: BeaconConn,
     },
@@ -414,7 +422,17 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
             link.call(BeaconRequest::AllOff)?;
             writeln!(out, "all LEDs off{}", sim_note(&conn))?;
         }
-        BeaconCommand::Table { set, .. } => {
+        BeaconCommand::Table { set, default, .. } => {
+            if *default {
+                let v = heapless::Vec::from_slice(&NORTHSTAR_TABLE_MHZ)
+                    .map_err(|_| anyhow::anyhow!("more than {MAX_FREQS} frequencies"))?;
+                link.call(BeaconRequest::SetTable(v))?;
+                writeln!(
+                    out,
+                    "table replaced by the NorthStar table; all LEDs off{}",
+                    sim_note(&conn)
+                )?;
+            }
             if let Some(hz) = set {
                 let mut v = heapless::Vec::new();
                 for &f in hz {
@@ -527,7 +545,7 @@ fn run_sim(seconds: Option<f64>, out: &mut dyn Write) -> Result<()> {
 
 /// Frequency error and jitter of every table frequency on the simulated tick stream.
 pub fn measure(seconds: f64, out: &mut dyn Write) -> Result<()> {
-    use cta_core::schedule::{measure::run, Modulator, NORTHSTAR_TABLE_MHZ, TICK_HZ};
+    use cta_core::schedule::{measure::run, Modulator, TICK_HZ};
     if !(seconds.is_finite() && seconds > 0.0 && seconds <= 600.0) {
         bail!("--seconds {seconds}: expected 0 < seconds <= 600");
     }
