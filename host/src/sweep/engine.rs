@@ -22,13 +22,13 @@ use std::sync::{Arc, LazyLock};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
-use cta_core::wire::beacon::{Beacon, BeaconRequest, FreqSet, LedMode, LedSetting};
+use cta_core::wire::beacon::{Beacon, BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting};
 use cta_core::wire::sensor::{Mode, SensorProtocol, SensorRequest, SensorResponse, SpotReport};
 use cta_core::wire::{Identity, Protocol, Response};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serialport::SerialPort;
 
-use super::plan::{Plan, Point};
+use super::plan::{channel_of, Plan, Point};
 use super::sim::{separation_entry, SimCta};
 use super::store::{now, Event, PointStatus, RunDir, SeparationEntry};
 use crate::link::{open_serial, Link, LinkConfig, LinkError};
@@ -377,6 +377,9 @@ pub struct Engine<'a> {
     pub skip_settle: bool,
     /// Session counters.
     pub stats: Stats,
+    /// The beacon board's frequency table (millihertz), as read at the last connection and
+    /// checked against the plan ([`Engine::check_table`]): the table the run lights from.
+    pub table_mhz: Vec<u32>,
 }
 
 impl<'a> Engine<'a> {
@@ -404,6 +407,7 @@ impl<'a> Engine<'a> {
             last_heartbeat: Instant::now(),
             skip_settle: false,
             stats: Stats::default(),
+            table_mhz: Vec::new(),
         }
     }
 
@@ -412,6 +416,7 @@ impl<'a> Engine<'a> {
         let b = self
             .beacon
             .connect()
+            .and_then(|id| self.check_table(false).map(|()| id))
             .map_err(|f| fault_error(&self.beacon.path, f))?;
         let s = self
             .sensor
@@ -419,6 +424,49 @@ impl<'a> Engine<'a> {
             .map_err(|f| fault_error(&self.sensor.path, f))?;
         self.restore().map_err(|f| fault_error("", f))?;
         Ok((b, s))
+    }
+
+    /// Read the beacon board's frequency table and check that every entry the plan lights
+    /// holds the frequency the plan records for it (a point lights table entry
+    /// [`Point::channel`] and records [`Point::frequency_hz`]): a table changed by hand
+    /// (`cta beacon table --set ...`) would otherwise have the data mislabel every sample.
+    /// A mismatch is [`Fault::Fatal`]: the run does not start, or stops (resumable) when found
+    /// at a reconnection (`reconnected`). On success the table is kept in
+    /// [`Engine::table_mhz`].
+    fn check_table(&mut self, reconnected: bool) -> Result<(), Fault> {
+        let table = match self
+            .beacon
+            .link()?
+            .call(BeaconRequest::GetTable)
+            .map_err(|e| link_fault("beacon", e))?
+        {
+            Some(BeaconResponse::Table(t)) => t.to_vec(),
+            other => {
+                return Err(Fault::Lost(
+                    "beacon",
+                    format!("unexpected reply to GetTable: {other:?}"),
+                ))
+            }
+        };
+        let wrong = table_mismatches(self.plan, &table);
+        if !wrong.is_empty() {
+            let port = &self.beacon.path;
+            return Err(Fault::Fatal(anyhow!(
+                "beacon board on {port}{}: its frequency table does not hold the frequencies the \
+                 plan records (the NorthStar table): {}; lit from it, the data would \
+                 name the wrong frequency. Restore the NorthStar table with `cta beacon --port \
+                 {port} table --default` (all LEDs go off), then {}",
+                if reconnected { " (reconnected)" } else { "" },
+                wrong.join("; "),
+                if reconnected {
+                    "resume the run"
+                } else {
+                    "run the sweep again"
+                }
+            )));
+        }
+        self.table_mhz = table;
+        Ok(())
     }
 
     /// Put both boards in the state a point starts from: LEDs off, sensor idle at the
@@ -704,7 +752,24 @@ impl<'a> Engine<'a> {
             let reconnect = |c: &mut dyn FnMut() -> Result<Identity, Fault>| c();
             let mut ok = true;
             if matches!(fault, Fault::Lost(b, _) if b != "sensor") || self.beacon.link.is_none() {
-                ok &= reconnect(&mut || self.beacon.connect()).is_ok();
+                // A beacon board that comes back must still hold the plan's frequencies (it
+                // may have been reset, or its table changed while it was away).
+                match self.beacon.connect().and_then(|_| self.check_table(true)) {
+                    Ok(()) => {}
+                    Err(Fault::Fatal(e)) => {
+                        bars.log(&format!("fault at point {}: {e:#}; stop", p.index));
+                        store.log(Event::Fault {
+                            at: now(),
+                            point: p.index,
+                            board: "beacon".into(),
+                            what: format!("{e:#}"),
+                            action: "stop".into(),
+                        })?;
+                        self.quiet_off();
+                        return Err(e);
+                    }
+                    Err(_) => ok = false,
+                }
             }
             if ok
                 && (matches!(fault, Fault::Lost(b, _) if b != "beacon")
@@ -853,6 +918,23 @@ impl<'a> Engine<'a> {
         };
         Ok(())
     }
+}
+
+/// The entries of the beacon board's `table` (millihertz) that the plan lights but that do
+/// not hold the frequency the plan records for them, described (`entry 2 is 3090 Hz, the
+/// plan records 4050 Hz`); empty when the table serves the plan.
+pub fn table_mismatches(plan: &Plan, table: &[u32]) -> Vec<String> {
+    let mut wrong = Vec::new();
+    for &hz in &plan.frequencies_hz {
+        let Some(i) = channel_of(hz) else { continue };
+        let said = match table.get(i as usize) {
+            Some(&mhz) if (mhz as f64 - hz * 1000.0).abs() < 0.5 => continue,
+            Some(&mhz) => format!("is {} Hz", mhz as f64 / 1000.0),
+            None => format!("is missing (the table has {} entries)", table.len()),
+        };
+        wrong.push(format!("entry {i} {said}, the plan records {hz} Hz"));
+    }
+    wrong
 }
 
 fn fault_error(path: &str, f: Fault) -> anyhow::Error {

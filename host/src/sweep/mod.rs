@@ -132,6 +132,9 @@ pub struct Summary {
     pub points: usize,
     /// Session wall time, s.
     pub seconds: f64,
+    /// The command that continues the run: `cta sweep --resume RUN_DIR`, with the ports
+    /// (`--beacon P --sensor P`) when the run is on hardware ([`resume_command`]).
+    pub resume: String,
 }
 
 /// `cta sweep`.
@@ -142,14 +145,15 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     match &s.ending {
         Ending::Complete => Ok(()),
         Ending::GaveUp(what) => bail!(
-            "a board stayed unreachable ({what}); the run is saved: continue with `cta sweep --resume {}`",
-            s.dir.display()
+            "a board stayed unreachable ({what}); the run is saved: continue with `{}`",
+            s.resume
         ),
         // Not a success: `cta sweep ... && cta fit ...` must not go on with partial data.
         Ending::Interrupted => Err(Interrupted {
             signal: interruption(),
             exit_code: 128 + interruption_signal(),
             dir: s.dir.clone(),
+            resume: s.resume.clone(),
             next_point: s.next_point,
             points: s.points,
         }
@@ -197,8 +201,7 @@ fn ignored(sig: libc::c_int) -> bool {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
     "interrupted ({signal}) at point {next_point} of {points}; the run is saved: continue with \
-     `cta sweep --resume {}`",
-    .dir.display()
+     `{resume}`"
 )]
 pub struct Interrupted {
     /// What stopped it: `Ctrl-C`, `SIGTERM` or `SIGHUP`.
@@ -209,6 +212,8 @@ pub struct Interrupted {
     pub exit_code: i32,
     /// The run directory.
     pub dir: PathBuf,
+    /// The command that continues the run ([`Summary::resume`]).
+    pub resume: String,
     /// Next point to measure.
     pub next_point: usize,
     /// Points in the plan.
@@ -220,11 +225,11 @@ fn print_summary(s: &Summary) {
     let state = match &s.ending {
         Ending::Complete => "complete".to_string(),
         Ending::Interrupted => format!(
-            "interrupted at point {} of {} by {} (continue with `cta sweep --resume {}`)",
+            "interrupted at point {} of {} by {} (continue with `{}`)",
             s.next_point,
             s.points,
             interruption(),
-            s.dir.display()
+            s.resume
         ),
         Ending::GaveUp(_) => format!(
             "stopped at point {} of {}: a board stayed unreachable",
@@ -394,6 +399,10 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     let mut engine = Engine::new(&plan, &beacon_path, &sensor_path);
     engine.skip_settle = sim_settings.as_ref().is_some_and(|s| !s.realtime);
     let (bid, sid) = engine.connect()?;
+    // A hardware run is resumed on its ports: the hints say them.
+    let ports = sim
+        .is_none()
+        .then_some((beacon_path.as_str(), sensor_path.as_str()));
     let mut store = match store {
         Ok(s) => s,
         Err((out, src, header)) => RunDir::create(&out, &src, &header, args.force, sync)?,
@@ -408,7 +417,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         at: now(),
         software: format!("cta {}", env!("CARGO_PKG_VERSION")),
         command,
-        boards: json!({ "beacon": identity_json(&bid, &beacon_path), "sensor": identity_json(&sid, &sensor_path) }),
+        boards: json!({ "beacon": beacon_json(&bid, &beacon_path, &engine.table_mhz), "sensor": identity_json(&sid, &sensor_path) }),
         sim: sim_settings.as_ref().map(|s| serde_json::to_value(s).unwrap_or_default()),
         plan: Some(serde_json::to_value(&plan)?),
         from_point: from,
@@ -457,9 +466,9 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                 eprintln!("cta: warning: the stop could not be recorded in full: {w:#}");
             }
             return Err(e.context(format!(
-                "sweep stopped at point {}; the run is saved: continue with `cta sweep --resume {}`",
+                "sweep stopped at point {}; the run is saved: continue with `{}`",
                 store.next_point(),
-                store.dir.display()
+                resume_command(&store.dir, ports)
             )));
         }
     };
@@ -491,6 +500,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         next_point: next,
         points: plan.len(),
         seconds: t0.elapsed().as_secs_f64(),
+        resume: resume_command(&store.dir, ports),
     })
 }
 
@@ -526,6 +536,39 @@ fn sim_settings(args: &SweepArgs) -> Result<Option<SimSettings>> {
         realtime: args.sim_realtime,
         faults: parse_faults(args)?,
     }))
+}
+
+/// The command that continues the run in `dir`: `cta sweep --resume DIR`, and for a run on
+/// hardware its ports, `--beacon P --sensor P` (a hardware run is refused without them).
+/// Words a shell would split or expand are quoted.
+pub fn resume_command(dir: &Path, ports: Option<(&str, &str)>) -> String {
+    let mut c = format!(
+        "cta sweep --resume {}",
+        shell_word(&dir.display().to_string())
+    );
+    if let Some((b, s)) = ports {
+        c += &format!(" --beacon {} --sensor {}", shell_word(b), shell_word(s));
+    }
+    c
+}
+
+/// `w` as one shell word: as it is when it is safe, else in single quotes.
+fn shell_word(w: &str) -> String {
+    let safe = |c: char| c.is_ascii_alphanumeric() || "/._-+:,=@%".contains(c);
+    if !w.is_empty() && w.chars().all(safe) {
+        w.to_string()
+    } else {
+        format!("'{}'", w.replace('\'', r"'\''"))
+    }
+}
+
+/// The beacon board's identity and the frequency table the session lights from
+/// (`table_hz`, entry by entry, as read and checked when the session connected).
+fn beacon_json(id: &cta_core::wire::Identity, path: &str, table_mhz: &[u32]) -> serde_json::Value {
+    let mut v = identity_json(id, path);
+    let hz: Vec<f64> = table_mhz.iter().map(|&m| m as f64 / 1000.0).collect();
+    v["table_hz"] = json!(hz);
+    v
 }
 
 fn identity_json(id: &cta_core::wire::Identity, path: &str) -> serde_json::Value {
