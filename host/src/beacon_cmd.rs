@@ -448,7 +448,24 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
             match link.call(BeaconRequest::GetTable)? {
                 Some(BeaconResponse::Table(t)) => {
                     for (i, mhz) in t.iter().enumerate() {
-                        writeln!(out, "{i:2}  {:.3} Hz", *mhz as f64 / 1000.0)?;
+                        // A NorthStar cannot tell two entries of one frequency apart (the
+                        // default table's 2 and 19 are both 4050 Hz).
+                        let same: Vec<String> = t
+                            .iter()
+                            .enumerate()
+                            .filter(|&(j, m)| j != i && m == mhz)
+                            .map(|(j, _)| j.to_string())
+                            .collect();
+                        let note = if same.is_empty() {
+                            String::new()
+                        } else {
+                            format!(
+                                "   (the frequency of entry {}: a NorthStar cannot tell them \
+                                 apart; light one of them at a time)",
+                                same.join(", ")
+                            )
+                        };
+                        writeln!(out, "{i:2}  {:.3} Hz{note}", *mhz as f64 / 1000.0)?;
                     }
                 }
                 other => bail!("unexpected reply to GetTable: {other:?}"),

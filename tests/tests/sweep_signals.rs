@@ -191,7 +191,8 @@ fn assert_clean_stop(
     let hint = format!("cta sweep --resume {}", run.display());
     assert!(
         stdout.contains("interrupted at point")
-            && stdout.contains(&format!(" by {name} (continue with `{hint}`)")),
+            // A hardware run: the hint names the ports it used.
+            && stdout.contains(&format!(" by {name} (continue with `{hint} --beacon ")),
         "{stdout}"
     );
     assert!(
