@@ -148,6 +148,72 @@ pub fn check_channels(con: &Constellation) -> Result<()> {
     Ok(())
 }
 
+/// A constellation file (`cta sensor load-constellation`, `--constellation FILE`): read,
+/// validated as the board validates it, and refused when it cannot work or is surely a
+/// slip: more beacons than the board holds, two channels of one frequency
+/// ([`check_channels`]), two beacons at one place, all beacons on one line (the attitude
+/// about it is unobservable). Beacons farther than 60 in from the target's origin are
+/// warned about (millimetres for inches?). Returns the constellation and the warnings.
+pub fn read_constellation(file: &str) -> Result<(Constellation, Vec<String>)> {
+    let text = std::fs::read_to_string(file).map_err(|e| anyhow::anyhow!("reading {file}: {e}"))?;
+    if let Ok(v) = serde_json::from_str::<serde_json::Value>(&text) {
+        if let Some(n) = v["beacons"].as_array().map(Vec::len) {
+            if n > cta_core::pose::MAX_BEACONS {
+                bail!(
+                    "{file}: {n} beacons; the board holds at most {} (the NorthStar tracks 20 \
+                     spots, 19 distinct frequencies)",
+                    cta_core::pose::MAX_BEACONS
+                );
+            }
+        }
+    }
+    let con: Constellation = read_json(file)?;
+    con.validate().map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+    check_channels(&con).map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+    let r: Vec<Vector3<f64>> = con
+        .beacons
+        .iter()
+        .map(|b| Vector3::new(b.r[0], b.r[1], b.r[2]).cast())
+        .collect();
+    for i in 0..r.len() {
+        for j in i + 1..r.len() {
+            if (r[i] - r[j]).norm() < 0.01 {
+                bail!(
+                    "{file}: beacons {} and {} are at the same place ({:?} in): the solver \
+                     cannot tell their directions apart",
+                    con.beacons[i].id,
+                    con.beacons[j].id,
+                    con.beacons[i].r
+                );
+            }
+        }
+    }
+    // Collinear: every beacon within 0.01 in of the line through the two farthest apart.
+    let (a, b) = (0..r.len())
+        .flat_map(|i| (i + 1..r.len()).map(move |j| (i, j)))
+        .max_by(|&(i, j), &(k, l)| (r[i] - r[j]).norm().total_cmp(&(r[k] - r[l]).norm()))
+        .unwrap_or((0, 0));
+    let axis = (r[b] - r[a]).normalize();
+    if r.iter()
+        .all(|p| ((p - r[a]) - axis * (p - r[a]).dot(&axis)).norm() < 0.01)
+    {
+        bail!(
+            "{file}: all {} beacons lie on one line: the attitude about it is unobservable; \
+             put at least one beacon off it",
+            r.len()
+        );
+    }
+    let far = r.iter().map(|p| p.norm()).fold(0.0, f64::max);
+    let mut warnings = Vec::new();
+    if far > 60.0 {
+        warnings.push(format!(
+            "{file}: a beacon {far:.0} in from the target's origin: positions are in inches \
+             (millimetres would be 25.4 times too far)"
+        ));
+    }
+    Ok((con, warnings))
+}
+
 /// `con` without its beacons on channel `id`.
 fn without(mut con: Constellation, id: u8) -> Constellation {
     con.beacons.retain(|b| b.id != id);
@@ -281,9 +347,10 @@ pub fn test_scene(
             built_in_list()
         ),
         None => {
-            let con: Constellation = read_json(spec)?;
-            con.validate().map_err(|e| anyhow::anyhow!("{spec}: {e}"))?;
-            check_channels(&con).map_err(|e| anyhow::anyhow!("{spec}: {e}"))?;
+            let (con, warnings) = read_constellation(spec)?;
+            for w in warnings {
+                eprintln!("warning: {w}");
+            }
             let wide = con
                 .beacons
                 .iter()

@@ -26,8 +26,8 @@ use cta_core::emulator::{Emulator, Head, Pose as HeadPose};
 use cta_core::glsdc::{self, Settings};
 use cta_core::mrp;
 use cta_core::pose::{
-    cta_constellation, simulate_spots, Calibration, Constellation, ModelKind, NearField,
-    PoseSolver, PoseStatus, SolverSettings, Spot,
+    cta_constellation, simulate_spots, Calibration, ModelKind, NearField, PoseSolver, PoseStatus,
+    SolverSettings, Spot,
 };
 use cta_core::real::rad;
 use cta_core::wire::sensor::{
@@ -648,8 +648,10 @@ pub fn run(args: &SensorArgs) -> Result<()> {
             println!("calibration from {file} stored in flash{}", sim_note(&conn));
         }
         SensorCommand::LoadConstellation { file, .. } => {
-            let con: Constellation = read_json(file)?;
-            crate::plate::check_channels(&con).map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+            let (con, warnings) = crate::plate::read_constellation(file)?;
+            for w in warnings {
+                eprintln!("warning: {w}");
+            }
             let n = con.beacons.len();
             link.call(SensorRequest::LoadConstellation(con))
                 .with_context(|| format!("loading the constellation of {file}"))?;

@@ -544,6 +544,53 @@ fn board_files_with_unknown_keys_or_shared_channels_are_refused() {
     );
     let out = ok(&cta(&["sensor", "--sim", "load-constellation", &four]));
     assert!(out.contains("constellation of 19 beacons"), "{out}");
+    // Slips: two beacons at one place, all on a line, more than the board holds; positions
+    // in millimetres are warned about.
+    let base: serde_json::Value = serde_json::from_str(&con).unwrap();
+    let edited = |name: &str, f: &dyn Fn(&mut serde_json::Value)| {
+        let mut v = base.clone();
+        f(&mut v);
+        file(name, &v.to_string())
+    };
+    let same = edited("same.json", &|v| {
+        v["beacons"][1]["r"] = v["beacons"][0]["r"].clone()
+    });
+    fails_with(
+        &cta(&["sensor", "--sim", "load-constellation", &same]),
+        &["beacons 0 and 1 are at the same place"],
+    );
+    let line = edited("line.json", &|v| {
+        for (i, b) in v["beacons"].as_array_mut().unwrap().iter_mut().enumerate() {
+            b["r"] = serde_json::json!([i as f64, 0.0, 0.0]);
+        }
+    });
+    fails_with(
+        &cta(&["sensor", "--sim", "load-constellation", &line]),
+        &["all 10 beacons lie on one line"],
+    );
+    let many = edited("many.json", &|v| {
+        v["beacons"] = (0..30)
+            .map(|i| serde_json::json!({"id": i % 20, "r": [i as f64, (i % 3) as f64, 0.0]}))
+            .collect();
+    });
+    fails_with(
+        &cta(&["sensor", "--sim", "load-constellation", &many]),
+        &["30 beacons; the board holds at most 20"],
+    );
+    let mm = edited("mm.json", &|v| {
+        for b in v["beacons"].as_array_mut().unwrap() {
+            for x in b["r"].as_array_mut().unwrap() {
+                *x = (x.as_f64().unwrap() * 25.4).into();
+            }
+        }
+    });
+    let o = cta(&["sensor", "--sim", "load-constellation", &mm]);
+    ok(&o);
+    assert!(
+        stderr(&o).contains("positions are in inches"),
+        "{}",
+        stderr(&o)
+    );
     std::fs::remove_dir_all(&d).unwrap();
 }
 
