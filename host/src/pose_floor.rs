@@ -592,7 +592,8 @@ impl FloorTable {
         s += &format!(
             "Noise floor of one frame (Cramer-Rao bound: no unbiased pose from these measurements does better),\n\
              eq 60-63 physics, Table 3 head, spot noise {:.1} counts,\n{},\nRMS over {} poses per range \
-             (lateral offset +/-0.5 in, attitude up to 3 deg).\n\n",
+             (lateral offset +/-0.5 in, attitude up to 3 deg). `cta sensor accuracy` draws its own poses and \
+             calibrations,\nso the figures both print (floor, pinhole systematic) agree to the scatter of the pose sets (~10 %).\n\n",
             self.noise_counts, self.constellation, self.poses
         );
         s += "Spots alone (what the chip solves with) against the attitude floor the pinhole comparison needs:\n";
