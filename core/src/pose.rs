@@ -53,10 +53,12 @@
 //! chi-square is taken without another pass. A warm solve is thus one Jacobian pass.
 //!
 //! Status: [`PoseStatus::Ok`]; [`PoseStatus::IllConditioned`] when GLSDC reports a rank
-//! deficiency or the condition number exceeds the limit; [`PoseStatus::Diverged`] when the
-//! iteration does not converge, leaves the model's domain, ends behind the sensor or with a
-//! residual RMS above the limit (a false minimum). The pose is never NaN: a failed solve
-//! reports the last finite estimate, its sigmas are `-1`, and the next solve cold-starts.
+//! deficiency, the condition number exceeds the limit, or the position 1-sigma exceeds
+//! [`SolverSettings::max_sigma_fraction`] of the range; [`PoseStatus::Diverged`] when the
+//! iteration does not converge, leaves the model's domain, ends behind the sensor, beyond
+//! the constellation's far limit ([`FAR_SIGMAS`]) or with a residual RMS above the limit (a
+//! false minimum). The pose is never NaN: a failed solve reports the last finite estimate,
+//! its sigmas are `-1`, and the next solve cold-starts.
 
 use crate::collinearity::{Linearisation, Params, ParamsExt};
 use crate::emulator::{Effects, Emulator, Head, Pose as HeadPose};
@@ -76,6 +78,14 @@ pub const MAX_BEACONS: usize = 20;
 pub const MIN_BEACONS: usize = 4;
 /// Highest NorthStar frequency channel (spot ID).
 pub const MAX_CHANNEL: u8 = 19;
+/// The constellation's far limit: the range at which its radius about its centroid
+/// subtends this many noise sigmas of the pinhole (`radius x H / (3 noise)`: 908 in for
+/// [`cta_constellation`] and 2,860 in for [`four_array_constellation`] with
+/// [`Calibration::table3`], 30 and 95 times the CTA's 30 in). There its beacons' spots are
+/// barely apart in the noise and the position 1-sigma is a quarter of the range (the one-10
+/// constellation at 1,000 in: 0.2 median, 0.36 at most): a solution beyond it is a false
+/// minimum, reported diverged.
+pub const FAR_SIGMAS: f32 = 3.0;
 
 /// One IR spot as the NorthStar reports it.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -406,9 +416,11 @@ pub enum PoseStatus {
     /// Fewer than [`MIN_BEACONS`] beacons of the constellation were seen, or fewer usable
     /// coordinates (off the 16-bit rails) than that many whole spots give.
     TooFewBeacons,
-    /// No convergence, left the model's domain, or a false minimum (residual too large).
+    /// No convergence, left the model's domain, or a false minimum (residual too large, or
+    /// the target beyond the constellation's far limit, [`FAR_SIGMAS`]).
     Diverged,
-    /// The geometry does not determine the pose (rank deficient or condition too large).
+    /// The geometry does not determine the pose (rank deficient, condition too large, or a
+    /// position 1-sigma over [`SolverSettings::max_sigma_fraction`] of the range).
     IllConditioned,
 }
 
@@ -423,6 +435,12 @@ pub struct SolverSettings {
     pub max_condition: f64,
     /// Largest acceptable residual RMS, counts (larger: a false minimum, reported diverged).
     pub max_rms: f64,
+    /// Largest acceptable position 1-sigma (the norm of the three) as a fraction of the
+    /// range `|t|` (larger: the data do not fix where the target is, reported
+    /// ill-conditioned). 0.25 by default: on the CTA (2-30 in) it is at most 0.08 (the
+    /// pinhole's misfit at 2 in; the near-field's at most 0.007); one-10 at 500 in reaches
+    /// 0.17.
+    pub max_sigma_fraction: f64,
 }
 
 impl Default for SolverSettings {
@@ -432,6 +450,7 @@ impl Default for SolverSettings {
             max_iter: 20,
             max_condition: 1e4,
             max_rms: 2000.0,
+            max_sigma_fraction: 0.25,
         }
     }
 }
@@ -502,6 +521,10 @@ pub struct PoseSolver<T: Real> {
     head_axis: Vector3<T>,
     /// `noise^2` (counts^2): the unit of the stopping tolerances.
     noise2: T,
+    /// The distance of the constellation's centroid from the T origin, inches.
+    centroid_offset: T,
+    /// The square of the largest range `|t|` a pose may have (see [`Self::configure`]).
+    max_range2: T,
     warm: Option<SVector<T, 6>>,
     /// The last solve's linearisation, carried to the next frame's first step
     /// ([`glsdc::solve_with`]): its weighted Jacobian rows (2 per beacon) with the model
@@ -546,6 +569,8 @@ impl<T: Real> PoseSolver<T> {
             boresight: Vector3::new(T::zero(), T::zero(), -T::one()),
             head_axis: Vector3::new(T::zero(), T::zero(), T::one()),
             noise2: T::one(),
+            centroid_offset: T::zero(),
+            max_range2: T::zero(),
             warm: None,
             rows: [T::zero(); 2 * MAX_BEACONS * 7],
             carry: None,
@@ -557,6 +582,9 @@ impl<T: Real> PoseSolver<T> {
     /// forget the warm start. On the chip the solver is the largest object (about 2 KiB):
     /// configuring it where it lives keeps a second copy off the stack. On an error the
     /// solver is left blank.
+    ///
+    /// It also sets the constellation's far limit the calibration implies (see
+    /// [`FAR_SIGMAS`]). Its bound on `|t|` adds the centroid's distance from the T origin.
     pub fn configure(
         &mut self,
         cal: &Calibration,
@@ -604,6 +632,19 @@ impl<T: Real> PoseSolver<T> {
             let _ = self.beacons.push((b.id, v3(&b.r)));
         }
         let noise = T::lit(cal.noise as f64);
+        let n = T::lit(self.beacons.len() as f64);
+        let centroid = self
+            .beacons
+            .iter()
+            .fold(Vector3::zeros(), |c, (_, r)| c + r / n);
+        let radius = self
+            .beacons
+            .iter()
+            .fold(T::zero(), |m, (_, r)| m.max((r - centroid).norm()));
+        self.centroid_offset = centroid.norm();
+        let far = self.centroid_offset
+            + radius * T::lit(cal.h as f64) / (T::lit(FAR_SIGMAS as f64) * noise);
+        self.max_range2 = far * far;
         self.settings = settings;
         self.cal = params;
         self.lin = Linearisation::new(&params);
@@ -777,11 +818,21 @@ impl<T: Real> PoseSolver<T> {
         match result {
             Ok(sol) => {
                 let x = canonical(sol.x);
+                // The plausibility gate: a range beyond the constellation's far limit, or a
+                // position 1-sigma over `max_sigma_fraction` of the range (the norms; the
+                // range bounded above by the centroid's offset), is never Ok. Written so
+                // that a NaN sigma fails it.
+                let range2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
+                let sigma2 = sol.sigma[0] * sol.sigma[0]
+                    + sol.sigma[1] * sol.sigma[1]
+                    + sol.sigma[2] * sol.sigma[2];
+                let fraction = T::lit(self.settings.max_sigma_fraction)
+                    * (range2.sqrt() + self.centroid_offset);
                 let status = if !x.iter().all(|v| v.is_finite()) {
                     return self.fail(PoseStatus::Diverged, x0, n, sol.iterations, cold);
-                } else if !self.in_front(&x, obs) || sol.rms > max_rms {
+                } else if !self.in_front(&x, obs) || sol.rms > max_rms || range2 > self.max_range2 {
                     return self.fail(PoseStatus::Diverged, x, n, sol.iterations, cold);
-                } else if sol.condition > max_condition {
+                } else if sol.condition > max_condition || !(sigma2 <= fraction * fraction) {
                     PoseStatus::IllConditioned
                 } else {
                     PoseStatus::Ok
@@ -1639,5 +1690,88 @@ mod tests {
                 "{sol:?}"
             );
         }
+    }
+
+    /// The sensor simulation's physics (Lambertian beacon, as the simulated board).
+    fn board_physics() -> Emulator<f64> {
+        let cal = Calibration::table3();
+        Emulator::new(
+            Head::northstar(),
+            HeadPose {
+                d: v3(&cal.d),
+                p: v3(&cal.p),
+            },
+            Effects {
+                pattern: Pattern::Lambertian { m: 1.0 },
+                ..Effects::default()
+            },
+        )
+    }
+
+    /// The plausibility gate: the reviewer's out-of-view frames
+    /// (`cta sensor sim --offset 30,30 --range 3`) with every coordinate off the exact rail
+    /// used give solutions
+    /// hundreds to thousands of inches away, none of them Ok; a solution beyond the
+    /// constellation's far limit is diverged, one whose position 1-sigma exceeds the
+    /// settings' fraction of the range ill-conditioned (with its 1-sigma), and a target
+    /// well inside the far limit (500 in) is still Ok.
+    #[test]
+    fn implausible_solutions_are_never_ok() {
+        let em = board_physics();
+        let cal = Calibration::table3();
+        let con = cta_constellation();
+        let sigma = cal.noise as f64;
+        let mut uniform = uniform_from(0x9e37_79b9);
+        let t = Vector3::new(30.0, 30.0, 3.0);
+        let q = mrp::from_axis_angle(&Vector3::z(), rad(2.0));
+        let mut solved = 0;
+        for _ in 0..400 {
+            let spots = simulate_spots(&em, &con, &t, &q, |_| 3.4641016 * sigma * uniform());
+            let mut s = PoseSolver::<f32>::new(&cal, &con, SolverSettings::default()).unwrap();
+            let mut obs = s.match_spots(&[]);
+            for (id, r) in &s.beacons {
+                let Some(sp) = spots.iter().find(|sp| sp.id == *id) else {
+                    continue;
+                };
+                let off = |v: i16| v != i16::MAX && v != i16::MIN;
+                let used = [off(sp.x), off(sp.y)];
+                if used[0] || used[1] {
+                    let y = [sp.x as f32, sp.y as f32];
+                    let _ = obs.push(Obs { r: *r, y, used });
+                }
+            }
+            let sol = s.solve_obs(&obs);
+            assert_ne!(sol.status, PoseStatus::Ok, "{sol:?}");
+            solved += usize::from(sol.position.norm() > 908.0);
+        }
+        // Converged far beyond the far limit (the gate, not the solver, rejected them).
+        assert!(solved >= 5, "{solved}");
+
+        // The far limit: 908 in for this constellation; noise-free frames on axis.
+        let q0 = Vector3::zeros();
+        let at = |z: f64, set: SolverSettings| {
+            let spots = simulate_spots(&em, &con, &Vector3::new(0.3, -0.2, z), &q0, |_| 0.0);
+            PoseSolver::<f64>::new(&cal, &con, set)
+                .unwrap()
+                .solve(&spots)
+        };
+        let loose = SolverSettings {
+            max_sigma_fraction: 1e6,
+            ..SolverSettings::default()
+        };
+        assert_eq!(at(500.0, SolverSettings::default()).status, PoseStatus::Ok);
+        let near = at(800.0, loose);
+        assert_eq!(near.status, PoseStatus::Ok, "{near:?}");
+        let far = at(1000.0, loose);
+        assert_eq!(far.status, PoseStatus::Diverged, "{far:?}");
+        // The sigma fraction: 8 in with the position 1-sigma allowed 1e-6 of the range.
+        let strict = SolverSettings {
+            max_sigma_fraction: 1e-6,
+            ..SolverSettings::default()
+        };
+        let sol = at(8.0, strict);
+        assert_eq!(sol.status, PoseStatus::IllConditioned, "{sol:?}");
+        assert!(sol.sigma_position.iter().all(|s| *s > 0.0), "{sol:?}");
+        assert_eq!(at(8.0, SolverSettings::default()).status, PoseStatus::Ok);
     }
 }
