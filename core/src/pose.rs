@@ -31,8 +31,9 @@
 //! # Solve
 //!
 //! Spots are matched to beacons by ID. A coordinate at the 16-bit rails (a cell in the dark:
-//! the eq 63 ratio at +/-beta, or saturated) carries no position information and is not
-//! used; the spot's other coordinate still is (near the edge of the field of view, at 2 in,
+//! the eq 63 ratio at +/-beta, or saturated), or within [`RAIL_SIGMAS`] noise sigmas of them
+//! (clipped: the noise kept it a few counts inside), carries no position information and is
+//! not used; the spot's other coordinate still is (near the edge of the field of view, at 2 in,
 //! that keeps about four of the CTA constellation's ten beacons). With fewer than
 //! [`MIN_BEACONS`] matched beacons, or fewer usable coordinates than [`MIN_BEACONS`] whole
 //! spots give, the status is [`PoseStatus::TooFewBeacons`]. Otherwise GLSDC starts from the
@@ -78,6 +79,13 @@ pub const MAX_BEACONS: usize = 20;
 pub const MIN_BEACONS: usize = 4;
 /// Highest NorthStar frequency channel (spot ID).
 pub const MAX_CHANNEL: u8 = 19;
+/// The 16-bit output rail, counts: an output at or past it is clipped to it.
+pub const RAIL: i16 = i16::MAX;
+/// A coordinate within this many calibration noise sigmas ([`Calibration::noise`]) of
+/// +/-[`RAIL`] counts as railed: its true value was at or past the rail (a cell in the dark,
+/// or saturated) and only the noise kept it inside, so it is clipped, not measured. The rule
+/// `cta calibrate` applies to a point's mean (`measurement::mean_near_rail`).
+pub const RAIL_SIGMAS: f32 = 3.0;
 /// The constellation's far limit: the range at which its radius about its centroid
 /// subtends this many noise sigmas of the pinhole (`radius x H / (3 noise)`: 908 in for
 /// [`cta_constellation`] and 2,860 in for [`four_array_constellation`] with
@@ -414,7 +422,8 @@ pub enum PoseStatus {
     /// Converged; pose and 1-sigma valid.
     Ok,
     /// Fewer than [`MIN_BEACONS`] beacons of the constellation were seen, or fewer usable
-    /// coordinates (off the 16-bit rails) than that many whole spots give.
+    /// coordinates (farther than [`RAIL_SIGMAS`] noise sigmas from the 16-bit rails) than
+    /// that many whole spots give.
     TooFewBeacons,
     /// No convergence, left the model's domain, or a false minimum (residual too large, or
     /// the target beyond the constellation's far limit, [`FAR_SIGMAS`]).
@@ -488,7 +497,7 @@ pub struct Obs<T: Real> {
     pub r: Vector3<T>,
     /// Measured `(X, Y)`, counts.
     pub y: [T; 2],
-    /// Which of `X`, `Y` are used (`false`: at the 16-bit rail).
+    /// Which of `X`, `Y` are used (`false`: at or near the 16-bit rail).
     pub used: [bool; 2],
 }
 
@@ -521,6 +530,8 @@ pub struct PoseSolver<T: Real> {
     head_axis: Vector3<T>,
     /// `noise^2` (counts^2): the unit of the stopping tolerances.
     noise2: T,
+    /// A coordinate with `|v| >= rail` is railed: [`RAIL`] less [`RAIL_SIGMAS`] noise.
+    rail: i32,
     /// The distance of the constellation's centroid from the T origin, inches.
     centroid_offset: T,
     /// The square of the largest range `|t|` a pose may have (see [`Self::configure`]).
@@ -569,6 +580,7 @@ impl<T: Real> PoseSolver<T> {
             boresight: Vector3::new(T::zero(), T::zero(), -T::one()),
             head_axis: Vector3::new(T::zero(), T::zero(), T::one()),
             noise2: T::one(),
+            rail: i32::from(RAIL),
             centroid_offset: T::zero(),
             max_range2: T::zero(),
             warm: None,
@@ -583,8 +595,10 @@ impl<T: Real> PoseSolver<T> {
     /// configuring it where it lives keeps a second copy off the stack. On an error the
     /// solver is left blank.
     ///
-    /// It also sets the constellation's far limit the calibration implies (see
-    /// [`FAR_SIGMAS`]). Its bound on `|t|` adds the centroid's distance from the T origin.
+    /// It also sets the two limits the calibration and the constellation imply: the rail
+    /// margin ([`RAIL_SIGMAS`] x the calibration's noise) and the constellation's far limit
+    /// (see [`FAR_SIGMAS`]). Its bound on `|t|` adds the centroid's distance from the T
+    /// origin.
     pub fn configure(
         &mut self,
         cal: &Calibration,
@@ -632,6 +646,8 @@ impl<T: Real> PoseSolver<T> {
             let _ = self.beacons.push((b.id, v3(&b.r)));
         }
         let noise = T::lit(cal.noise as f64);
+        // Cannot overflow: the noise is at most 10,000 counts (validated).
+        self.rail = i32::from(RAIL) - (RAIL_SIGMAS * cal.noise) as i32;
         let n = T::lit(self.beacons.len() as f64);
         let centroid = self
             .beacons
@@ -684,8 +700,9 @@ impl<T: Real> PoseSolver<T> {
         })
     }
 
-    /// Match spots to beacons by ID (first spot of each ID). Coordinates at the 16-bit rails
-    /// are marked unused; a spot with both there is skipped.
+    /// Match spots to beacons by ID (first spot of each ID). Coordinates at or within
+    /// [`RAIL_SIGMAS`] noise sigmas of the 16-bit rails are marked unused; a spot with both
+    /// there is skipped.
     pub fn match_spots(&self, spots: &[Spot]) -> Vec<Obs<T>, MAX_BEACONS> {
         let mut obs = Vec::new();
         self.match_keyed(spots, &mut obs);
@@ -701,7 +718,7 @@ impl<T: Real> PoseSolver<T> {
         for (i, (id, r)) in self.beacons.iter().enumerate() {
             let spot = spots.iter().find(|s| s.id == *id);
             if let Some(s) = spot {
-                let rail = |v: i16| v == i16::MAX || v == i16::MIN;
+                let rail = |v: i16| i32::from(v).abs() >= self.rail;
                 let used = [!rail(s.x), !rail(s.y)];
                 if !(used[0] || used[1]) {
                     continue;
@@ -1499,7 +1516,8 @@ mod tests {
         let t = Vector3::new(0.2, -0.1, 2.0);
         let q = mrp::from_axis_angle(&Vector3::new(0.3, -0.5, 1.0), rad(2.0));
         let spots = simulate_spots(&em, &con, &t, &q, |_| 0.0);
-        let rail = |v: i16| v == i16::MAX || v == i16::MIN;
+        // At or within 3 sigma (98 counts) of the rail.
+        let rail = |v: i16| i32::from(v).abs() >= 32767 - 98;
         let half = spots.iter().filter(|s| rail(s.x) != rail(s.y)).count();
         assert!(half >= 2, "the test needs half-railed spots: {spots:?}");
         let mut s = PoseSolver::<f64>::new(&Calibration::table3(), &con, SolverSettings::default())
@@ -1692,6 +1710,51 @@ mod tests {
         }
     }
 
+    /// A coordinate within 3 noise sigmas of a rail is clipped, not measured: it is marked
+    /// unused like one on the rail, and its value does not reach the pose. One farther in is
+    /// used; the margin follows the calibration's noise.
+    #[test]
+    fn near_rail_coordinates_are_not_used() {
+        let em = truth_emulator();
+        let con = cta_constellation();
+        let (t, q) = target();
+        let clean = simulate_spots(&em, &con, &t, &q, |_| 0.0);
+        assert!(clean.iter().all(|s| s.x.abs() < 20000 && s.y.abs() < 20000));
+        let mut spots = clean.clone();
+        // Table 3: noise 32.768 counts, so the margin is 98 counts.
+        spots[0].x = 32767 - 50;
+        spots[1].y = -32768 + 90;
+        spots[3].y = -32767;
+        let mut inside = spots.clone();
+        inside[2].x = 32767 - 120;
+        let cal = Calibration::table3();
+        let mut s = PoseSolver::<f64>::new(&cal, &con, SolverSettings::default()).unwrap();
+        let obs = s.match_spots(&inside);
+        assert_eq!(obs.len(), 10);
+        assert_eq!(obs[0].used, [false, true]);
+        assert_eq!(obs[1].used, [true, false]);
+        assert_eq!(obs[2].used, [true, true]);
+        assert_eq!(obs[3].used, [true, false]);
+        // The near-rail values do not pull the pose: the same frame with them moved to the
+        // other rail solves to the same answer.
+        let a = s.solve(&spots);
+        let mut moved = spots.clone();
+        moved[0].x = -32768;
+        moved[1].y = 32767;
+        s.reset();
+        let b = s.solve(&moved);
+        assert_eq!(a.status, PoseStatus::Ok, "{a:?}");
+        assert!((a.position - b.position).norm() < 1e-9, "{a:?} {b:?}");
+        // A calibration with a third of the noise has a third of the margin: 50 counts in
+        // is then used, 90 counts in is too.
+        let quiet = Calibration { noise: 10.0, ..cal };
+        let s = PoseSolver::<f64>::new(&quiet, &con, SolverSettings::default()).unwrap();
+        let obs = s.match_spots(&inside);
+        assert_eq!(obs[0].used, [true, true]);
+        assert_eq!(obs[1].used, [true, true]);
+        assert_eq!(obs[3].used, [true, false]);
+    }
+
     /// The sensor simulation's physics (Lambertian beacon, as the simulated board).
     fn board_physics() -> Emulator<f64> {
         let cal = Calibration::table3();
@@ -1708,9 +1771,49 @@ mod tests {
         )
     }
 
-    /// The plausibility gate: the reviewer's out-of-view frames
-    /// (`cta sensor sim --offset 30,30 --range 3`) with every coordinate off the exact rail
-    /// used give solutions
+    /// Targets out of view (the reviewer's `cta sensor sim --offset 30,30 --range 3`, and
+    /// others to the side): the simulated NorthStar still reports every beacon, with
+    /// coordinates a few noise sigmas from the rail. No frame is ever Ok, with a fresh
+    /// solver or a running one. (Before the rail margin and the plausibility gate, 4 of
+    /// the reviewer's 40 frames were Ok at 5,800 in, and 262 of 400 at `(30, 0, 5)`.)
+    #[test]
+    fn out_of_view_frames_are_never_ok() {
+        let em = board_physics();
+        let cal = Calibration::table3();
+        let sigma = cal.noise as f64;
+        let mut uniform = uniform_from(0x5eed_0001);
+        let q = mrp::from_axis_angle(&Vector3::z(), rad(2.0));
+        for (con, t) in [
+            (cta_constellation(), [30.0, 30.0, 3.0]),
+            (cta_constellation(), [20.0, 20.0, 3.0]),
+            (cta_constellation(), [30.0, 0.0, 5.0]),
+            (cta_constellation(), [0.0, 40.0, 2.0]),
+            (cta_constellation(), [60.0, 10.0, 10.0]),
+            (four_array_constellation(), [40.0, 40.0, 3.0]),
+            (four_array_constellation(), [50.0, 0.0, 5.0]),
+        ] {
+            let t = Vector3::from(t);
+            for model in [ModelKind::NearField, ModelKind::Pinhole] {
+                let set = SolverSettings {
+                    model,
+                    ..SolverSettings::default()
+                };
+                let mut running = PoseSolver::<f32>::new(&cal, &con, set).unwrap();
+                for _ in 0..100 {
+                    let spots =
+                        simulate_spots(&em, &con, &t, &q, |_| 3.4641016 * sigma * uniform());
+                    assert!(spots.len() >= MIN_BEACONS, "{t:?}: {spots:?}");
+                    let mut fresh = PoseSolver::<f32>::new(&cal, &con, set).unwrap();
+                    for sol in [fresh.solve(&spots), running.solve(&spots)] {
+                        assert_ne!(sol.status, PoseStatus::Ok, "{t:?} {model:?}: {sol:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// The plausibility gate on its own: the reviewer's out-of-view frames with every
+    /// coordinate off the exact rail used (the rule before the margin) give solutions
     /// hundreds to thousands of inches away, none of them Ok; a solution beyond the
     /// constellation's far limit is diverged, one whose position 1-sigma exceeds the
     /// settings' fraction of the range ill-conditioned (with its 1-sigma), and a target
