@@ -536,6 +536,8 @@ pub struct PoseSolver<T: Real> {
     centroid_offset: T,
     /// The square of the largest range `|t|` a pose may have (see [`Self::configure`]).
     max_range2: T,
+    /// The square of [`SolverSettings::max_sigma_fraction`].
+    max_sigma_fraction2: T,
     warm: Option<SVector<T, 6>>,
     /// The last solve's linearisation, carried to the next frame's first step
     /// ([`glsdc::solve_with`]): its weighted Jacobian rows (2 per beacon) with the model
@@ -583,6 +585,7 @@ impl<T: Real> PoseSolver<T> {
             rail: i32::from(RAIL),
             centroid_offset: T::zero(),
             max_range2: T::zero(),
+            max_sigma_fraction2: T::zero(),
             warm: None,
             rows: [T::zero(); 2 * MAX_BEACONS * 7],
             carry: None,
@@ -661,6 +664,8 @@ impl<T: Real> PoseSolver<T> {
         let far = self.centroid_offset
             + radius * T::lit(cal.h as f64) / (T::lit(FAR_SIGMAS as f64) * noise);
         self.max_range2 = far * far;
+        let fraction = T::lit(settings.max_sigma_fraction);
+        self.max_sigma_fraction2 = fraction * fraction;
         self.settings = settings;
         self.cal = params;
         self.lin = Linearisation::new(&params);
@@ -837,19 +842,25 @@ impl<T: Real> PoseSolver<T> {
                 let x = canonical(sol.x);
                 // The plausibility gate: a range beyond the constellation's far limit, or a
                 // position 1-sigma over `max_sigma_fraction` of the range (the norms; the
-                // range bounded above by the centroid's offset), is never Ok. Written so
-                // that a NaN sigma fails it.
+                // range bounded above by `|t|` plus the centroid's offset), is never Ok.
+                // Written so that a NaN sigma fails it; the square root only when `|t|`
+                // alone does not pass it.
                 let range2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
                 let sigma2 = sol.sigma[0] * sol.sigma[0]
                     + sol.sigma[1] * sol.sigma[1]
                     + sol.sigma[2] * sol.sigma[2];
-                let fraction = T::lit(self.settings.max_sigma_fraction)
-                    * (range2.sqrt() + self.centroid_offset);
+                let f2 = self.max_sigma_fraction2;
+                let c = self.centroid_offset;
+                let determined = sigma2 <= f2 * range2
+                    || (c > T::zero() && {
+                        let r = range2.sqrt() + c;
+                        sigma2 <= f2 * r * r
+                    });
                 let status = if !x.iter().all(|v| v.is_finite()) {
                     return self.fail(PoseStatus::Diverged, x0, n, sol.iterations, cold);
                 } else if !self.in_front(&x, obs) || sol.rms > max_rms || range2 > self.max_range2 {
                     return self.fail(PoseStatus::Diverged, x, n, sol.iterations, cold);
-                } else if sol.condition > max_condition || !(sigma2 <= fraction * fraction) {
+                } else if sol.condition > max_condition || !determined {
                     PoseStatus::IllConditioned
                 } else {
                     PoseStatus::Ok
