@@ -441,7 +441,7 @@ mod tests {
             );
             sizes.push(s.con.beacons.len());
         }
-        assert_eq!(sizes, [10, 20, 10, 20]);
+        assert_eq!(sizes, [10, 19, 10, 19]);
         // one-10 is the benchmark constellation itself.
         let s = test_scene(None, None, 0.0).unwrap();
         assert_eq!(s.con, cta_constellation());
