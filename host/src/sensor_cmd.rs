@@ -1739,8 +1739,11 @@ mod tests {
             (d[2] - 0.062).abs() < 0.001 && (d[0] - 0.6).abs() < 0.001,
             "{d:?}"
         );
-        // The pinhole model cannot fit at 2 in: most of its solves are rejected there.
-        assert!(t.rows[0].ph_failures > 5, "{:?}", t.rows[0]);
+        // At 2 in the pinhole model, with the coordinates near the rail left out (clipped,
+        // not measured), fits most frames but is far off: hundreds of times the near-field's
+        // error.
+        let r2 = &t.rows[0];
+        assert!(r2.ph_pos > 100.0 * r2.nf_pos, "{r2:?}");
         let text = t.render();
         assert!(
             text.contains("Design targets") && text.contains("Systematic error"),
