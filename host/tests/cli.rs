@@ -4,39 +4,11 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn cta(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cta"))
-        .args(args)
-        .output()
-        .expect("run cta")
-}
+mod common;
+use common::{cta, json, s, simulate};
 
 fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("cta-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn json(o: &Output) -> serde_json::Value {
-    assert!(
-        o.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    serde_json::from_slice(&o.stdout).expect("JSON output")
-}
-
-/// `cta simulate --out OUT ARGS...`, which must succeed.
-fn simulate(out: &Path, args: &[&str]) {
-    let mut all = vec!["simulate", "--out", s(out)];
-    all.extend_from_slice(args);
-    let o = cta(&all);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    common::tmpdir_of("cli", name)
 }
 
 fn fails_with(o: &Output, needle: &str) {

@@ -5,41 +5,12 @@
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn cta(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cta"))
-        .args(args)
-        .output()
-        .expect("run cta")
-}
+mod common;
+use common::{cta, json, s, simulate};
 
 fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("cta-glitches-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn json(o: &Output) -> serde_json::Value {
-    assert!(
-        o.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    serde_json::from_slice(&o.stdout).expect("JSON output")
-}
-
-/// `cta simulate --out OUT ARGS...`, which must succeed.
-fn simulate(out: &Path, args: &[&str]) {
-    let mut all = vec!["simulate", "--out", s(out)];
-    all.extend_from_slice(args);
-    let o = cta(&all);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    common::tmpdir_of("glitches", name)
 }
 
 /// Copy `src` to `dst` adding +/-3000 counts to X of about one data row in 100 (a fixed

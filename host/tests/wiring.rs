@@ -3,24 +3,13 @@
 //! mistake (host/src/analyze/wiring.rs). A clean file is unaffected.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn cta(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cta"))
-        .args(args)
-        .output()
-        .expect("run cta")
-}
+mod common;
+use common::{cta, s};
 
 fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("cta-wiring-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
+    common::tmpdir_of("wiring", name)
 }
 
 fn fails_with(o: &Output, needles: &[&str]) {

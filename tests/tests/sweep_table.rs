@@ -67,9 +67,13 @@ fn table(port: &str, set: Option<&[f64]>, default: bool) -> String {
 
 /// The table `cta beacon table` lists, Hz.
 fn listed(out: &str) -> Vec<f64> {
+    // `i  F Hz`, with a note after entries that share a frequency.
     out.lines()
-        .filter_map(|l| l.trim().strip_suffix(" Hz"))
-        .map(|l| l.split_whitespace().nth(1).unwrap().parse().unwrap())
+        .filter_map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            (f.len() >= 3 && f[2] == "Hz" && f[0].parse::<usize>().is_ok())
+                .then(|| f[1].parse().unwrap())
+        })
         .collect()
 }
 

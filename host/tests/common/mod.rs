@@ -1,0 +1,46 @@
+//! Helpers shared by the `cta` binary's end-to-end tests (cli.rs, glitches.rs, wiring.rs):
+//! run the binary, a fresh scratch folder, simulate a file, parse JSON output.
+// Each test file uses some of them.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Run the `cta` binary with `args`.
+pub fn cta(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cta"))
+        .args(args)
+        .output()
+        .expect("run cta")
+}
+
+/// A fresh, empty scratch folder `cta-<tag>-<pid>-<name>` in the temp dir.
+pub fn tmpdir_of(tag: &str, name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("cta-{tag}-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A path as the `&str` an argument list takes.
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// `o` succeeded; its stdout parsed as JSON.
+pub fn json(o: &Output) -> serde_json::Value {
+    assert!(
+        o.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).expect("JSON output")
+}
+
+/// `cta simulate --out OUT ARGS...`, which must succeed.
+pub fn simulate(out: &Path, args: &[&str]) {
+    let mut all = vec!["simulate", "--out", s(out)];
+    all.extend_from_slice(args);
+    let o = cta(&all);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
