@@ -618,6 +618,7 @@ pub fn calibrate(
             fmt_list(&ph.separations)
         ));
     }
+    ph.warnings.extend(wiring::h_warning(all, ph.x().h()));
     let pinhole_chi2_dof = ph.chi2_per_dof.unwrap_or(f64::NAN);
     let xp = ph.x();
     let start = Calibration {

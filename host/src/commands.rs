@@ -692,7 +692,10 @@ pub fn fit_cmd(a: &FitArgs) -> Result<()> {
         check_fit_save(p, &a.file, a.force)?;
     }
     let ds = load(&a.file, a.separations.as_deref())?;
-    let mut rep = fit::fit(&ds, a.weights).map_err(|e| anyhow!(e))?;
+    let mut rep =
+        fit::fit(&ds, a.weights).map_err(|e| anyhow!(crate::analyze::wiring::explain(&ds, e)))?;
+    rep.warnings
+        .extend(crate::analyze::wiring::h_warning(&ds, rep.params["H"]));
     rep.warnings.extend(fit::chi2_warning(
         &rep,
         &a.file,

@@ -230,3 +230,33 @@ fn a_head_turned_90_deg_is_named_when_it_does_not_fit() {
         ],
     );
 }
+
+/// A file in centimetres fits (the angles are right, only H and d scale), so `cta fit` and
+/// `cta calibrate` succeed on it: they warn that H is 2.5x the NorthStar's and name the unit.
+#[test]
+fn fits_that_succeed_in_centimetres_warn_about_h() {
+    let d = tmpdir("h-warning");
+    let base = d.join("base.csv");
+    simulate(&base);
+    let cm = d.join("cm.csv");
+    edited(&base, &cm, &|row| {
+        for k in ["separation_in", "beacon_z_in"] {
+            let f = row.f(k);
+            *f = format!("{}", num(f) * 2.54);
+        }
+    });
+    for args in [
+        vec!["fit", s(&cm), "--separations", "63.5,76.2"],
+        vec!["calibrate", s(&cm)],
+    ] {
+        let o = cta(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            out.contains("are the lengths in centimetres?") && out.contains("scale height H"),
+            "{args:?}: {out}"
+        );
+    }
+    let o = cta(&["fit", s(&base), "--separations", "25,30"]);
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("scale height"));
+}

@@ -313,3 +313,34 @@ pub fn explain(ds: &Dataset, err: String) -> String {
         None => err,
     }
 }
+
+/// A warning when a fit that succeeded gives a scale height `h` more than `H_OFF` times off
+/// the NorthStar's (eq 65's `H = beta tan a`): with [`diagnose`]'s sentences when a common
+/// mistake (lengths in cm or mm, ...) explains it. `cta calibrate` and `cta fit` succeed on a
+/// file in centimetres (the angles are right; only H and d scale), so this is where it shows.
+///
+/// Close in the pinhole model's H moves far by itself (1.9x at 2-3 in on thesis data: the
+/// near-field errors it cannot follow), so below 20 in only a named mistake is said.
+pub fn h_warning(ds: &Dataset, h: f64) -> Option<String> {
+    let h0 = Head::<f64>::northstar().h();
+    let off = (h.abs() / h0).max(h0 / h.abs());
+    if !(off > H_OFF) {
+        return None;
+    }
+    let head = format!(
+        "the pinhole fit's H = {:.0} counts is {:.2}x the NorthStar's {h0:.0}",
+        h.abs(),
+        h.abs() / h0
+    );
+    let far = ds.separations().iter().all(|&s| s >= 20.0);
+    match diagnose(ds) {
+        // It states H itself.
+        Some(d) if d.contains("scale height") => Some(d),
+        Some(d) if far => Some(format!("{head}. {d}")),
+        None if far => Some(format!(
+            "{head}: another detector, or lengths not in inches? Every length column is in \
+             inches (host/MEASUREMENTS.md)"
+        )),
+        _ => None,
+    }
+}
