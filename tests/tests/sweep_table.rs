@@ -314,6 +314,22 @@ fn a_hardware_run_that_gives_up_names_its_ports_in_the_hint() {
         e.contains(&format!("continue with `{}`", hint(&d.join("run"), &b, &s))),
         "{e}"
     );
+    // A resume without the ports is refused, naming the ones its last session used.
+    let resume = SweepArgs {
+        resume: Some(d.join("run")),
+        yes: true,
+        quiet: true,
+        ..SweepArgs::default()
+    };
+    let e = format!("{:#}", sweep::sweep(&resume).unwrap_err());
+    assert!(
+        e.contains("was recorded on real boards")
+            && e.contains(&format!(
+                "its last session used them as `{}`",
+                hint(&d.join("run"), &b, &s)
+            )),
+        "{e}"
+    );
 }
 
 /// `cta sweep --plan PLAN --out OUT --beacon B --sensor S --yes --quiet` (`sweep::run`: the

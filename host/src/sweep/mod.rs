@@ -336,9 +336,27 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             }
             Some(None) => {
                 if args.beacon.is_none() {
+                    // The ports of its last session, from the journal.
+                    let last = std::fs::read_to_string(dir.join(store::JOURNAL))
+                        .unwrap_or_default()
+                        .lines()
+                        .rev()
+                        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+                        .find(|v| v["event"] == "session")
+                        .and_then(|v| {
+                            let port = |b: &str| v["boards"][b]["port"].as_str().map(String::from);
+                            Some((port("beacon")?, port("sensor")?))
+                        });
                     bail!(
-                        "{} was recorded on real boards: give --beacon and --sensor to resume it",
-                        dir.display()
+                        "{} was recorded on real boards: give --beacon and --sensor to resume it{}",
+                        dir.display(),
+                        match last {
+                            Some((b, s)) => format!(
+                                " (its last session used them as `{}`)",
+                                resume_command(dir, Some((&b, &s)))
+                            ),
+                            None => String::new(),
+                        }
                     );
                 }
                 None
