@@ -500,6 +500,18 @@ fn calibrate_writes_what_the_board_loads() {
         "{plot}"
     );
 
+    // The head's d within 4 sigma of the simulated one.
+    let d_on_truth = |f: &serde_json::Value| {
+        for (k, (n, t)) in [("d1", 0.55), ("d2", 0.12), ("d3", 0.07)]
+            .into_iter()
+            .enumerate()
+        {
+            let v = f["d"][k].as_f64().unwrap();
+            let sd = f["fitted"]["sigma"][n].as_f64().unwrap();
+            assert!((v - t).abs() < 4.0 * sd, "{n} = {v} +/- {sd}, truth {t}");
+        }
+    };
+
     // A cell gain mismatch: the chip's model holds it, so it is fitted.
     let gain = d.join("gain.csv");
     sim(&gain, &["--effect", "cell_gain=0.03,-0.02"]);
@@ -527,13 +539,7 @@ fn calibrate_writes_what_the_board_loads() {
         let b = f["near_field"]["bias"][k].as_f64().unwrap();
         assert!((b - t).abs() < 4.0 * sigma(n), "{n} = {b}, truth {t}");
     }
-    for (k, (n, t)) in [("d1", 0.55), ("d2", 0.12), ("d3", 0.07)]
-        .into_iter()
-        .enumerate()
-    {
-        let v = f["d"][k].as_f64().unwrap();
-        assert!((v - t).abs() < 4.0 * sigma(n), "{n} = {v}, truth {t}");
-    }
+    d_on_truth(f);
     assert!(f["fitted"]["chi2_dof"].as_f64().unwrap() < 1.15, "{r}");
     assert!(r["pinhole_chi2_dof"].as_f64().unwrap() > 10.0, "{r}");
     // ... and says so, as `cta fit --weights pooled` would on those separations.
@@ -558,13 +564,7 @@ fn calibrate_writes_what_the_board_loads() {
     );
     let s_fit = f["near_field"]["s"].as_f64().unwrap();
     assert!((s_fit - 0.5).abs() < 4.0 * sigma("s"), "s = {s_fit}");
-    for (k, (n, t)) in [("d1", 0.55), ("d2", 0.12), ("d3", 0.07)]
-        .into_iter()
-        .enumerate()
-    {
-        let v = f["d"][k].as_f64().unwrap();
-        assert!((v - t).abs() < 4.0 * sigma(n), "{n} = {v}, truth {t}");
-    }
+    d_on_truth(f);
     assert!(f["fitted"]["chi2_dof"].as_f64().unwrap() < 1.15, "{r}");
 
     // A plate tilted 5 deg: absorbed by d and p (d1 off by ~40 sigma) except close in, so

@@ -29,20 +29,19 @@ fn fails_with(o: &Output, needles: &[&str]) {
 /// `cta simulate` with noise 0.1 % of beta; `simulate` is the reviewer's file (2..30 in, 4
 /// samples per point).
 fn simulate_at(out: &Path, seps: &str, samples: &str, seed: &str) {
-    let o = cta(&[
-        "simulate",
-        "--out",
-        s(out),
-        "--separations",
-        seps,
-        "--noise",
-        "32.8",
-        "--samples",
-        samples,
-        "--seed",
-        seed,
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    common::simulate(
+        out,
+        &[
+            "--separations",
+            seps,
+            "--noise",
+            "32.8",
+            "--samples",
+            samples,
+            "--seed",
+            seed,
+        ],
+    );
 }
 
 fn simulate(out: &Path) {
