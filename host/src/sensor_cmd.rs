@@ -925,10 +925,14 @@ static STOP: std::sync::LazyLock<std::sync::Arc<std::sync::atomic::AtomicBool>> 
 
 /// Catch Ctrl-C, SIGTERM and SIGHUP while reports stream: the first stops the reading (the
 /// board is then set idle: otherwise it would go on solving and sending until the next
-/// command), a second one leaves at once (128 + the signal).
+/// command), a second one leaves at once (128 + the signal). A signal ignored at the start
+/// (SIGHUP under `nohup`) stays ignored, as in `cta sweep`.
 fn catch_stop() {
     use signal_hook::{consts, flag};
     for sig in [consts::SIGINT, consts::SIGTERM, consts::SIGHUP] {
+        if crate::sweep::ignored(sig) {
+            continue;
+        }
         let _ = flag::register_conditional_shutdown(sig, 128 + sig, STOP.clone())
             .and_then(|_| flag::register(sig, STOP.clone()));
     }

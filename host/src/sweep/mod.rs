@@ -186,7 +186,7 @@ fn catch_stop_signals() {
 }
 
 /// Whether `sig` is ignored (SIG_IGN), as `nohup` leaves SIGHUP.
-fn ignored(sig: libc::c_int) -> bool {
+pub(crate) fn ignored(sig: libc::c_int) -> bool {
     // SAFETY: a read-only sigaction query into a zeroed struct.
     unsafe {
         let mut old: libc::sigaction = std::mem::zeroed();
