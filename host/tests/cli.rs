@@ -757,19 +757,7 @@ fn fit_names_its_spread_by_the_weighting() {
 fn fit_with_few_samples_refuses_repeat_and_pools() {
     let d = tmpdir("fit-few");
     let two = d.join("w2-3.csv");
-    simulate(
-        &two,
-        &[
-            "--separations",
-            "25,30",
-            "--noise",
-            "32.8",
-            "--samples",
-            "2",
-            "--seed",
-            "3",
-        ],
-    );
+    common::simulate_at(&two, "25,30", "2", "3", &[]);
     fails_with(
         &cta(&["fit", s(&two), "--weights", "repeat"]),
         "needs repeated samples, at least 6 per point, and this point has 2",
@@ -800,20 +788,7 @@ fn fit_with_few_samples_refuses_repeat_and_pools() {
     // (J'WJ)^-1 took those variances for the truth and claimed more than `pooled` (5-7x too
     // small over 20 far-field seeds with 4 samples).
     let six = d.join("w6.csv");
-    simulate(
-        &six,
-        &[
-            "--far-field",
-            "--separations",
-            "20,25",
-            "--noise",
-            "32.8",
-            "--samples",
-            "6",
-            "--seed",
-            "1",
-        ],
-    );
+    common::simulate_at(&six, "20,25", "6", "1", &["--far-field"]);
     let r = json(&cta(&["fit", s(&six), "--weights", "repeat", "--json"]));
     let p = json(&cta(&["fit", s(&six), "--weights", "pooled", "--json"]));
     for n in ["d1", "d2", "d3", "p1", "p2", "p3", "H"] {
@@ -834,19 +809,7 @@ fn fit_with_few_samples_refuses_repeat_and_pools() {
 fn calibrate_pinhole_stage_pools_the_noise() {
     let d = tmpdir("cal-two");
     let csv = d.join("c2s.csv");
-    simulate(
-        &csv,
-        &[
-            "--separations",
-            "2..30",
-            "--noise",
-            "32.8",
-            "--samples",
-            "2",
-            "--seed",
-            "3",
-        ],
-    );
+    common::simulate_at(&csv, "2..30", "2", "3", &[]);
     let r = json(&cta(&["calibrate", s(&csv), "--json"]));
     let h = r["pinhole_h"].as_f64().unwrap();
     let c = r["pinhole_chi2_dof"].as_f64().unwrap();

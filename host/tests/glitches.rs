@@ -83,19 +83,7 @@ fn injected_glitches_are_named_by_noise_and_analyze() {
     for (samples, seed) in [("4", "11"), ("3", "12")] {
         let base = d.join(format!("base{samples}.csv"));
         let bad = d.join(format!("outlier{samples}.csv"));
-        simulate(
-            &base,
-            &[
-                "--separations",
-                "2..30",
-                "--noise",
-                "32.8",
-                "--samples",
-                samples,
-                "--seed",
-                seed,
-            ],
-        );
+        common::simulate_at(&base, "2..30", samples, seed, &[]);
         let edited = inject(&base, &bad, seed.parse().unwrap());
         assert!(edited.len() > 40, "{}", edited.len());
 

@@ -29,19 +29,7 @@ fn fails_with(o: &Output, needles: &[&str]) {
 /// `cta simulate` with noise 0.1 % of beta; `simulate` is the reviewer's file (2..30 in, 4
 /// samples per point).
 fn simulate_at(out: &Path, seps: &str, samples: &str, seed: &str) {
-    common::simulate(
-        out,
-        &[
-            "--separations",
-            seps,
-            "--noise",
-            "32.8",
-            "--samples",
-            samples,
-            "--seed",
-            seed,
-        ],
-    );
+    common::simulate_at(out, seps, samples, seed, &[]);
 }
 
 fn simulate(out: &Path) {

@@ -44,3 +44,20 @@ pub fn simulate(out: &Path, args: &[&str]) {
     let o = cta(&all);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// `cta simulate` at 0.1 % of beta (32.8 counts) on `seps` (a list or range), `samples` per
+/// point, `seed`, and `extra` arguments.
+pub fn simulate_at(out: &Path, seps: &str, samples: &str, seed: &str, extra: &[&str]) {
+    let mut args = vec![
+        "--separations",
+        seps,
+        "--noise",
+        "32.8",
+        "--samples",
+        samples,
+        "--seed",
+        seed,
+    ];
+    args.extend_from_slice(extra);
+    simulate(out, &args);
+}
