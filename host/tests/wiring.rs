@@ -247,3 +247,33 @@ fn fits_that_succeed_in_centimetres_warn_about_h() {
     let o = cta(&["fit", s(&base), "--separations", "25,30"]);
     assert!(!String::from_utf8_lossy(&o.stdout).contains("scale height"));
 }
+
+/// A file with every length column in centimetres fits perfectly (the outputs depend only on
+/// ratios of lengths), with the cell offset S and d 2.54x the NorthStar's: `cta analyze`
+/// names `proximity` and cautions that the lengths may be in centimetres. A file in inches
+/// gets no such caution.
+#[test]
+fn a_file_all_in_centimetres_is_cautioned() {
+    let d = tmpdir("all-cm");
+    let base = d.join("base.csv");
+    simulate(&base);
+    let cm = d.join("cm.csv");
+    edited(&base, &cm, &|row| {
+        for k in ["separation_in", "beacon_x_in", "beacon_y_in", "beacon_z_in"] {
+            let f = row.f(k);
+            *f = format!("{}", num(f) * 2.54);
+        }
+    });
+    let o = cta(&["analyze", s(&cm)]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains("named: proximity"), "{out}");
+    assert!(
+        out.contains("caution: the cell offset S = 0.44")
+            && out.contains("are the lengths in centimetres?"),
+        "{out}"
+    );
+    let o = cta(&["analyze", s(&base)]);
+    assert!(o.status.success());
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("caution"));
+}

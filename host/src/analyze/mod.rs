@@ -205,6 +205,10 @@ pub struct Cause {
     pub rivals: Vec<Rival>,
     /// What the sensor board can do with it ([`board_note`]).
     pub board: String,
+    /// A reading of the file that explains the cause as well (`proximity` with S 2.54x the
+    /// NorthStar's: lengths in centimetres, [`wiring::s_unit_note`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub caution: Option<String>,
 }
 
 /// Named values in the order they were inserted: a cause's parameters in the model's order
@@ -1283,6 +1287,10 @@ pub fn analyze(
             .find(|t| t.accepted && t.cand == st.cand)
             .map(|t| t.round);
         let rivals = round.map_or_else(Vec::new, |r| rivals(&sel.trials, r, st.cand, st.dbic));
+        let caution = match st.cand {
+            Cand::Proximity => params.get("S").and_then(|&s| wiring::s_unit_note(s)),
+            _ => None,
+        };
         causes.push(Cause {
             effect: st.cand.name().into(),
             params,
@@ -1300,6 +1308,7 @@ pub fn analyze(
             base_correlations,
             rivals,
             board: board_note(st.cand.name()),
+            caution,
         });
     }
     let effects: Vec<Cand> = sel.steps.iter().map(|st| st.cand).collect();
@@ -1531,6 +1540,9 @@ pub fn render_text(a: &Analysis) -> String {
         }
         if let Some(line) = c.rivals_line() {
             let _ = writeln!(s, "     {line}");
+        }
+        if let Some(c) = &c.caution {
+            let _ = writeln!(s, "     caution: {c}");
         }
         let _ = writeln!(s, "     on the sensor board: {}", c.board);
     }

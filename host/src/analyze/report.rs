@@ -65,6 +65,13 @@ fn cause_rows(s: &mut String, causes: &[Cause]) {
                 html_escape(&line)
             );
         }
+        if let Some(c) = &c.caution {
+            let _ = write!(
+                s,
+                "<tr><td></td><td colspan=6><b>Caution:</b> {}</td></tr>",
+                html_escape(c)
+            );
+        }
         let _ = write!(
             s,
             "<tr><td></td><td colspan=6>On the sensor board: {}</td></tr>",

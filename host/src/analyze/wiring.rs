@@ -314,6 +314,30 @@ pub fn explain(ds: &Dataset, err: String) -> String {
     }
 }
 
+/// A caution when a fitted cell offset `s` (eq 61's proximity, 0.175 in on the NorthStar) is
+/// a length unit times the NorthStar's: a file whose every length column is in centimetres or
+/// millimetres fits perfectly with `s` and `d` scaled so (the outputs depend only on ratios of
+/// lengths: the intensities' inverse squares cancel in eq 63's ratios, and the angles do not
+/// change), and nothing else in the fit shows it. Within [`S_UNIT_TOL`] of the factor.
+pub fn s_unit_note(s: f64) -> Option<String> {
+    let s0 = Head::<f64>::northstar().s;
+    let ratio = s / s0;
+    UNITS
+        .iter()
+        .find(|(div, _)| (ratio / div - 1.0).abs() <= S_UNIT_TOL)
+        .map(|(div, unit)| {
+            format!(
+                "the cell offset S = {s:.4} in is {ratio:.2}x the NorthStar's {s0} in: a \
+                 NorthStar measured with every length in {unit} gives exactly this (with d \
+                 {div} times too); are the lengths in {unit}? Every length column is in \
+                 inches (host/MEASUREMENTS.md)"
+            )
+        })
+}
+
+/// How close `s / 0.175 in` must come to 2.54 or 25.4 for [`s_unit_note`] (relative).
+pub const S_UNIT_TOL: f64 = 0.05;
+
 /// A warning when a fit that succeeded gives a scale height `h` more than `H_OFF` times off
 /// the NorthStar's (eq 65's `H = beta tan a`): with [`diagnose`]'s sentences when a common
 /// mistake (lengths in cm or mm, ...) explains it. `cta calibrate` and `cta fit` succeed on a
