@@ -1,13 +1,13 @@
 //! The `cta` binary end to end: the thesis commands, and bad input giving a one-line error
 //! and a non-zero exit, never a panic.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 mod common;
 use common::{cta, json, s, simulate};
 
-fn tmpdir(name: &str) -> PathBuf {
+fn tmpdir(name: &str) -> common::TmpDir {
     common::tmpdir_of("cli", name)
 }
 

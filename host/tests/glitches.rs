@@ -4,12 +4,12 @@
 //! no such warning.
 
 use std::collections::BTreeSet;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 mod common;
 use common::{cta, json, s, simulate};
 
-fn tmpdir(name: &str) -> PathBuf {
+fn tmpdir(name: &str) -> common::TmpDir {
     common::tmpdir_of("glitches", name)
 }
 

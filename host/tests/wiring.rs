@@ -2,13 +2,13 @@
 //! `cta analyze` and `cta calibrate` stop with an optimizer error; the error then names the
 //! mistake (host/src/analyze/wiring.rs). A clean file is unaffected.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Output;
 
 mod common;
 use common::{cta, s};
 
-fn tmpdir(name: &str) -> PathBuf {
+fn tmpdir(name: &str) -> common::TmpDir {
     common::tmpdir_of("wiring", name)
 }
 

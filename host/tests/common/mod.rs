@@ -14,12 +14,40 @@ pub fn cta(args: &[&str]) -> Output {
         .expect("run cta")
 }
 
-/// A fresh, empty scratch folder `cta-<tag>-<pid>-<name>` in the temp dir.
-pub fn tmpdir_of(tag: &str, name: &str) -> PathBuf {
+/// A fresh, empty scratch folder `cta-<tag>-<pid>-<name>` in the temp dir. Dropping it
+/// removes it, unless the test is failing (panicking): a failed test leaves its files to
+/// look at.
+pub fn tmpdir_of(tag: &str, name: &str) -> TmpDir {
     let d = std::env::temp_dir().join(format!("cta-{tag}-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    TmpDir(d)
+}
+
+/// [`tmpdir_of`]'s folder.
+#[derive(Debug)]
+pub struct TmpDir(PathBuf);
+
+impl std::ops::Deref for TmpDir {
+    type Target = Path;
+
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TmpDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TmpDir {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }
 
 /// A path as the `&str` an argument list takes.
