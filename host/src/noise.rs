@@ -390,6 +390,31 @@ fn magnitude_noise(rep: &[&Pt]) -> Option<MagnitudeNoise> {
     })
 }
 
+/// How far the points' variances spread around a pooled variance, in units of the spread
+/// Gaussian noise gives: each point with 3 or more samples, on each axis, compares its
+/// variance with `pooled(point)` (`None`, or a pooled variance of 0, leaves it out); under
+/// homogeneous Gaussian noise `(n-1) s^2 / sigma^2` is chi-square(n-1), so the ratio has
+/// variance `2 / (n-1)`. The RMS of the ratios' z-scores: about 1 when homogeneous, NaN
+/// without a comparison.
+fn variance_dispersion(rep: &[&Pt], pooled: impl Fn(&Pt) -> Option<[f64; 2]>) -> f64 {
+    let (mut z2, mut cnt) = (0.0, 0.0);
+    for p in rep.iter().filter(|p| p.n >= 3) {
+        let Some(v) = pooled(p) else { continue };
+        for (a, pooled) in v.into_iter().enumerate() {
+            if pooled > 0.0 {
+                let r = p.ss[a] / (p.n - 1) as f64 / pooled;
+                z2 += (r - 1.0).powi(2) / (2.0 / (p.n - 1) as f64);
+                cnt += 1.0;
+            }
+        }
+    }
+    if cnt > 0.0 {
+        (z2 / cnt).sqrt()
+    } else {
+        f64::NAN
+    }
+}
+
 /// Analyze the noise of a dataset.
 pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
     let groups = ds.points();
@@ -546,28 +571,10 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
     // variance; under homogeneous Gaussian noise (n-1) s^2/sigma^2 is chi-square(n-1), so the
     // ratio has variance 2/(n-1).
     let sep = &factors[0];
-    let mut z2 = 0.0;
-    let mut cnt = 0.0;
-    for p in &rep {
-        if p.n < 3 {
-            continue;
-        }
-        if let Some(g) = sep.groups.iter().find(|g| g.key == p.first.separation_in) {
-            for a in 0..2 {
-                let pooled = if a == 0 { g.std_x } else { g.std_y }.powi(2);
-                if pooled > 0.0 {
-                    let r = p.ss[a] / (p.n - 1) as f64 / pooled;
-                    z2 += (r - 1.0).powi(2) / (2.0 / (p.n - 1) as f64);
-                    cnt += 1.0;
-                }
-            }
-        }
-    }
-    let dispersion = if cnt > 0.0 {
-        (z2 / cnt).sqrt()
-    } else {
-        f64::NAN
-    };
+    let dispersion = variance_dispersion(&rep, |p| {
+        let g = sep.groups.iter().find(|g| g.key == p.first.separation_in)?;
+        Some([g.std_x.powi(2), g.std_y.powi(2)])
+    });
     // The same dispersion within a separation and a setting (frequency, power, sensitivity):
     // near 1 when the settings alone make the noise differ within a separation.
     let setting = |s: &Sample| {
@@ -582,27 +589,11 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
         e.1 += p.ss[1];
         e.2 += p.n - 1;
     }
-    let (mut z2, mut cnt) = (0.0, 0.0);
-    for p in rep.iter().filter(|p| p.n >= 3) {
+    let setting_dispersion = variance_dispersion(&rep, |p| {
         let (sx, sy, dof) = by_setting[&(p.first.separation_in.to_bits(), setting(&p.first))];
         // A point alone in its setting has nothing to be compared with.
-        if dof < p.n {
-            continue;
-        }
-        for (a, ss) in [sx, sy].into_iter().enumerate() {
-            let pooled = ss / dof as f64;
-            if pooled > 0.0 {
-                let r = p.ss[a] / (p.n - 1) as f64 / pooled;
-                z2 += (r - 1.0).powi(2) / (2.0 / (p.n - 1) as f64);
-                cnt += 1.0;
-            }
-        }
-    }
-    let setting_dispersion = if cnt > 0.0 {
-        (z2 / cnt).sqrt()
-    } else {
-        f64::NAN
-    };
+        (dof >= p.n).then(|| [sx / dof as f64, sy / dof as f64])
+    });
     // Samples per point, the median over the points with repeated samples.
     let mut ns: Vec<usize> = rep.iter().map(|p| p.n).collect();
     ns.sort_unstable();
