@@ -155,6 +155,8 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         fit,
         file: data.clone(),
         separations: None,
+        head: None,
+        budget: None,
         plot: Some(p("figure57.svg")),
         json: false,
     })?;

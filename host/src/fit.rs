@@ -619,7 +619,8 @@ fn sandwich(
 }
 
 /// Figure 57 for one fit: per separation, the standard deviation over the reports of the
-/// error in angle (eq 67) and the mean CTA angle uncertainty (eq 36, Table 2).
+/// error in angle (eq 67) and the mean CTA angle uncertainty (eq 36, Table 2 or a lab's own
+/// budget).
 #[derive(Debug, Clone, Serialize)]
 pub struct Evaluation {
     /// Separations, inches.
@@ -628,30 +629,54 @@ pub struct Evaluation {
     pub angle_std_deg: Vec<f64>,
     /// Mean error in angle, degrees.
     pub angle_mean_deg: Vec<f64>,
-    /// Mean CTA angle uncertainty (eq 36 with Table 2), degrees.
+    /// Mean CTA angle uncertainty (eq 36 with the budget), degrees.
     pub cta_uncertainty_deg: Vec<f64>,
     /// Reports per separation.
     pub reports: Vec<usize>,
-    /// "truth" when the file's sidecar gave the true head offset, else "fit" (the angle is
-    /// then measured against the fitted offset and only shows the model's inconsistency).
+    /// Where the angle is measured from ([`Reference::name`]): "truth" (the file's truth
+    /// sidecar), "head" (the head centre measured on the CTA, `--head`) or "fit" (the fit's
+    /// own eye point: only the model's consistency with itself, not Figure 57's error).
     pub reference: String,
 }
 
-/// Evaluate a fit on a dataset; `d_ref` is the true head offset when known.
-pub fn evaluate(x: &Params<f64>, ds: &Dataset, d_ref: Option<Vector3<f64>>) -> Evaluation {
-    let d = d_ref.unwrap_or_else(|| Vector3::new(x[0], x[1], x[2]));
-    let u = uncertainty::rss_inches(&uncertainty::TABLE2);
+/// Where [`evaluate`] measures the error in angle from: the true direction to each beacon is
+/// taken from this point.
+#[derive(Debug, Clone, Copy)]
+pub enum Reference {
+    /// The true head offset, from a simulation's truth sidecar.
+    Truth(Vector3<f64>),
+    /// The head centre measured on the apparatus, inches in N.
+    Head(Vector3<f64>),
+    /// The fit's own eye point `d` (eq 65): on the fitted model's own terms, so the error
+    /// shows only how consistent the model is with itself (far smaller than Figure 57's).
+    Fit,
+}
+
+impl Reference {
+    /// "truth", "head" or "fit".
+    pub fn name(&self) -> &'static str {
+        match self {
+            Reference::Truth(_) => "truth",
+            Reference::Head(_) => "head",
+            Reference::Fit => "fit",
+        }
+    }
+}
+
+/// Evaluate a fit on a dataset, the error in angle measured from `reference`; `u` is the
+/// CTA's 1-sigma position uncertainty per axis, inches (eq 26's root-sum-square).
+pub fn evaluate(x: &Params<f64>, ds: &Dataset, reference: Reference, u: [f64; 3]) -> Evaluation {
+    let d = match reference {
+        Reference::Truth(d) | Reference::Head(d) => d,
+        Reference::Fit => Vector3::new(x[0], x[1], x[2]),
+    };
     let mut ev = Evaluation {
         separation_in: Vec::new(),
         angle_std_deg: Vec::new(),
         angle_mean_deg: Vec::new(),
         cta_uncertainty_deg: Vec::new(),
         reports: Vec::new(),
-        reference: if d_ref.is_some() {
-            "truth".into()
-        } else {
-            "fit".into()
-        },
+        reference: reference.name().into(),
     };
     for sep in ds.separations() {
         let rows: Vec<_> = ds

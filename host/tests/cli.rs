@@ -49,6 +49,59 @@ fn simulate_fit_evaluate_round_trip() {
     let std30 = e["angle_std_deg"][2].as_f64().unwrap();
     assert!(std30 > 0.05 && std30 < 0.2, "{std30}");
     assert_eq!(e["reference"], "truth");
+    // The same data without the sidecar: measured from the fit's own eye point the error
+    // is far smaller (self-consistency only), which a warning says; with the head centre
+    // given (`--head`, here the truth's) it is the Figure 57 error again.
+    let bare = d.join("bare.csv");
+    std::fs::copy(&csv, &bare).unwrap();
+    let o = cta(&["evaluate", s(&fit), s(&bare), "--json"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("no truth sidecar and no --head") && err.contains("self"),
+        "{err}"
+    );
+    let e = json(&o);
+    assert_eq!(e["reference"], "fit");
+    assert!(
+        e["angle_std_deg"][2].as_f64().unwrap() < std30 / 10.0,
+        "{e}"
+    );
+    let o = cta(&[
+        "evaluate",
+        s(&fit),
+        s(&bare),
+        "--head",
+        "0.6,0.1,0.062",
+        "--json",
+    ]);
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("warning"));
+    let e = json(&o);
+    assert_eq!(e["reference"], "head");
+    assert_eq!(e["angle_std_deg"][2].as_f64().unwrap(), std30);
+    // The sidecar and --head together are refused: which would be meant?
+    let o = cta(&["evaluate", s(&fit), s(&csv), "--head", "0.6,0.1,0.062"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("leave out --head"));
+    // A lab's own budget sets the CTA uncertainty column: 4x Table 2's items, 4x the angle.
+    let table2 = e["cta_uncertainty_deg"][2].as_f64().unwrap();
+    let b = d.join("budget.toml");
+    std::fs::write(
+        &b,
+        "[[item]]\nname = \"all\"\nx = 126.0198\ny = 97.4731\nz = 70.0857\n",
+    )
+    .unwrap();
+    let e = json(&cta(&[
+        "evaluate",
+        s(&fit),
+        s(&bare),
+        "--head",
+        "0.6,0.1,0.062",
+        "--budget",
+        s(&b),
+        "--json",
+    ]));
+    let mine = e["cta_uncertainty_deg"][2].as_f64().unwrap();
+    assert!((mine / table2 - 4.0).abs() < 0.01, "{mine} vs {table2}");
 }
 
 #[test]
