@@ -18,8 +18,8 @@ pub enum Weights {
     /// `W = I`: every sample is one observation (the thesis's choice).
     None,
     /// Point means weighted by `n / variance` from the repeated samples of each point, with
-    /// a floor of 1/12 count^2 (the quantisation of integer counts). Needs at least
-    /// [`REPEAT_MIN_SAMPLES`] samples per point.
+    /// a floor of 1/12 count^2 (the quantisation of integer counts). Needs at least 6
+    /// samples per point (`REPEAT_MIN_SAMPLES`).
     Repeat,
     /// Point means weighted by `n / variance` with the one-sample variance pooled per
     /// separation and axis (over the points with no sample at the 16-bit rail), floored at
