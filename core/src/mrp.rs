@@ -20,8 +20,9 @@ pub fn skew<T: Real>(p: &Vector3<T>) -> Matrix3<T> {
 /// computed element by element as eq 55.
 #[inline]
 pub fn dcm<T: Real>(p: &Vector3<T>) -> Matrix3<T> {
-    // Eq 55: C = [4 (p p^T - ...) + (1 - s)^2 I + 8 p_i p_j - 4 (1 - s) [p x]] / (1 + s)^2,
-    // element by element (a third of the soft-float work of the matrix products of eq 54).
+    // Eq 55, element by element (a third of the soft-float work of the matrix products of
+    // eq 54): over (1 + s)^2, the diagonal 4 (p_i^2 - p_j^2 - p_k^2) + (1 - s)^2, and the
+    // off-diagonal 8 p_i p_j +/- 4 p_k (1 - s), with s = p^T p.
     let (p1, p2, p3) = (p.x, p.y, p.z);
     let (q1, q2, q3) = (p1 * p1, p2 * p2, p3 * p3);
     let s = q1 + q2 + q3;

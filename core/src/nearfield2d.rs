@@ -115,7 +115,7 @@ impl<T: Real> Model2d<T> {
             let bk = [binf[0] - cells[k][0], binf[1] - cells[k][1]];
             let v_far = dot(normals[k], binf_hat);
             sig[k] = match effect {
-                // eq 9: each cell's own direction to the beacon.
+                // eqs 7-8: each cell's own direction to the beacon (its voltage, eq 9).
                 Effect::Proximity => dot(normals[k], unit(bk)),
                 // eqs 14-15: I_k V_k with the far-field V of eq 3.
                 Effect::Intensity => v_far / dot(bk, bk),

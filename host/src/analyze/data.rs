@@ -2,8 +2,9 @@
 //!
 //! The repeated samples of one point (one beacon at one separation and one setting, see
 //! [`Dataset::points`]) are averaged; the weight of the mean is `n / sigma^2`, the inverse
-//! variance of a mean of `n` samples (eq 56's `W = R^-1`, so chi-square per degree of freedom
-//! means something). Where `sigma^2` comes from is the noise model ([`Weights`]):
+//! variance of a mean of `n` samples (eq 56's `W` taken as `R^-1`, the inverse measurement
+//! covariance of the thesis's reference 15, Crassidis & Junkins, so chi-square per degree of
+//! freedom means something). Where `sigma^2` comes from is the noise model ([`Weights`]):
 //!
 //! - `separation` (default): the sample variance pooled over every point of a separation,
 //!   per axis. Pooling ~100 points gives a variance good to a few percent, where one point's
