@@ -8,8 +8,9 @@
 //! sensitivity setting. It reports the one-sample standard deviation per axis for each
 //! group, the X-Y correlation, and the weighting the spread implies for `cta fit` and
 //! `cta analyze` (eq 56's `W` taken as `R^-1`, the thesis's reference 15, Crassidis &
-//! Junkins): one variance for the file when the groups agree, per separation when they differ by separation (the `analyze --weights separation`
-//! default), per point when they differ within a separation. Whether the groups of a factor
+//! Junkins): one variance for the file when the groups agree, per separation when they
+//! differ by separation (the `analyze --weights separation` default), per point when they
+//! differ within a separation. Whether the groups of a factor
 //! differ is Bartlett's chi-square test of equal variances (each axis at 0.5 %), which holds
 //! its false-alarm rate however many groups there are; each group's standard deviation carries
 //! its standard error from sampling, `std / sqrt(2 dof)`, the error bar of the plot.
