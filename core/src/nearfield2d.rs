@@ -217,11 +217,6 @@ pub enum Crossing<T> {
     AboveNoise,
 }
 
-/// Convenience: errors in degrees.
-pub fn error_deg<T: Real>(m: &Model2d<T>, effect: Effect, theta_deg: T, r: T) -> T {
-    deg(m.error(effect, rad(theta_deg), r))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
