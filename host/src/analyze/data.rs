@@ -28,7 +28,10 @@
 //!
 //! Points with any sample at the NorthStar's 16-bit limit (|count| >= 32767: a cell in shadow
 //! or a pinned output) carry no usable position information and are left out (counted in
-//! [`Data::excluded`]).
+//! [`Data::excluded`]), and so are points whose mean lies within 3 sigma of the limit (their
+//! true output was at or past it and only the noise kept the samples inside: clipped, not
+//! measured): the rail rule `cta calibrate` and `cta noise` apply
+//! ([`crate::measurement::mean_near_rail`], with the point's own noise figure).
 
 use crate::measurement::{fmt_list, Dataset};
 use nalgebra::Vector3;
@@ -79,7 +82,7 @@ pub struct Data {
     pub seps: Vec<f64>,
     /// Averaged points.
     pub points: Vec<PointMean>,
-    /// Points left out (pinned outputs).
+    /// Points left out (an output at or near the 16-bit rail).
     pub excluded: usize,
     /// Samples read.
     pub samples: usize,
@@ -226,7 +229,8 @@ impl Data {
         let mut points = Vec::with_capacity(acc.len());
         let mut excluded = 0;
         for a in &acc {
-            if a.pinned {
+            let sigma = var_of(a, 0).max(var_of(a, 1)).sqrt();
+            if a.pinned || crate::measurement::mean_near_rail(a.mean, sigma, a.n) {
                 excluded += 1;
                 continue;
             }
@@ -258,7 +262,8 @@ impl Data {
             .collect();
         if points.is_empty() {
             return Err(format!(
-                "{}: every point has a pinned output (|count| >= 32767): nothing to analyze",
+                "{}: every point has an output at or within 3 sigma of the 16-bit limit \
+                 (|count| >= 32767): nothing to analyze",
                 ds.path.display()
             ));
         }
@@ -292,6 +297,38 @@ impl Data {
 mod tests {
     use super::*;
     use crate::simulate::SimConfig;
+
+    /// The rail rule, both halves: a point with a sample at +/-32767 is left out, and so is
+    /// one whose samples all stay inside but whose mean lies within 3 sigma of the rail (a
+    /// cell in shadow whose noise kept it a few counts below), as `cta calibrate` does.
+    #[test]
+    fn points_at_or_near_the_rail_are_left_out() {
+        let mut ds = SimConfig {
+            separations: vec![20.0],
+            noise: 30.0,
+            samples: 5,
+            ..Default::default()
+        }
+        .run()
+        .0;
+        let clean = Data::from_dataset(&ds, Weights::Separation, None).unwrap();
+        let points = ds.points();
+        let (near, far) = (&points[0], &points[1]);
+        // Inside the rail by 10 to 50 counts: well within 3 sigma of the mean (40 counts).
+        for (j, &i) in near.rows.iter().enumerate() {
+            ds.samples[i].x = 32757.0 - 10.0 * j as f64;
+        }
+        // Still clearly inside: 20 sigma of the mean below.
+        for &i in &far.rows {
+            ds.samples[i].y = -32000.0;
+        }
+        let d = Data::from_dataset(&ds, Weights::Separation, None).unwrap();
+        assert_eq!(d.excluded, clean.excluded + 1);
+        assert_eq!(d.points.len(), clean.points.len() - 1);
+        ds.samples[near.rows[0]].x = 32767.0;
+        let d = Data::from_dataset(&ds, Weights::Separation, None).unwrap();
+        assert_eq!(d.excluded, clean.excluded + 1);
+    }
 
     /// `setting` pools per separation and setting: points of a noisier power level get
     /// their level's smaller weight, where `separation` gives every point of a separation one.

@@ -671,7 +671,7 @@ pub struct Analysis {
     pub samples: usize,
     /// Points fitted.
     pub points: usize,
-    /// Points left out (pinned outputs).
+    /// Points left out (an output at or near the 16-bit rail).
     pub excluded_points: usize,
     /// Cross-validation folds (held-out separations of each).
     pub folds: Vec<Vec<f64>>,
@@ -1503,7 +1503,7 @@ pub fn render_text(a: &Analysis) -> String {
     let _ = writeln!(s, "cta analyze {} (from `{}`)", a.file, a.model_from);
     let _ = writeln!(
         s,
-        "  {} samples -> {} points ({} left out: pinned output), separations {}",
+        "  {} samples -> {} points ({} left out: output at or near the 16-bit rail), separations {}",
         a.samples,
         a.points,
         a.excluded_points,

@@ -162,7 +162,7 @@ pub fn render(a: &Analysis) -> Result<String, String> {
     let _ = write!(
         s,
         "<h1>cta analyze</h1><p>{} &mdash; starting model <b>{}</b>; {} samples &rarr; {} points \
-         ({} left out: pinned output); {}.</p><p class=verdict>{}</p>",
+         ({} left out: output at or near the 16-bit rail); {}.</p><p class=verdict>{}</p>",
         html_escape(&a.file),
         a.model_from,
         a.samples,
