@@ -10,8 +10,10 @@
 //! - T: the target frame, in which the constellation's beacon positions `r_T` are given
 //!   (inches), each beacon with its NorthStar frequency channel (the spot ID).
 //! - N: the sensor-board frame; O: the head frame. The *calibration* gives the head on the
-//!   board: `d`, `p` (MRP of `C`, N -> O) and `H` (eq 65), and for the near-field model the
-//!   head geometry (face angle `a`, cell offset `s`, scale `beta`) and the beacon pattern.
+//!   board: `d`, `p` (MRP of `C`, N -> O) and `H` (eq 65), for the near-field model the
+//!   head geometry (face angle `a`, cell offset `s`, scale `beta`) and the beacon pattern,
+//!   and optionally the pinhole model's own `d, p` ([`PinholeHead`]: a 7-parameter eq 65
+//!   fit puts its eye point about 1 in above the head the near-field fit finds).
 //! - Unknowns `x = [t, q]`: `t` = position of the T origin in N (inches), `q` = MRP of the
 //!   DCM `C(q)` mapping N components to T components. A beacon is at
 //!   `r_N = t + C(q)^T r_T`, and the LEDs' boresight (in T) turns with the target:
@@ -21,7 +23,8 @@
 //! # Models
 //!
 //! - [`ModelKind::Pinhole`]: eq 65 through [`crate::collinearity::Linearisation`] with the
-//!   calibration's `d, p, H` (analytic Jacobian: `dy/dt = -dy/dd`, and
+//!   calibration's `H` and its pinhole head's `d, p` ([`Calibration::pinhole`]; the
+//!   calibration's `d, p` when it has none) (analytic Jacobian: `dy/dt = -dy/dd`, and
 //!   `dy/dq_i = dy/dr . (dC/dq_i)^T r_T`, evaluated as `dy/dq = K ((C^T r_T) x dy/dr)`
 //!   with [`mrp::gradient_map`]).
 //! - [`ModelKind::NearField`]: the eq 60-63 emulator ([`Emulator`]) with the calibration's
@@ -39,7 +42,8 @@
 //! spots give, the status is [`PoseStatus::TooFewBeacons`]. Otherwise GLSDC starts from the
 //! previous good solution (warm start) or, without one, from the *cold start*: assume the
 //! target faces the sensor (`q = 0`), turn each whole spot into a pinhole line of sight
-//! `u_N = C^T (x/H, y/H, 1)` from the head at `d`, and solve the linear least-squares
+//! `u_N = C^T (x/H, y/H, 1)` from the head at `d` (for the pinhole model, its own eye's `d`
+//! and `C`), and solve the linear least-squares
 //! problem `(t + r_T - d) x u_N = 0` (3 unknowns, 2 independent equations per beacon) for
 //! `t`. Every residual has the same weight (unit: one multiplication less per Jacobian
 //! element on the chip); the stopping tolerances are in units of `noise^2` (noise from the
@@ -199,8 +203,26 @@ impl NearField {
     }
 }
 
+/// The pinhole model's own head pose: the `d, p` of a 7-parameter eq 65 fit (`d, p, H`,
+/// thesis eqs 64-66, at the far separations), which the [`ModelKind::Pinhole`] solve uses
+/// with [`Calibration::h`] when the calibration has it.
+///
+/// The pinhole fit's `d` is not the head's: it is the pinhole's eye point, which the fit
+/// moves about 1 in above the head to hold the near-field structure of the data (README,
+/// "virtual eye"). A calibration fitted with both models (`cta calibrate`) therefore has two
+/// head poses: the near-field fit's in [`Calibration::d`], [`Calibration::p`] (the head
+/// itself) and the pinhole fit's here. Solving eq 65 with the head's `d, p` and the pinhole
+/// fit's `H` reads ranges short (about 0.9 in at 12 in).
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
+pub struct PinholeHead {
+    /// N origin -> the pinhole's eye point, in N, inches (eq 65's `d`).
+    pub d: [f32; 3],
+    /// MRP of the pinhole's `C` (N -> O; eq 65's `p`).
+    pub p: [f32; 3],
+}
+
 /// The sensor calibration: the head on the board (eq 65's `d, p, H`), the measurement
-/// noise, and optionally the near-field parameters.
+/// noise, and optionally the near-field parameters and the pinhole model's own head pose.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
 pub struct Calibration {
     /// N origin -> head centre, in N, inches.
@@ -214,6 +236,11 @@ pub struct Calibration {
     pub noise: f32,
     /// Near-field parameters (when calibrated with the eq 63 physics).
     pub near_field: Option<NearField>,
+    /// The pinhole model's own `d, p` (eq 65, fitted with [`Self::h`]), when they differ from
+    /// the head's [`Self::d`], [`Self::p`]: [`ModelKind::Pinhole`] solves with them. `None`
+    /// (and a calibration file without it): the pinhole model uses `d, p`.
+    #[serde(default)]
+    pub pinhole: Option<PinholeHead>,
 }
 
 impl Calibration {
@@ -226,6 +253,7 @@ impl Calibration {
             h: 18918.6,
             noise: 32.768,
             near_field: Some(NearField::nominal()),
+            pinhole: None,
         }
     }
 }
@@ -253,6 +281,10 @@ pub enum CalField {
     Gain,
     /// Near-field cell offsets: each within +/-0.01 per square inch.
     Bias,
+    /// The pinhole model's own `d` ([`PinholeHead::d`]): as [`CalField::D`].
+    PinholeD,
+    /// The pinhole model's own `p` ([`PinholeHead::p`]): as [`CalField::P`].
+    PinholeP,
 }
 
 impl CalField {
@@ -269,6 +301,8 @@ impl CalField {
             CalField::PatternM => "near-field pattern exponent m (0 ..= 50)",
             CalField::Gain => "near-field cell gains (each -0.5 ..= 0.5)",
             CalField::Bias => "near-field cell offsets (each -0.01 ..= 0.01 per in^2)",
+            CalField::PinholeD => "pinhole d (each component finite, within +/-12 in)",
+            CalField::PinholeP => "pinhole p (MRP, finite, |p| <= 1)",
         }
     }
 }
@@ -369,12 +403,24 @@ impl Calibration {
     /// Check every field against its documented range.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let bad = |field| Err(ConfigError::CalibrationOutOfRange { field });
-        if !self.d.iter().all(|&v| in_range(v, -12.0, 12.0)) {
-            return bad(CalField::D);
-        }
-        let p2 = self.p.iter().map(|v| v * v).sum::<f32>();
-        if !(self.p.iter().all(|v| v.is_finite()) && p2 <= 1.0) {
-            return bad(CalField::P);
+        // The head, then the pinhole model's own (checked alike, named apart).
+        let heads = [
+            (Some((&self.d, &self.p)), CalField::D, CalField::P),
+            (
+                self.pinhole.as_ref().map(|h| (&h.d, &h.p)),
+                CalField::PinholeD,
+                CalField::PinholeP,
+            ),
+        ];
+        for (head, field_d, field_p) in heads {
+            let Some((d, p)) = head else { continue };
+            if !d.iter().all(|&v| in_range(v, -12.0, 12.0)) {
+                return bad(field_d);
+            }
+            let p2 = p.iter().map(|v| v * v).sum::<f32>();
+            if !(p.iter().all(|v| v.is_finite()) && p2 <= 1.0) {
+                return bad(field_p);
+            }
         }
         if !in_range(self.h, 1000.0, 200_000.0) {
             return bad(CalField::H);
@@ -410,7 +456,8 @@ impl Calibration {
 /// Which measurement model the solver uses.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ModelKind {
-    /// Eq 65 (far-field collinearity) with the calibration's `d, p, H`.
+    /// Eq 65 (far-field collinearity) with the calibration's `H` and its pinhole head
+    /// ([`Calibration::pinhole`]'s `d, p`; without one, the calibration's `d, p`).
     Pinhole,
     /// The eq 60-63 physics with the calibration's near-field parameters.
     NearField,
@@ -618,7 +665,15 @@ impl<T: Real> PoseSolver<T> {
             d: v3(&cal.d),
             p: v3(&cal.p),
         };
-        let params = Params::from_pose(&head_pose, T::lit(cal.h as f64));
+        // The pinhole model's eye: its own fitted d, p when the calibration has them.
+        let eye = match (settings.model, &cal.pinhole) {
+            (ModelKind::Pinhole, Some(ph)) => HeadPose {
+                d: v3(&ph.d),
+                p: v3(&ph.p),
+            },
+            _ => head_pose,
+        };
+        let params = Params::from_pose(&eye, T::lit(cal.h as f64));
         if settings.model == ModelKind::NearField {
             let nf = cal.near_field.unwrap_or(NearField::nominal());
             let [ax, ay] = nf.face_angles_deg().map(|a| rad(T::lit(a as f64)));
@@ -670,7 +725,7 @@ impl<T: Real> PoseSolver<T> {
         self.cal = params;
         self.lin = Linearisation::new(&params);
         self.boresight = v3::<T>(&con.boresight).normalize();
-        self.head_axis = mrp::dcm(&head_pose.p).row(2).transpose();
+        self.head_axis = mrp::dcm(&eye.p).row(2).transpose();
         self.noise2 = noise * noise;
         Ok(())
     }
@@ -1315,6 +1370,34 @@ mod tests {
                 field: CalField::Bias
             })
         );
+        // The pinhole head is checked as the head is, and named as its own.
+        cal = Calibration {
+            pinhole: Some(PinholeHead {
+                d: [0.6, 0.1, 1.1],
+                p: [0.0; 3],
+            }),
+            ..Calibration::table3()
+        };
+        assert_eq!(cal.validate(), Ok(()));
+        cal.pinhole.as_mut().unwrap().d[2] = f32::NAN;
+        let e = cal.validate().unwrap_err();
+        assert_eq!(
+            e,
+            ConfigError::CalibrationOutOfRange {
+                field: CalField::PinholeD
+            }
+        );
+        assert!(e.to_string().contains("pinhole d ("), "{e}");
+        cal.pinhole.as_mut().unwrap().d[2] = 1.1;
+        cal.pinhole.as_mut().unwrap().p = [0.8, 0.8, 0.0];
+        let e = cal.validate().unwrap_err();
+        assert_eq!(
+            e,
+            ConfigError::CalibrationOutOfRange {
+                field: CalField::PinholeP
+            }
+        );
+        assert!(e.to_string().contains("pinhole p ("), "{e}");
     }
 
     /// Solve a noise-free frame at `t` of a head whose cells have `truth`'s face angles,
@@ -1487,6 +1570,67 @@ mod tests {
         let m = Vector3::new(sol.mrp.x as f64, sol.mrp.y as f64, sol.mrp.z as f64);
         assert!((p - t).norm() < 2e-3, "{sol:?}");
         assert!((m - q).norm() < 1e-4, "{sol:?}");
+    }
+
+    /// A calibration's pinhole head (the eq 65 fit's own eye point, about 1 in above the
+    /// head) is what the pinhole model solves with; the near-field model ignores it. Spots
+    /// of the pinhole model with that eye at 12 in: solved exactly with it, and 1 in short
+    /// with the head's `d, p` (the file `cta calibrate` wrote before it held the eye).
+    #[test]
+    fn pinhole_head_is_the_pinhole_models_eye() {
+        let con = cta_constellation();
+        let pinhole = SolverSettings {
+            model: ModelKind::Pinhole,
+            ..Default::default()
+        };
+        let eye = PinholeHead {
+            d: [0.61, 0.09, 1.14],
+            p: [0.0015, 0.0025, 0.0008],
+        };
+        let as_head = Calibration {
+            d: eye.d,
+            p: eye.p,
+            ..Calibration::table3()
+        };
+        let truth = PoseSolver::<f64>::new(&as_head, &con, pinhole).unwrap();
+        let (_, q) = target();
+        let t = Vector3::new(0.3, -0.2, 12.0);
+        let x = SVector::<f64, 6>::new(t.x, t.y, t.z, q.x, q.y, q.z);
+        let spots: std::vec::Vec<Spot> = con
+            .beacons
+            .iter()
+            .map(|b| {
+                let y = truth.predict(&x, &v3(&b.r)).unwrap();
+                Spot {
+                    id: b.id,
+                    x: y[0].round() as i16,
+                    y: y[1].round() as i16,
+                    magnitude: 9000,
+                }
+            })
+            .collect();
+        let with = Calibration {
+            pinhole: Some(eye),
+            ..Calibration::table3()
+        };
+        let sol = PoseSolver::<f64>::new(&with, &con, pinhole)
+            .unwrap()
+            .solve(&spots);
+        assert_eq!(sol.status, PoseStatus::Ok, "{sol:?}");
+        assert!((sol.position - t).norm() < 2e-3, "{sol:?}");
+        let without = PoseSolver::<f64>::new(&Calibration::table3(), &con, pinhole)
+            .unwrap()
+            .solve(&spots);
+        assert!(t.z - without.position.z > 0.9, "{without:?}");
+        // The near-field model solves with the head: the pinhole head changes nothing.
+        let em = truth_emulator();
+        let nf_spots = simulate_spots(&em, &con, &t, &q, |_| 0.0);
+        let nf = |cal: &Calibration| {
+            PoseSolver::<f64>::new(cal, &con, SolverSettings::default())
+                .unwrap()
+                .solve(&nf_spots)
+        };
+        assert_eq!(nf(&with), nf(&Calibration::table3()));
     }
 
     #[test]

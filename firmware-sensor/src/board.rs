@@ -28,9 +28,10 @@ pub const TX_FRAME: usize = 512;
 pub const RX_FRAME: usize = 512;
 
 /// Size of the chip's PC-link transmit queue (a `heapless::spsc::Queue`, which holds one
-/// byte less): the widest reply, the configuration read-back (344 bytes framed), fits with
-/// a pose report beside it (a test checks every reply's widest encoding fits).
-pub const TX_QUEUE: usize = 384;
+/// byte less): the widest reply, the configuration read-back (390 bytes framed with a full
+/// constellation and a calibration holding the near-field part and the pinhole head), fits
+/// (a test checks every reply's widest encoding fits).
+pub const TX_QUEUE: usize = 400;
 
 /// Save a configuration to flash from borrowed parts; returns the new generation.
 /// `(calibration, constellation)` serialises exactly as [`Stored`] (postcard writes a
@@ -424,16 +425,31 @@ mod tests {
     use cta_core::wire::MAX_FRAME;
     use std::vec::Vec;
 
+    /// A calibration with every optional part present (its widest encoding: postcard's
+    /// floats have a fixed size).
+    fn widest_calibration() -> Calibration {
+        Calibration {
+            near_field: Some(cta_core::pose::NearField {
+                alpha_y_deg: Some(30.0),
+                ..cta_core::pose::NearField::nominal()
+            }),
+            pinhole: Some(cta_core::pose::PinholeHead {
+                d: [0.6, 0.1, 1.1],
+                p: [0.001, 0.002, 0.001],
+            }),
+            ..Calibration::table3()
+        }
+    }
+
     #[test]
     fn the_largest_request_fits_the_receive_buffer() {
         // A full constellation (every beacon, every field at its widest encoding) and a
-        // calibration with near-field parameters.
+        // calibration with every optional part.
         let mut con = cta_core::pose::four_array_constellation();
         for b in con.beacons.iter_mut() {
             b.r = [-1.0e30, 1.0e-30, f32::MAX];
         }
-        let mut cal = Calibration::table3();
-        cal.near_field = Some(cta_core::pose::NearField::nominal());
+        let cal = widest_calibration();
         let mut buf = [0u8; MAX_FRAME];
         for req in [
             SensorRequest::LoadConstellation(con),
@@ -454,14 +470,13 @@ mod tests {
     #[test]
     fn the_largest_replies_fit_the_transmit_queue() {
         // Every reply at its widest encoding: the configuration read-back (a full
-        // constellation and a near-field calibration), a stream report with every spot at
+        // constellation and a calibration with every optional part), a stream report with every spot at
         // its extremes, a status with every counter saturated.
         let mut con = cta_core::pose::four_array_constellation();
         for b in con.beacons.iter_mut() {
             b.r = [-1.0e30, 1.0e-30, f32::MAX];
         }
-        let mut cal = Calibration::table3();
-        cal.near_field = Some(cta_core::pose::NearField::nominal());
+        let cal = widest_calibration();
         let config = SensorResponse::Config(SensorConfig {
             generation: u32::MAX,
             calibration: Some(cal),
@@ -729,6 +744,66 @@ mod tests {
             }
             other => panic!("expected a pose, got {other:?}"),
         }
+    }
+
+    /// The calibration's pinhole head is kept in flash with the rest, and a record of
+    /// format 3 (written before the calibration held it) is ignored: the board starts
+    /// unconfigured, as firmware-sensor/README.md says, instead of reading the old bytes as
+    /// the new type.
+    #[test]
+    fn pinhole_head_survives_a_reset_and_an_older_record_is_ignored() {
+        let mut b = Board::new(RamFlash::default(), false);
+        let mut io = FakeIo::default();
+        let cal = widest_calibration();
+        let con = cta_constellation();
+        let load = SensorRequest::LoadCalibration(cal);
+        assert_eq!(request(&mut b, &mut io, 1, load), Ok(Response::Ack));
+        let load = SensorRequest::LoadConstellation(con.clone());
+        assert_eq!(request(&mut b, &mut io, 2, load), Ok(Response::Ack));
+        let b = Board::new(b.flash.clone(), false);
+        assert_eq!(b.stored().calibration, Some(cal));
+
+        // Format 3's calibration: the same fields without the pinhole head.
+        #[derive(Serialize, Deserialize)]
+        struct CalibrationV3 {
+            d: [f32; 3],
+            p: [f32; 3],
+            h: f32,
+            noise: f32,
+            near_field: Option<cta_core::pose::NearField>,
+        }
+        type StoredV3 = (Option<CalibrationV3>, Option<Constellation>);
+        let t = Calibration::table3();
+        let old: StoredV3 = (
+            Some(CalibrationV3 {
+                d: t.d,
+                p: t.p,
+                h: t.h,
+                noise: t.noise,
+                near_field: t.near_field,
+            }),
+            Some(con),
+        );
+        let mut flash = RamFlash::default();
+        storage::save(&mut flash, &old).unwrap();
+        // The header as format 3 wrote it: version 3, its CRC.
+        let page = &mut flash.pages[0];
+        page[4..6].copy_from_slice(&3u16.to_le_bytes());
+        let n = usize::from(u16::from_le_bytes([page[6], page[7]]));
+        let crc = cta_core::wire::CRC.checksum(&page[..12 + n]);
+        page[12 + n..16 + n].copy_from_slice(&crc.to_le_bytes());
+        // Refused by its version, even to a reader of its own layout.
+        assert!(storage::load::<StoredV3, _>(&flash).is_none());
+        let mut b = Board::new(flash, false);
+        assert_eq!(b.stored(), &Stored::default());
+        let pose = SensorRequest::SetMode(Mode::Pose(ModelKind::Pinhole));
+        assert_eq!(
+            request(&mut b, &mut io, 3, pose),
+            Err(ErrorReply::Board(SensorError::NotConfigured {
+                calibration: false,
+                constellation: false
+            }))
+        );
     }
 
     /// A detector that missed the start-up commands (it booted later) reports its own

@@ -23,7 +23,7 @@
 use serde::{de::DeserializeOwned, Serialize};
 
 /// Record format version; bump when the stored types change.
-pub const FORMAT_VERSION: u16 = 3;
+pub const FORMAT_VERSION: u16 = 4;
 /// Largest record (header + payload + CRC), bytes. Fits one 1 KiB page of the F103x8.
 pub const MAX_RECORD: usize = 512;
 const HEADER: usize = 12;

@@ -630,6 +630,7 @@ pub fn calibrate(
             pattern_m: pattern_m as f32,
             ..NearField::nominal()
         }),
+        pinhole: None,
     };
 
     // 2. Near field, from the pinhole fit (REFERENCE.md). When that start fails or leaves

@@ -168,7 +168,10 @@ pub enum SensorCommand {
     /// `s` the cells' offset from the head centre (in), `beta` the output scale (counts),
     /// `pattern_m` the LED pattern exponent (cos^m; 1 Lambertian, from the datasheet), `gain`
     /// cells 1 and 3's gain minus 1 against their pair, `bias` their offsets (1/in^2, as a
-    /// signal). Out-of-range values are refused by the board, naming the field.
+    /// signal); `pinhole` (null: the pinhole model uses `d` and `p`): the pinhole model's own
+    /// `d` and `p`, fitted with `h` (eq 65; `cta calibrate` writes its pinhole fit's, whose eye
+    /// point sits about 1 in above the head). Out-of-range values are refused by the board,
+    /// naming the field.
     ///
     /// Constellation fields: `beacons`, each an `id` (the NorthStar channel, 0-19) and its
     /// position `r` (in, target frame); `boresight` the direction the LEDs face (target
@@ -1435,6 +1438,7 @@ pub fn pinhole_calibration(truth: &Calibration, plate: Plate) -> Result<Calibrat
         h: collinearity::ParamsExt::h(&x) as f32,
         noise: truth.noise,
         near_field: None,
+        pinhole: None,
     })
 }
 

@@ -518,6 +518,29 @@ fn board_files_with_unknown_keys_or_shared_channels_are_refused() {
         &cta(&["sensor", "--sim", "load-calibration", &typo]),
         &["unknown key `near_field.gains`", "`gain`"],
     );
+    // The pinhole model's own head (`pinhole`): a file without the key (written before the
+    // calibration held it) loads; one with it loads, and is checked as the head is, by name.
+    let mut v: serde_json::Value = serde_json::from_str(&cal).unwrap();
+    assert!(v["pinhole"].is_null(), "{cal}");
+    v.as_object_mut().unwrap().remove("pinhole");
+    let old = file("old.json", &v.to_string());
+    ok(&cta(&["sensor", "--sim", "load-calibration", &old]));
+    v["pinhole"] = serde_json::json!({"d": [0.6, 0.1, 1.1], "p": [0.001, 0.002, 0.001]});
+    let eye = file("eye.json", &v.to_string());
+    ok(&cta(&["sensor", "--sim", "load-calibration", &eye]));
+    v["pinhole"]["d"][2] = 40.0.into();
+    let far = file("far.json", &v.to_string());
+    fails_with(
+        &cta(&["sensor", "--sim", "load-calibration", &far]),
+        &["pinhole d (each component finite, within +/-12 in)"],
+    );
+    v["pinhole"]["d"][2] = 1.1.into();
+    v["pinhole"]["h"] = 18900.0.into();
+    let typo = file("eye-typo.json", &v.to_string());
+    fails_with(
+        &cta(&["sensor", "--sim", "load-calibration", &typo]),
+        &["unknown key `pinhole.h`", "`d`, `p`"],
+    );
     let con = ok(&cta(&["sensor", "template", "constellation"]));
     let typo = file("con.json", &con.replacen("\"id\"", "\"ID\"", 1));
     fails_with(

@@ -59,7 +59,7 @@ pub mod sensor;
 
 /// Version of this wire protocol; bumped on any incompatible change of the framing,
 /// the envelope or a board's messages.
-pub const PROTOCOL_VERSION: u16 = 4;
+pub const PROTOCOL_VERSION: u16 = 5;
 
 /// Sequence number meaning "unknown": used in replies to frames whose header could not be
 /// read. Hosts never use it for a request.
