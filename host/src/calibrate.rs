@@ -6,7 +6,8 @@
 //!
 //! 1. **Pinhole** (eq 65, `d, p, H`; [`crate::fit::fit_observations`]) on the far separations
 //!    (25 and 30 in when the file has them, or measured values within 0.1 in, else its two
-//!    largest): the chip's `pinhole` model and the near-field fit's start. Its point means are
+//!    largest): the chip's `pinhole` model (its `H`, and its `d, p` as the calibration's
+//!    [`Calibration::pinhole`]) and the near-field fit's start. Its point means are
 //!    weighted as the near-field fit's below (`cta fit --weights pooled`), and its chi2/dof is
 //!    printed.
 //! 2. **Near-field** (eqs 60-63, `d, p`, the face angle `a`, the cell offset `s`, the cell
@@ -34,7 +35,7 @@ use clap::Args;
 use cta_core::collinearity::{self, ParamsExt};
 use cta_core::emulator::{Emulator, Head, Pose as HeadPose};
 use cta_core::glsdc::{self, Settings};
-use cta_core::pose::{Calibration, NearField};
+use cta_core::pose::{Calibration, NearField, PinholeHead};
 use nalgebra::{DVector, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -223,7 +224,8 @@ pub const STRONG_CORRELATION: f64 = 0.8;
 /// Fit `d, p, a, s` (and when `extended` the cells' gains and offsets and the Y pair's own
 /// face angle) of the eq 60-63 model to `obs` (weights absolute), starting from `start`'s
 /// `d, p` and near-field parameters (nominal when it has none); `start`'s `beta`, beacon
-/// pattern, `H` and `noise` are kept. Not extended, both pairs share the face angle.
+/// pattern, `H`, `noise` and pinhole head ([`Calibration::pinhole`]) are kept. Not extended,
+/// both pairs share the face angle.
 pub fn fit_near_field(
     obs: &[NfObs],
     start: &Calibration,
@@ -322,7 +324,9 @@ fn strong_correlations(cov: &nalgebra::DMatrix<f64>) -> Vec<(String, String, f64
 the JSON file `cta sensor load-calibration` stores in the board's flash.\n\n\
 Two fits: the pinhole model (eq 65: d, p, H) on the far separations, then the near-field model \
 (eqs 60-63: d, p, the face angles of both pairs, cell offset s, cell gains gx, gy, cell offsets \
-bx, by) on every separation, started from it. Repeated samples are averaged per point and weighted by their noise, pooled per separation and axis. The \
+bx, by) on every separation, started from it. The file holds both: the near-field fit's d, p (the \
+head) and the pinhole fit's own (`pinhole`: its eye point, about 1 in above the head), which the \
+chip's pinhole model uses with H. Repeated samples are averaged per point and weighted by their noise, pooled per separation and axis. The \
 report gives every parameter with its 1-sigma, the residual RMS per separation of both models (what \
 the near-field model gains on this sensor), and warns when the data hold structure the chip's \
 model cannot represent (then run `cta analyze` on the same file).\n\n\
@@ -389,7 +393,8 @@ pub struct Provenance {
     /// Separations of the pinhole fit, inches.
     pub pinhole_separations: Vec<f64>,
     /// 1-sigma by parameter (`d1..3` in, `p1..3`, `a` and `ay` deg, `s` in, `gx, gy`,
-    /// `bx, by` /in^2, `H` counts).
+    /// `bx, by` /in^2, `H` counts, and the pinhole fit's `pinhole.d1..3` in, `pinhole.p1..3`;
+    /// the last absent in files written before the calibration held the pinhole head).
     pub sigma: BTreeMap<String, f64>,
     /// Near-field fit chi-square per degree of freedom.
     pub chi2_dof: f64,
@@ -613,24 +618,29 @@ pub fn calibrate(
     };
     if let Some(w) = fit::chi2_warning(&ph, &all.path, None) {
         ph.warnings.push(format!(
-            "the pinhole stage at {} in: {w} Its H is what the chip's `pinhole` model uses; the \
-             near-field stage (its chi2/dof above) is judged on its own.",
+            "the pinhole stage at {} in: {w} Its d, p and H are what the chip's `pinhole` model \
+             uses; the near-field stage (its chi2/dof above) is judged on its own.",
             fmt_list(&ph.separations)
         ));
     }
     ph.warnings.extend(wiring::h_warning(all, ph.x().h()));
     let pinhole_chi2_dof = ph.chi2_per_dof.unwrap_or(f64::NAN);
     let xp = ph.x();
+    let d = [xp[0], xp[1], xp[2]].map(|v| v as f32);
+    let p = [xp[3], xp[4], xp[5]].map(|v| v as f32);
+    // The pinhole fit's own d, p go into the file with its H (the chip's `pinhole` model):
+    // its eye point is not the head the near-field fit finds (README, "virtual eye"). The
+    // near-field fit keeps them (it replaces d, p only).
     let start = Calibration {
-        d: [xp[0], xp[1], xp[2]].map(|v| v as f32),
-        p: [xp[3], xp[4], xp[5]].map(|v| v as f32),
+        d,
+        p,
         h: xp.h() as f32,
         noise: noise as f32,
         near_field: Some(NearField {
             pattern_m: pattern_m as f32,
             ..NearField::nominal()
         }),
-        pinhole: None,
+        pinhole: Some(PinholeHead { d, p }),
     };
 
     // 2. Near field, from the pinhole fit (REFERENCE.md). When that start fails or leaves
@@ -793,6 +803,9 @@ pub fn calibrate(
         .map(|(n, s)| (n.to_string(), s))
         .collect();
     sigma.insert("H".into(), ph.sigma["H"]);
+    for n in ["d1", "d2", "d3", "p1", "p2", "p3"] {
+        sigma.insert(format!("pinhole.{n}"), ph.sigma[n]);
+    }
     Ok(CalibrationReport {
         file: CalibrationFile {
             calibration: cal,
@@ -964,6 +977,25 @@ fn print_report(rep: &CalibrationReport, out: Option<Option<&Path>>) {
         fmt_list(&f.pinhole_separations),
         rep.pinhole_chi2_dof,
     );
+    if let Some(ph) = &c.pinhole {
+        let v = |a: &[f32; 3], n: &str| {
+            (0..3)
+                .map(|k| {
+                    let (v, s) = pm(a[k], &format!("pinhole.{n}{}", k + 1));
+                    format!("{v} ± {s}")
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        println!(
+            "    its d = {} in (its eye point, not the head: README, \"virtual eye\")",
+            v(&ph.d, "d")
+        );
+        println!("    its p = {}", v(&ph.p, "p"));
+        println!(
+            "    (in the file as `pinhole`: the chip's pinhole model uses this d, p with this H)"
+        );
+    }
     println!("  near-field (eqs 60-63), started from it:");
     let row = |n: &str, v: f32, unit: &str, what: &str| {
         let (v, s) = pm(v, n);

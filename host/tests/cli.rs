@@ -497,6 +497,15 @@ fn calibrate_writes_what_the_board_loads() {
     }
     near(&f["near_field"]["alpha_deg"], 30.0, "a");
     near(&f["near_field"]["s"], 0.175, "s");
+    // The pinhole fit's own d, p, for the chip's pinhole model: its eye point, about 1 in
+    // above the head (README, "virtual eye"), with its 1-sigma.
+    let eye = |k: usize| f["pinhole"]["d"][k].as_f64().unwrap();
+    assert!(
+        eye(2) - f["d"][2].as_f64().unwrap() > 0.8,
+        "{}",
+        f["pinhole"]
+    );
+    assert!(sigma("pinhole.d3") > 0.0 && sigma("pinhole.p3") > 0.0);
     assert_eq!(
         f["fitted"]["pinhole_separations"],
         serde_json::json!([25.0, 30.0])
@@ -547,6 +556,11 @@ fn calibrate_writes_what_the_board_loads() {
     let (line, s_d1) = row("d1");
     let (v, sd) = cta_host::analyze::digits::pm_parts(f["d"][0].as_f64().unwrap(), s_d1);
     assert!(line.contains(&format!("{v} ± {sd}")), "{line}");
+    let (v, sd) = cta_host::analyze::digits::pm_parts(eye(2), sigma("pinhole.d3"));
+    assert!(
+        text.contains("its d = ") && text.contains(&format!("{v} ± {sd} in")),
+        "{text}"
+    );
     let plot = std::fs::read_to_string(&svg).unwrap();
     assert!(
         plot.contains("<svg") && plot.contains("near-field"),

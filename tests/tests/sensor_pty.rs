@@ -335,3 +335,68 @@ fn an_out_of_view_target_is_never_ok() {
         assert!(ps.iter().all(|p| p.position.iter().all(|v| v.is_finite())));
     }
 }
+
+/// `cta calibrate` fits two models and the file holds both head poses: the near-field fit's
+/// `d, p` (the head) and, as `pinhole`, the eq 65 fit's own (its eye point, about 1 in above
+/// the head: README, "virtual eye"), which the board's pinhole model solves with, with the
+/// same fit's `H`. At 12 in its range is then right; with the pinhole head dropped (the file
+/// before it held one) the board solved eq 65 from the head with the pinhole's `H`, and read
+/// the range about 0.9 in short.
+#[test]
+fn the_boards_pinhole_pose_uses_the_pinhole_fits_eye() {
+    use cta_host::calibrate::calibrate;
+    use cta_host::simulate::SimConfig;
+    let sweep = SimConfig {
+        separations: (1..=15).map(|k| 2.0 * k as f64).chain([25.0]).collect(),
+        noise: 32.8,
+        samples: 4,
+        seed: 5,
+        ..Default::default()
+    };
+    let (ds, _) = sweep.try_run().unwrap();
+    let fitted = calibrate(&ds, &ds, None, None, 1.0)
+        .unwrap()
+        .file
+        .calibration;
+    let eye = fitted
+        .pinhole
+        .expect("calibrate writes the pinhole fit's d, p");
+    let truth = Calibration::table3();
+    assert!((fitted.d[2] - truth.d[2]).abs() < 0.01, "{fitted:?}");
+    assert!(eye.d[2] - fitted.d[2] > 0.8, "{fitted:?}");
+
+    let t = Vector3::new(0.2, -0.1, 12.0);
+    let q = mrp::from_axis_angle(&Vector3::new(0.2, 0.3, 1.0), 2f64.to_radians());
+    let range = |cal: Calibration| -> f64 {
+        let mut ns = SimNorthStar::new(&truth, cta_constellation(), t, q, 32.768, 3);
+        ns.rate_hz = 50;
+        let sim = SimBoard::spawn(ns).unwrap();
+        let mut l = connect(&sim);
+        l.call(SensorRequest::LoadCalibration(cal)).unwrap();
+        l.call(SensorRequest::LoadConstellation(cta_constellation()))
+            .unwrap();
+        // Read back as loaded: the pinhole head went through the wire and the flash.
+        match l.call(SensorRequest::GetConfig).unwrap() {
+            Some(SensorResponse::Config(c)) => assert_eq!(c.calibration, Some(cal)),
+            other => panic!("{other:?}"),
+        }
+        l.call(SensorRequest::SetMode(Mode::Pose(ModelKind::Pinhole)))
+            .unwrap();
+        let ps = poses(&mut l, 12);
+        l.call(SensorRequest::SetMode(Mode::Idle)).unwrap();
+        let ok: Vec<_> = ps[2..]
+            .iter()
+            .filter(|p| p.status == PoseStatus::Ok)
+            .collect();
+        assert!(ok.len() >= 8, "{ps:?}");
+        ok.iter().map(|p| p.position[2] as f64).sum::<f64>() / ok.len() as f64
+    };
+    let with = range(fitted);
+    let without = range(Calibration {
+        pinhole: None,
+        ..fitted
+    });
+    eprintln!("range at 12 in: {with:.3} with the pinhole head, {without:.3} without");
+    assert!((with - t.z).abs() < 0.1, "with the pinhole head: {with} in");
+    assert!(t.z - without > 0.6, "without: {without} in");
+}
