@@ -26,8 +26,8 @@ use cta_core::emulator::{Emulator, Head, Pose as HeadPose};
 use cta_core::glsdc::{self, Settings};
 use cta_core::mrp;
 use cta_core::pose::{
-    cta_constellation, simulate_spots, Calibration, ModelKind, NearField, PoseSolver, PoseStatus,
-    SolverSettings, Spot,
+    cta_constellation, simulate_spots, Calibration, ModelKind, NearField, PinholeHead, PoseSolver,
+    PoseStatus, SolverSettings, Spot,
 };
 use cta_core::real::rad;
 use cta_core::wire::sensor::{
@@ -134,7 +134,8 @@ impl From<ModelArg> for ModelKind {
 /// Which template to print.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum TemplateKind {
-    /// The Table 3 calibration with nominal near-field parameters.
+    /// The simulated CTA's calibration, to edit: the Table 3 truth head, nominal near-field
+    /// parameters, and the pinhole model's own eye point and H fitted at 25 and 30 in.
     Calibration,
     /// The 10-beacon CTA constellation.
     Constellation,
@@ -365,7 +366,8 @@ pub struct SimArgs {
     /// Stop after this many seconds (above 0; default: until Ctrl-C).
     #[arg(long, allow_negative_numbers = true)]
     pub seconds: Option<f64>,
-    /// Load the Table 3 calibration and the CTA constellation at start.
+    /// Load the simulated CTA's calibration (the Table 3 truth head, nominal near-field
+    /// parameters, the pinhole model's own eye point) and the CTA constellation at start.
     #[arg(long)]
     pub configured: bool,
 }
@@ -581,7 +583,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
         }
         SensorCommand::Template { kind, name } => {
             let text = match kind {
-                TemplateKind::Calibration => serde_json::to_string_pretty(&Calibration::table3())?,
+                TemplateKind::Calibration => serde_json::to_string_pretty(&sim_calibration()?)?,
                 TemplateKind::Constellation => {
                     let con = built_in_constellation(name)?;
                     serde_json::to_string_pretty(&con)?
@@ -624,7 +626,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
         .with_context(|| format!("identifying the board on {path}"))?;
     if sim.is_some() {
         // The in-process board starts with empty flash: load the defaults.
-        link.call(SensorRequest::LoadCalibration(Calibration::table3()))?;
+        link.call(SensorRequest::LoadCalibration(sim_calibration()?))?;
         link.call(SensorRequest::LoadConstellation(cta_constellation()))?;
     }
     match &args.command {
@@ -1045,7 +1047,7 @@ fn run_sim(args: &SimArgs) -> Result<()> {
     if args.configured {
         let port = open_serial(sim.path())?;
         let mut link = Link::<SensorProtocol, _>::new(port, LinkConfig::default());
-        link.call(SensorRequest::LoadCalibration(Calibration::table3()))?;
+        link.call(SensorRequest::LoadCalibration(sim_calibration()?))?;
         link.call(SensorRequest::LoadConstellation(cta_constellation()))?;
     }
     println!("simulated sensor board on {}", sim.path());
@@ -1406,6 +1408,20 @@ impl AccuracyTable {
         }
         Ok(())
     }
+}
+
+/// The calibration the simulated boards start with (`--sim`, `sensor sim --configured`) and
+/// `cta sensor template calibration` prints: the Table 3 truth head and the nominal
+/// near-field parameters the simulated NorthStar has, with the pinhole model's own eye point
+/// `d, p` and its `H` from [`pinhole_calibration`] on the CTA grid, as `cta calibrate` writes
+/// them. (With the true head's `d, p` and the nominal `H`, the pinhole pose would read ranges
+/// about 1 in short at 12 in.)
+pub fn sim_calibration() -> Result<Calibration> {
+    let mut cal = Calibration::table3();
+    let ph = pinhole_calibration(&cal, Plate::One)?;
+    cal.h = ph.h;
+    cal.pinhole = Some(PinholeHead { d: ph.d, p: ph.p });
+    Ok(cal)
 }
 
 /// The 7-parameter pinhole calibration fitted (GLSDC, eq 65) to noise-free eq 63 data of

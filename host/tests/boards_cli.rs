@@ -520,8 +520,11 @@ fn board_files_with_unknown_keys_or_shared_channels_are_refused() {
     );
     // The pinhole model's own head (`pinhole`): a file without the key (written before the
     // calibration held it) loads; one with it loads, and is checked as the head is, by name.
+    // The template is the simulated CTA's calibration, with the pinhole fit's eye point
+    // about 1 in above the head.
     let mut v: serde_json::Value = serde_json::from_str(&cal).unwrap();
-    assert!(v["pinhole"].is_null(), "{cal}");
+    let eye_d3 = v["pinhole"]["d"][2].as_f64().unwrap();
+    assert!(eye_d3 > v["d"][2].as_f64().unwrap() + 0.8, "{cal}");
     v.as_object_mut().unwrap().remove("pinhole");
     let old = file("old.json", &v.to_string());
     ok(&cta(&["sensor", "--sim", "load-calibration", &old]));
@@ -654,4 +657,22 @@ fn ctrl_c_during_pose_leaves_the_board_idle() {
             .any(|l| l.starts_with("mode") && l.contains("Idle")),
         "{status}"
     );
+}
+
+/// The `--sim` board starts with the simulated CTA's calibration, the pinhole fit's own eye
+/// point among it, so its pinhole pose of the target at 12 in reads about 12 in (with the
+/// head's `d, p` and the nominal H it read 10.96 in, 1 in short, status Ok).
+#[test]
+fn the_sim_boards_pinhole_pose_reads_the_range() {
+    for model in ["pinhole", "near-field"] {
+        let out = ok(&cta(&[
+            "sensor", "--sim", "pose", "--model", model, "--count", "2", "--json",
+        ]));
+        for line in out.lines() {
+            let v: serde_json::Value = serde_json::from_str(line).unwrap();
+            assert_eq!(v["status"], "Ok", "{line}");
+            let z = v["position"][2].as_f64().unwrap();
+            assert!((z - 12.0).abs() < 0.2, "{model}: z {z}: {line}");
+        }
+    }
 }
