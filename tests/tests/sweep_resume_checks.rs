@@ -8,6 +8,8 @@
 
 use std::path::{Path, PathBuf};
 
+use cta_host::sweep::plan::Plan;
+use cta_host::sweep::store::{Event, RunDir};
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{
     child, child_paths, journal, journal_field, resume_args, sweep_args, write_plan, TestDir,
@@ -517,4 +519,57 @@ fn without_a_journalled_plan_a_given_plan_is_checked_against_plan_toml() {
         last_session(&run)
     );
     assert_eq!(read(&run.join("plan.toml")), with_timing("retries = 3"));
+}
+
+#[test]
+fn a_journal_with_the_older_spread_loads_and_resumes_with_the_ch_iv_uncertainty() {
+    // Earlier versions journalled each separation's `spread`, the corners' standard deviation;
+    // the uncertainty is now Ch IV's (the largest difference between a corner and the mean).
+    // Such a run still resumes, and its separations carry the uncertainty derived from their
+    // corners, not the old value (a sentinel here, to be sure it is not carried over).
+    let (_dir, run) = complete_run("older-spread");
+    crash_after(&run, 20);
+    let jp = run.join("journal.jsonl");
+    let mut separations = 0;
+    let old: String = read(&jp)
+        .lines()
+        .map(|l| {
+            let Some(a) = l.find(",\"uncertainty\":") else {
+                return format!("{l}\n");
+            };
+            separations += 1;
+            let b = a + l[a..].find(",\"source\"").unwrap();
+            format!("{},\"spread\":0.123456{}\n", &l[..a], &l[b..])
+        })
+        .collect();
+    assert!(separations > 0 && !old.contains("uncertainty"), "{old}");
+    std::fs::write(&jp, &old).unwrap();
+    let plan = Plan::load(&run.join("plan.toml")).unwrap();
+    let store = RunDir::open(&run, false, &plan).unwrap();
+    let mut seen = 0;
+    for e in &store.events {
+        if let Event::Separation(s) = e {
+            seen += 1;
+            assert_eq!(s.corners.len(), 4, "{s:?}");
+            let m = s.corners.iter().sum::<f64>() / 4.0;
+            let bound = s.corners.iter().map(|c| (c - m).abs()).fold(0.0, f64::max);
+            assert!(
+                bound > 0.0 && (s.uncertainty - bound).abs() < 1e-12,
+                "{s:?}"
+            );
+        }
+    }
+    assert_eq!(seen, separations);
+    drop(store);
+    assert_eq!(resume(&run).unwrap().ending, Ending::Complete);
+    let manifest = read(&run.join("manifest.json"));
+    assert!(
+        manifest.contains("\"uncertainty\"")
+            && !manifest.contains("spread")
+            && !manifest.contains("\"uncertainty\": 0.123456"),
+        "{manifest}"
+    );
+    // The journal is never rewritten: its older lines keep what they said.
+    let j = read(&jp);
+    assert!(j.starts_with(&old), "{j}");
 }

@@ -270,9 +270,9 @@ impl Operator for Prompt {
     ) -> Result<SeparationEntry> {
         if let Some(prev) = previous {
             let a = self.ask(&format!(
-                "\nResuming at separation {} in (recorded {:.4} in from corners {:?}). Is the plate \
-                 still there? [Y = yes / n = measure again] ",
-                p.separation, prev.mean, prev.corners
+                "\nResuming at separation {} in (recorded {:.4} +/- {:.4} in from corners {:?}). Is \
+                 the plate still there? [Y = yes / n = measure again] ",
+                p.separation, prev.mean, prev.uncertainty, prev.corners
             ))?;
             if !a.to_lowercase().starts_with('n') {
                 return Ok(prev.clone());

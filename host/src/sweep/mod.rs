@@ -42,8 +42,8 @@ host/plans/) lists the separations, beacons, frequencies, power levels, sensitiv
 settle time and timeouts. For every point the beacon board lights one LED, the sensor board streams NorthStar \
 reports, and the samples are appended to RUN_DIR/data.csv (the measurement format of host/MEASUREMENTS.md) and \
 synced to disk before the point is journalled. The run asks the operator to move the plate (entering the four \
-corner measurements: their mean is recorded as the separation, their spread as its uncertainty) and to flip the \
-power switches; --yes runs without asking.\n\n\
+corner measurements: their mean is recorded as the separation, and the larger of its differences from the \
+highest and the lowest corner as its uncertainty, Ch IV) and to flip the power switches; --yes runs without asking.\n\n\
 Nothing is lost and nothing is written twice: after Ctrl-C, a killed process or a power cut, \
 `cta sweep --resume RUN_DIR` continues with the next point. An unplugged or silent board pauses the run, which \
 retries with backoff and continues when the board is back. Every fault and retry is in RUN_DIR/journal.jsonl \

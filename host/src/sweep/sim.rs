@@ -51,7 +51,7 @@ use serde::{Deserialize, Serialize};
 use serialport::{SerialPort, TTYPort};
 
 use super::plan::{Layout, Plan};
-use super::store::SeparationEntry;
+use super::store::{corner_mean, corner_uncertainty, SeparationEntry};
 use crate::effects::Effect;
 use crate::simulate::{SimConfig, Truth};
 
@@ -808,27 +808,68 @@ fn round3(x: f64) -> f64 {
     (x * 1000.0).round() / 1000.0
 }
 
-/// A separation entry from corner readings: mean (rounded to 0.1 mil) and sample spread.
+/// A separation entry from corner readings: their mean (rounded to 0.1 mil) and its Ch IV
+/// uncertainty, the largest difference between a reading and the mean
+/// ([`corner_uncertainty`]).
 pub fn separation_entry(
     sep_idx: usize,
     nominal: f64,
     corners: Vec<f64>,
     source: String,
 ) -> SeparationEntry {
-    let (mean, spread) = if corners.is_empty() {
+    let (mean, uncertainty) = if corners.is_empty() {
         (nominal, 0.0)
     } else {
-        let n = corners.len() as f64;
-        let m = corners.iter().sum::<f64>() / n;
-        let v = corners.iter().map(|c| (c - m).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
-        ((m * 1e4).round() / 1e4, v.sqrt())
+        let m = corner_mean(&corners);
+        ((m * 1e4).round() / 1e4, corner_uncertainty(&corners))
     };
     SeparationEntry {
         sep_idx,
         nominal,
         corners,
         mean,
-        spread,
+        uncertainty,
         source,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Thesis Ch IV: the corners are averaged to the centre height, whose uncertainty is "the
+    /// difference between the center height and the maximum and minimum measurements". One
+    /// corner 3t above the mean and three t below: the bound is 3t (the corners' standard
+    /// deviation would say 2t); one corner low, the same by symmetry.
+    #[test]
+    fn the_separation_uncertainty_is_the_largest_corner_difference_from_the_mean() {
+        let t = 0.002;
+        for (corners, mean, bound) in [
+            (
+                vec![10.0 + 3.0 * t, 10.0 - t, 10.0 - t, 10.0 - t],
+                10.0,
+                3.0 * t,
+            ),
+            (
+                vec![20.0 - 3.0 * t, 20.0 + t, 20.0 + t, 20.0 + t],
+                20.0,
+                3.0 * t,
+            ),
+            // A tilted plate: two corners high, two low.
+            (vec![5.004, 5.004, 4.996, 4.996], 5.0, 0.004),
+            // Max and min unequally far from the mean: the larger of the two.
+            (vec![8.010, 8.0, 8.0, 7.998], 8.002, 0.008),
+        ] {
+            let e = separation_entry(0, mean, corners.clone(), "test".into());
+            assert!((e.mean - mean).abs() < 1e-9, "{corners:?}: mean {}", e.mean);
+            assert!(
+                (e.uncertainty - bound).abs() < 1e-9,
+                "{corners:?}: uncertainty {} for {bound}",
+                e.uncertainty
+            );
+        }
+        // Not measured (`--yes`): the nominal, no uncertainty claimed.
+        let e = separation_entry(3, 12.0, vec![], "scripted".into());
+        assert_eq!((e.mean, e.uncertainty), (12.0, 0.0));
     }
 }

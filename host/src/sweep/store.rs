@@ -51,8 +51,17 @@ pub enum PointStatus {
     Partial,
 }
 
-/// A corner reading of the plate separation (thesis Ch IV: four corners, mean and spread).
+/// The plate separation from the four corner readings (thesis Ch IV, "Plate levelness and
+/// separation distance": the separation is measured at four locations around the outer edges
+/// of the plates, the measurements are averaged to obtain the height at the centre, and "the
+/// uncertainty in the center height will be the difference between the center height and the
+/// maximum and minimum measurements").
+///
+/// Read from a journal, the uncertainty is derived again from the corners: a journal of an
+/// earlier version holds `spread` instead, the corners' sample standard deviation, which is
+/// not Ch IV's bound (one high corner, `(3t, -t, -t, -t)` about the mean: std `2t`, bound `3t`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(from = "SeparationRecord")]
 pub struct SeparationEntry {
     /// Index in the plan's separations.
     pub sep_idx: usize,
@@ -62,10 +71,60 @@ pub struct SeparationEntry {
     pub corners: Vec<f64>,
     /// Recorded separation: the mean of the corners (the nominal if none), in.
     pub mean: f64,
-    /// Its uncertainty: the sample standard deviation of the corners, in.
-    pub spread: f64,
+    /// Its uncertainty (Ch IV), in: the larger of (maximum corner - mean) and (mean - minimum
+    /// corner), i.e. the largest |corner - mean|; 0 when not measured. See
+    /// [`corner_uncertainty`].
+    pub uncertainty: f64,
     /// Who entered it: "operator", "scripted (--yes, not measured)", "simulated plate".
     pub source: String,
+}
+
+/// A `separation` event as journalled by any version: `spread` (the corners' standard
+/// deviation, before the uncertainty was Ch IV's) is accepted for `uncertainty`.
+#[derive(Deserialize)]
+struct SeparationRecord {
+    sep_idx: usize,
+    nominal: f64,
+    corners: Vec<f64>,
+    mean: f64,
+    #[serde(alias = "spread", default)]
+    uncertainty: f64,
+    source: String,
+}
+
+impl From<SeparationRecord> for SeparationEntry {
+    fn from(r: SeparationRecord) -> SeparationEntry {
+        // Derived again from the corners (the measurement): an older journal's `spread` is a
+        // standard deviation, not the uncertainty this field holds.
+        let uncertainty = if r.corners.is_empty() {
+            r.uncertainty
+        } else {
+            corner_uncertainty(&r.corners)
+        };
+        SeparationEntry {
+            sep_idx: r.sep_idx,
+            nominal: r.nominal,
+            corners: r.corners,
+            mean: r.mean,
+            uncertainty,
+            source: r.source,
+        }
+    }
+}
+
+/// The mean of corner readings, unrounded (0 for none).
+pub fn corner_mean(corners: &[f64]) -> f64 {
+    if corners.is_empty() {
+        return 0.0;
+    }
+    corners.iter().sum::<f64>() / corners.len() as f64
+}
+
+/// The uncertainty of the mean of corner readings (thesis Ch IV): the difference between the
+/// mean and the maximum and minimum readings, the larger of the two, in (0 for none).
+pub fn corner_uncertainty(corners: &[f64]) -> f64 {
+    let m = corner_mean(corners);
+    corners.iter().map(|c| (c - m).abs()).fold(0.0, f64::max)
 }
 
 /// One journal line.
@@ -974,6 +1033,34 @@ mod tests {
 
     fn new_run(d: &Path) -> RunDir {
         RunDir::create(d, "samples = 1\n", &["test".into()], false, false).unwrap()
+    }
+
+    /// A `separation` line of an earlier version, with `spread` (the corners' standard
+    /// deviation), still loads: its uncertainty is Ch IV's, derived again from the corners, and
+    /// it is written back under the new name.
+    #[test]
+    fn an_older_separation_line_loads_with_the_ch_iv_uncertainty() {
+        let old = r#"{"event":"separation","sep_idx":2,"nominal":10.0,"corners":[10.006,9.998,9.998,9.998],"mean":10.0,"spread":0.004,"source":"operator"}"#;
+        let Event::Separation(e) = serde_json::from_str::<Event>(old).unwrap() else {
+            panic!("not a separation");
+        };
+        assert_eq!((e.sep_idx, e.mean, e.corners.len()), (2, 10.0, 4));
+        assert!((e.uncertainty - 0.006).abs() < 1e-9, "{e:?}");
+        let line = serde_json::to_string(&Event::Separation(e.clone())).unwrap();
+        assert!(
+            line.contains("\"uncertainty\":") && !line.contains("spread"),
+            "{line}"
+        );
+        assert_eq!(
+            serde_json::from_str::<Event>(&line).unwrap(),
+            Event::Separation(e)
+        );
+        // Not measured (`--yes`): nothing to derive, the recorded 0 is kept.
+        let scripted = r#"{"event":"separation","sep_idx":0,"nominal":5.0,"corners":[],"mean":5.0,"spread":0.0,"source":"scripted (--yes): nominal, not measured"}"#;
+        let Event::Separation(e) = serde_json::from_str::<Event>(scripted).unwrap() else {
+            panic!("not a separation");
+        };
+        assert_eq!((e.mean, e.uncertainty), (5.0, 0.0));
     }
 
     #[test]
