@@ -1081,6 +1081,29 @@ settle_ms = 0
         }
     }
 
+    /// `host/plans/chvi.toml` is the thesis Ch VI scheme it says it is: 2 to 30 in by 1 in
+    /// (step 1), every beacon, 100-200 samples "at various frequencies for each intensity
+    /// level" (step 2: several frequencies, both power levels), all four sensitivities (step 3).
+    #[test]
+    fn the_shipped_ch_vi_plan_is_the_thesis_scheme() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("plans/chvi.toml");
+        let p = Plan::load(&path).unwrap();
+        let inches: Vec<f64> = (2..=30).map(f64::from).collect();
+        assert_eq!(p.separations, inches);
+        assert_eq!(p.beacons, (0..100).collect::<Vec<u8>>());
+        assert!(
+            p.frequencies_hz.len() >= 3,
+            "various frequencies: {:?}",
+            p.frequencies_hz
+        );
+        assert_eq!(p.power_levels, [1, 2]);
+        assert_eq!(p.sensitivities, [1, 2, 3, 4]);
+        assert!((100..=200).contains(&p.samples), "{}", p.samples);
+        // The arithmetic of its header comment.
+        assert_eq!(p.len(), 69_600);
+        assert_eq!(p.total_samples(), 10_440_000);
+    }
+
     #[test]
     fn differences_name_every_key_and_only_timing_may_change_on_resume() {
         // Every field of a plan has its key: a field left out would change unseen on resume.
