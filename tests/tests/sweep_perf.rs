@@ -1,6 +1,6 @@
 //! Performance of `cta sweep` on the simulated CTA: the full thesis Ch VI plan
 //! (`host/plans/chvi.toml`: 29 separations x 100 beacons x 3 frequencies x 2 power levels
-//! x 4 sensitivities x 150 samples = 10,440,000 samples) with the simulated sensor
+//! x 4 sensitivities x 50 samples = 3,480,000 samples) with the simulated sensor
 //! unthrottled, through the whole path (ptys, both boards' firmware logic, protocol, engine,
 //! CSV and journal synced per point). A measurement, not a test: run it in release and read the time.
 //!

@@ -1082,8 +1082,10 @@ settle_ms = 0
     }
 
     /// `host/plans/chvi.toml` is the thesis Ch VI scheme it says it is: 2 to 30 in by 1 in
-    /// (step 1), every beacon, 100-200 samples "at various frequencies for each intensity
-    /// level" (step 2: several frequencies, both power levels), all four sensitivities (step 3).
+    /// (step 1), every beacon measured 100-200 times "at various frequencies for each
+    /// intensity level" (step 2: several frequencies, both power levels), all four
+    /// sensitivities (step 3); about 3.5 million samples, the size the sweep's performance
+    /// target is set for (host/SWEEP.md, Performance).
     #[test]
     fn the_shipped_ch_vi_plan_is_the_thesis_scheme() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("plans/chvi.toml");
@@ -1098,10 +1100,11 @@ settle_ms = 0
         );
         assert_eq!(p.power_levels, [1, 2]);
         assert_eq!(p.sensitivities, [1, 2, 3, 4]);
-        assert!((100..=200).contains(&p.samples), "{}", p.samples);
+        let per_location = p.samples as usize * p.frequencies_hz.len();
+        assert!((100..=200).contains(&per_location), "{per_location}");
         // The arithmetic of its header comment.
         assert_eq!(p.len(), 69_600);
-        assert_eq!(p.total_samples(), 10_440_000);
+        assert_eq!(p.total_samples(), 3_480_000);
     }
 
     #[test]
