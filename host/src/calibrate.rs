@@ -58,8 +58,10 @@ pub const MISFIT_Z: f64 = 5.0;
 pub fn misfit_warning(head: &str, ratio: f64, model: &str, file: &Path) -> String {
     format!(
         "{head}: the residuals are {:.1}x the noise, so the data hold structure the {model} \
-         cannot represent, and the 1-sigma above are too small by about that factor. `cta \
-         analyze {}` names what it is.",
+         cannot represent. The 1-sigma above assume it can: that structure biases the \
+         parameters by an amount they do not bound (it can be many 1-sigma; scaling them by \
+         the {:.1} covers the scatter, not the bias). `cta analyze {}` names what it is.",
+        ratio.sqrt(),
         ratio.sqrt(),
         file.display()
     )

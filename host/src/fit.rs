@@ -828,7 +828,7 @@ mod tests {
         assert!(
             w.starts_with("chi2/dof 2.25 (a right model gives 1.00")
                 && w.contains("the residuals are 1.5x the noise")
-                && w.contains("the 1-sigma above are too small by about that factor")
+                && w.contains("biases the parameters by an amount they do not bound")
                 && w.contains("`cta analyze m.csv`"),
             "{w}"
         );

@@ -808,7 +808,7 @@ fn fit_names_its_spread_by_the_weighting() {
     let w = f["warnings"].to_string();
     assert!(
         w.contains(&format!("chi2/dof {c:.2}"))
-            && w.contains("too small by about that factor")
+            && w.contains("biases the parameters by an amount they do not bound")
             && w.contains("near.csv"),
         "{w}"
     );
