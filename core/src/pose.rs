@@ -92,8 +92,9 @@ pub const RAIL: i16 = i16::MAX;
 pub const RAIL_SIGMAS: f32 = 3.0;
 /// The constellation's far limit: the range at which its radius about its centroid
 /// subtends this many noise sigmas of the pinhole (`radius x H / (3 noise)`: 908 in for
-/// [`cta_constellation`] and 2,860 in for [`four_array_constellation`] with
-/// [`Calibration::table3`], 30 and 95 times the CTA's 30 in). There its beacons' spots are
+/// [`cta_constellation`] and 2,860 in for [`four_array_constellation`] (2,874 in for the
+/// host's `four-19`, which leaves its channel 19 out) with [`Calibration::table3`], 30 and 95
+/// times the CTA's 30 in). There its beacons' spots are
 /// barely apart in the noise and the position 1-sigma is a quarter of the range (the one-10
 /// constellation at 1,000 in: 0.2 median, 0.36 at most): a solution beyond it is a false
 /// minimum, reported diverged.
@@ -1210,12 +1211,14 @@ pub fn cta_constellation() -> Constellation {
     flat_constellation(&R)
 }
 
-/// All 20 NorthStar channels spread over the CTA plate with four arrays in its quadrants
+/// All 20 NorthStar channel IDs spread over the CTA plate with four arrays in its quadrants
 /// (LEDs at +/-1.5 .. +/-10.5 in; REFERENCE.md section 4): the first five are inner beacons
 /// (seen from 2 in), the next five near the plate's edge (attitude at 8-10 in), then five
-/// more inner and five more outer. Its first ten alone are the host's `four-10`. The host's
-/// `cta sensor floor` and `cta sensor accuracy` compare it with [`cta_constellation`]; the QEMU
-/// harness counts a 20-beacon solve on it.
+/// more inner and five more outer. Its first ten alone are the host's `four-10`. Channels 2
+/// and 19 share 4050 Hz in the NorthStar table, so a detector cannot tell those two apart: the
+/// host's built-in `four-19` (what `cta sensor floor` and `cta sensor accuracy` compare with
+/// [`cta_constellation`]) leaves channel 19 out. This 20-beacon layout is the chip's
+/// capacity, on which the QEMU harness counts a 20-beacon solve.
 pub fn four_array_constellation() -> Constellation {
     const R: [[f32; 2]; 20] = [
         [-1.5, -2.5],
@@ -1876,7 +1879,7 @@ mod tests {
         let clean = simulate_spots(&em, &con, &t, &q, |_| 0.0);
         assert!(clean.iter().all(|s| s.x.abs() < 20000 && s.y.abs() < 20000));
         let mut spots = clean.clone();
-        // Table 3: noise 32.768 counts, so the margin is 98 counts.
+        // The nominal calibration's noise, 32.768 counts: the margin is 98 counts.
         spots[0].x = 32767 - 50;
         spots[1].y = -32768 + 90;
         spots[3].y = -32767;

@@ -137,7 +137,7 @@ pub enum TemplateKind {
     /// The simulated CTA's calibration, to edit: the Table 3 truth head, nominal near-field
     /// parameters, and the pinhole model's own eye point and H fitted at 25 and 30 in.
     Calibration,
-    /// The 10-beacon CTA constellation.
+    /// A built-in constellation (`--name`: the 10-beacon CTA one by default).
     Constellation,
 }
 
