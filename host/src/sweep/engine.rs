@@ -303,6 +303,11 @@ impl Operator for Prompt {
                             continue;
                         }
                     }
+                    if let Some(q) = super::store::levelness_question(&e.corners) {
+                        if !self.ask(&q)?.to_lowercase().starts_with('y') {
+                            continue;
+                        }
+                    }
                     return Ok(e);
                 }
                 _ => eprintln!("  need four positive numbers, got `{a}`"),

@@ -127,6 +127,25 @@ pub fn corner_uncertainty(corners: &[f64]) -> f64 {
     corners.iter().map(|c| (c - m).abs()).fold(0.0, f64::max)
 }
 
+/// Ch IV's bound on a separation's uncertainty, in: plates leveled at their centres with a
+/// machinist's level of 5 mils per foot are parallel to +/-5 mils one foot out.
+pub const LEVEL_BOUND_IN: f64 = 0.005;
+
+/// The operator's question when corner readings differ from their mean by more than
+/// [`LEVEL_BOUND_IN`] (the plates are not as level as Ch IV assumes, or a reading is off):
+/// `None` within it.
+pub fn levelness_question(corners: &[f64]) -> Option<String> {
+    let u = corner_uncertainty(corners);
+    (u > LEVEL_BOUND_IN).then(|| {
+        format!(
+            "The corners {corners:?} differ from their mean by up to {:.1} mils, more than the \
+             +/-5 mils Ch IV expects of leveled plates (a machinist's level, 5 mils per foot): \
+             a tilted plate or a misread corner. Keep them? [y/N = level and measure again] ",
+            u * 1000.0
+        )
+    })
+}
+
 /// One journal line.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "event", rename_all = "snake_case")]
@@ -1020,6 +1039,18 @@ fn csv_header_len(path: &Path) -> Result<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Corners within +/-5 mils of their mean pass; one 6 mils high is asked about.
+    #[test]
+    fn corners_beyond_ch_iv_levelness_are_questioned() {
+        assert!(levelness_question(&[10.0, 10.004, 9.996, 10.0]).is_none());
+        assert!(levelness_question(&[]).is_none());
+        let q = levelness_question(&[10.008, 10.0, 10.0, 10.0]).unwrap();
+        assert!(
+            q.contains("up to 6.0 mils") && q.contains("Keep them?"),
+            "{q}"
+        );
+    }
 
     fn tmp(name: &str) -> PathBuf {
         let d = std::env::temp_dir().join(format!("cta-store-{}-{name}", std::process::id()));
