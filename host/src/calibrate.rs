@@ -784,6 +784,10 @@ pub fn calibrate(
             all.path.display()
         ));
     }
+    // A file with every length in cm or mm fits perfectly, with s and d scaled so.
+    if let Some(note) = wiring::s_unit_note(nf.x[7]) {
+        warnings.push(note);
+    }
     if pinned > 0 {
         warnings.push(format!(
             "{pinned} points left out: an output pinned at +/-32767, or its mean within 3 sigma \

@@ -276,4 +276,16 @@ fn a_file_all_in_centimetres_is_cautioned() {
     let o = cta(&["analyze", s(&base)]);
     assert!(o.status.success());
     assert!(!String::from_utf8_lossy(&o.stdout).contains("caution"));
+    // `cta calibrate` fits s itself: the same sentence as a warning.
+    for (file, warned) in [(&cm, true), (&base, false)] {
+        let o = cta(&["calibrate", s(file)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(
+            out.contains("the cell offset S = 0.44")
+                && out.contains("are the lengths in centimetres?"),
+            warned,
+            "{out}"
+        );
+    }
 }
