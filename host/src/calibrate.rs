@@ -35,7 +35,7 @@ use clap::Args;
 use cta_core::collinearity::{self, ParamsExt};
 use cta_core::emulator::{Emulator, Head, Pose as HeadPose};
 use cta_core::glsdc::{self, Settings};
-use cta_core::pose::{Calibration, NearField, PinholeHead};
+use cta_core::pose::{CalField, Calibration, ConfigError, NearField, PinholeHead};
 use nalgebra::{DVector, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -60,7 +60,8 @@ pub fn misfit_warning(head: &str, ratio: f64, model: &str, file: &Path) -> Strin
         "{head}: the residuals are {:.1}x the noise, so the data hold structure the {model} \
          cannot represent. The 1-sigma above assume it can: that structure biases the \
          parameters by an amount they do not bound (it can be many 1-sigma; scaling them by \
-         the {:.1} covers the scatter, not the bias). `cta analyze {}` names what it is.",
+         that factor, {:.1}x, covers the scatter, not the bias). `cta analyze {}` names what \
+         it is.",
         ratio.sqrt(),
         ratio.sqrt(),
         file.display()
@@ -691,11 +692,35 @@ pub fn calibrate(
             }
         }
     };
-    let cal = nf.calibration;
+    let mut cal = nf.calibration;
+    // The pinhole fit's eye point is only the pinhole model's: when it falls outside what the
+    // board takes (noisy data, few far separations), the file goes without it (the pinhole
+    // model then uses the head's d, p) rather than not at all.
+    if let Err(ConfigError::CalibrationOutOfRange {
+        field: field @ (CalField::PinholeD | CalField::PinholeP),
+    }) = cal.validate()
+    {
+        let xp = ph.x();
+        let sd = |k: &str| ph.sigma.get(k).copied().unwrap_or(f64::NAN);
+        warnings.push(format!(
+            "the pinhole fit's eye point is outside what the board takes ({}): d = ({:.2} +/- \
+             {:.2}, {:.2} +/- {:.2}, {:.2} +/- {:.2}) in, so the file has no `pinhole` and the \
+             board's pinhole model uses the head's d, p (ranges read short close in)",
+            field.describe(),
+            xp[0],
+            sd("d1"),
+            xp[1],
+            sd("d2"),
+            xp[2],
+            sd("d3"),
+        ));
+        cal.pinhole = None;
+    }
     cal.validate().map_err(|e| {
+        let unit = wiring::s_unit_note(nf.x[7], "s").map_or(String::new(), |n| format!("; {n}"));
         anyhow!(
             "the fitted calibration is outside what the board accepts: {e}; the data do not \
-             look like a NorthStar on the CTA (check the file's columns and units)"
+             look like a NorthStar on the CTA (check the file's columns and units){unit}"
         )
     })?;
 
@@ -785,7 +810,7 @@ pub fn calibrate(
         ));
     }
     // A file with every length in cm or mm fits perfectly, with s and d scaled so.
-    if let Some(note) = wiring::s_unit_note(nf.x[7]) {
+    if let Some(note) = wiring::s_unit_note(nf.x[7], "s") {
         warnings.push(note);
     }
     if pinned > 0 {

@@ -994,3 +994,35 @@ fn outputs_create_missing_folders() {
     );
     assert_eq!(std::fs::read_to_string(&blocker).unwrap(), "not a folder");
 }
+
+/// On very noisy data the pinhole fit's eye point can land outside what the board takes
+/// (d3 = -20 +/- 27 in here) while the near-field fit is fine: `cta calibrate` still writes
+/// the calibration, without `pinhole`, and says so.
+#[test]
+fn calibrate_drops_an_out_of_range_pinhole_eye() {
+    let d = tmpdir("noisy-eye");
+    let csv = d.join("noisy.csv");
+    let o = cta(&[
+        "simulate",
+        "--out",
+        s(&csv),
+        "--noise",
+        "1800",
+        "--samples",
+        "2",
+        "--seed",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = d.join("cal.json");
+    let o = cta(&["calibrate", s(&csv), "--out", s(&out)]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        text.contains("the pinhole fit's eye point is outside what the board takes"),
+        "{text}"
+    );
+    let cal: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert!(cal["pinhole"].is_null(), "{cal}");
+}

@@ -276,13 +276,33 @@ fn a_file_all_in_centimetres_is_cautioned() {
     let o = cta(&["analyze", s(&base)]);
     assert!(o.status.success());
     assert!(!String::from_utf8_lossy(&o.stdout).contains("caution"));
+    // In millimetres too; `cta calibrate` then stops (d is beyond what the board takes) and
+    // its error says why.
+    let mm = d.join("mm.csv");
+    edited(&base, &mm, &|row| {
+        for k in ["separation_in", "beacon_x_in", "beacon_y_in", "beacon_z_in"] {
+            let f = row.f(k);
+            *f = format!("{}", num(f) * 25.4);
+        }
+    });
+    let o = cta(&["analyze", s(&mm)]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("are the lengths in millimetres?"), "{out}");
+    let o = cta(&["calibrate", s(&mm)]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("calibration out of range: d")
+            && err.contains("are the lengths in millimetres?"),
+        "{err}"
+    );
     // `cta calibrate` fits s itself: the same sentence as a warning.
     for (file, warned) in [(&cm, true), (&base, false)] {
         let o = cta(&["calibrate", s(file)]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let out = String::from_utf8_lossy(&o.stdout);
         assert_eq!(
-            out.contains("the cell offset S = 0.44")
+            out.contains("the cell offset s = 0.44")
                 && out.contains("are the lengths in centimetres?"),
             warned,
             "{out}"

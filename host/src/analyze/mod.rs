@@ -1288,7 +1288,7 @@ pub fn analyze(
             .map(|t| t.round);
         let rivals = round.map_or_else(Vec::new, |r| rivals(&sel.trials, r, st.cand, st.dbic));
         let caution = match st.cand {
-            Cand::Proximity => params.get("S").and_then(|&s| wiring::s_unit_note(s)),
+            Cand::Proximity => params.get("S").and_then(|&s| wiring::s_unit_note(s, "S")),
             _ => None,
         };
         causes.push(Cause {

@@ -318,8 +318,9 @@ pub fn explain(ds: &Dataset, err: String) -> String {
 /// a length unit times the NorthStar's: a file whose every length column is in centimetres or
 /// millimetres fits perfectly with `s` and `d` scaled so (the outputs depend only on ratios of
 /// lengths: the intensities' inverse squares cancel in eq 63's ratios, and the angles do not
-/// change), and nothing else in the fit shows it. Within [`S_UNIT_TOL`] of the factor.
-pub fn s_unit_note(s: f64) -> Option<String> {
+/// change), and nothing else in the fit shows it. Within [`S_UNIT_TOL`] of the factor;
+/// `name` is what the caller's output calls the offset (`S` in analyze, `s` in calibrate).
+pub fn s_unit_note(s: f64, name: &str) -> Option<String> {
     let s0 = Head::<f64>::northstar().s;
     let ratio = s / s0;
     UNITS
@@ -327,7 +328,7 @@ pub fn s_unit_note(s: f64) -> Option<String> {
         .find(|(div, _)| (ratio / div - 1.0).abs() <= S_UNIT_TOL)
         .map(|(div, unit)| {
             format!(
-                "the cell offset S = {s:.4} in is {ratio:.2}x the NorthStar's {s0} in: a \
+                "the cell offset {name} = {s:.4} in is {ratio:.2}x the NorthStar's {s0} in: a \
                  NorthStar measured with every length in {unit} gives exactly this (with d \
                  {div} times too); are the lengths in {unit}? Every length column is in \
                  inches (host/MEASUREMENTS.md)"
