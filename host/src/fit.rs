@@ -637,6 +637,11 @@ pub struct Evaluation {
     /// sidecar), "head" (the head centre measured on the CTA, `--head`) or "fit" (the fit's
     /// own eye point: only the model's consistency with itself, not Figure 57's error).
     pub reference: String,
+    /// The point the angle is measured from, inches in N (the truth's head, `--head`, or the
+    /// fit's eye point).
+    pub reference_in: [f64; 3],
+    /// The CTA uncertainty budget behind `cta_uncertainty_deg`: "thesis Table 2" or the file.
+    pub budget: String,
 }
 
 /// Where [`evaluate`] measures the error in angle from: the true direction to each beacon is
@@ -677,6 +682,8 @@ pub fn evaluate(x: &Params<f64>, ds: &Dataset, reference: Reference, u: [f64; 3]
         cta_uncertainty_deg: Vec::new(),
         reports: Vec::new(),
         reference: reference.name().into(),
+        reference_in: [d.x, d.y, d.z],
+        budget: "thesis Table 2".into(),
     };
     for sep in ds.separations() {
         let rows: Vec<_> = ds

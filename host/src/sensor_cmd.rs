@@ -135,7 +135,8 @@ impl From<ModelArg> for ModelKind {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum TemplateKind {
     /// The simulated CTA's calibration, to edit: the Table 3 truth head, nominal near-field
-    /// parameters, and the pinhole model's own eye point and H fitted at 25 and 30 in.
+    /// parameters and the pinhole fit's H, with `pinhole` null (the pinhole model then uses
+    /// `d`, `p`; `cta calibrate` writes the fitted eye point there).
     Calibration,
     /// A built-in constellation (`--name`: the 10-beacon CTA one by default).
     Constellation,
@@ -583,7 +584,12 @@ pub fn run(args: &SensorArgs) -> Result<()> {
         }
         SensorCommand::Template { kind, name } => {
             let text = match kind {
-                TemplateKind::Calibration => serde_json::to_string_pretty(&sim_calibration()?)?,
+                // `pinhole` null: an edit of `d`, `p` then moves both models' head (a filled-in
+                // eye point would keep the pinhole model where it was).
+                TemplateKind::Calibration => serde_json::to_string_pretty(&Calibration {
+                    pinhole: None,
+                    ..sim_calibration()?
+                })?,
                 TemplateKind::Constellation => {
                     let con = built_in_constellation(name)?;
                     serde_json::to_string_pretty(&con)?
@@ -1410,8 +1416,8 @@ impl AccuracyTable {
     }
 }
 
-/// The calibration the simulated boards start with (`--sim`, `sensor sim --configured`) and
-/// `cta sensor template calibration` prints: the Table 3 truth head and the nominal
+/// The calibration the simulated boards start with (`--sim`, `sensor sim --configured`; the
+/// calibration template is it without `pinhole`): the Table 3 truth head and the nominal
 /// near-field parameters the simulated NorthStar has, with the pinhole model's own eye point
 /// `d, p` and its `H` from [`pinhole_calibration`] on the CTA grid, as `cta calibrate` writes
 /// them. (With the true head's `d, p` and the nominal `H`, the pinhole pose would read ranges

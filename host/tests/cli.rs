@@ -77,7 +77,13 @@ fn simulate_fit_evaluate_round_trip() {
     assert!(!String::from_utf8_lossy(&o.stderr).contains("warning"));
     let e = json(&o);
     assert_eq!(e["reference"], "head");
+    assert_eq!(e["reference_in"][2].as_f64().unwrap(), 0.062);
+    assert_eq!(e["budget"], "thesis Table 2");
     assert_eq!(e["angle_std_deg"][2].as_f64().unwrap(), std30);
+    // A head typed in mm (or 40 in below the board) is refused.
+    let o = cta(&["evaluate", s(&fit), s(&bare), "--head", "15.2,2.5,1.6"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("within +/-12 in"));
     // The sidecar and --head together are refused: which would be meant?
     let o = cta(&["evaluate", s(&fit), s(&csv), "--head", "0.6,0.1,0.062"]);
     assert!(!o.status.success());
@@ -100,6 +106,7 @@ fn simulate_fit_evaluate_round_trip() {
         s(&b),
         "--json",
     ]));
+    assert_eq!(e["budget"], s(&b));
     let mine = e["cta_uncertainty_deg"][2].as_f64().unwrap();
     assert!((mine / table2 - 4.0).abs() < 0.01, "{mine} vs {table2}");
 }
