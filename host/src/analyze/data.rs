@@ -31,7 +31,8 @@
 //! [`Data::excluded`]), and so are points whose mean lies within 3 sigma of the limit (their
 //! true output was at or past it and only the noise kept the samples inside: clipped, not
 //! measured): the rail rule `cta calibrate` and `cta noise` apply
-//! ([`crate::measurement::mean_near_rail`], with the point's own noise figure).
+//! ([`crate::measurement::mean_near_rail`], with the noise pooled per separation whatever
+//! the weights: a clipped point's own spread is clipped too).
 
 use crate::measurement::{fmt_list, Dataset};
 use nalgebra::Vector3;
@@ -228,9 +229,18 @@ impl Data {
         }
         let mut points = Vec::with_capacity(acc.len());
         let mut excluded = 0;
+        // The rail rule's noise is the pooled one whatever the weights (a clipped point's own
+        // spread is clipped too): per separation, else the file's, else as assumed.
+        let rail_sigma = |a: &Acc| -> f64 {
+            let v = |k: usize| match noise {
+                Some(n) => n * n,
+                None if !repeated => DEFAULT_NOISE_COUNTS * DEFAULT_NOISE_COUNTS,
+                None => sep_var(a.sep, k).unwrap_or_else(|| gvar(k)),
+            };
+            v(0).max(v(1)).sqrt()
+        };
         for a in &acc {
-            let sigma = var_of(a, 0).max(var_of(a, 1)).sqrt();
-            if a.pinned || crate::measurement::mean_near_rail(a.mean, sigma, a.n) {
+            if a.pinned || crate::measurement::mean_near_rail(a.mean, rail_sigma(a), a.n) {
                 excluded += 1;
                 continue;
             }
@@ -325,6 +335,13 @@ mod tests {
         let d = Data::from_dataset(&ds, Weights::Separation, None).unwrap();
         assert_eq!(d.excluded, clean.excluded + 1);
         assert_eq!(d.points.len(), clean.points.len() - 1);
+        // With per-point weights too, though the clipped point's own spread is tiny.
+        for &i in &near.rows {
+            ds.samples[i].x = 32766.0;
+            ds.samples[i].y = 400.0;
+        }
+        let d = Data::from_dataset(&ds, Weights::Point, None).unwrap();
+        assert_eq!(d.excluded, clean.excluded + 1);
         ds.samples[near.rows[0]].x = 32767.0;
         let d = Data::from_dataset(&ds, Weights::Separation, None).unwrap();
         assert_eq!(d.excluded, clean.excluded + 1);
