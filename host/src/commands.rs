@@ -792,8 +792,8 @@ fn print_fit(rep: &FitReport, file: &Path) {
         "  note: d is the pinhole model's eye point, not the head's centre: on a NorthStar (cells \
          0.175 in off centre, faces at 30 deg) near-field structure the pinhole model cannot \
          hold puts that point about 1 in above the board at 20-100 in (CTA's reproduction of \
-         Table 3: d3 = 1.06 to 1.33 in, where the thesis prints -0.79 with the mirror-image \
-         cell pairing: README, inconsistency 2), and the 1-sigma bound the point, not the head. `cta \
+         Table 3: d3 = 1.06 to 1.33 in, where the thesis prints -0.73 to -0.79 with the \
+         mirror-image cell pairing: README, inconsistency 2), and the 1-sigma bound the point, not the head. `cta \
          calibrate` fits the head itself."
     );
     for w in &rep.warnings {

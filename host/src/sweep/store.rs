@@ -121,10 +121,12 @@ pub fn corner_mean(corners: &[f64]) -> f64 {
 }
 
 /// The uncertainty of the mean of corner readings (thesis Ch IV): the difference between the
-/// mean and the maximum and minimum readings, the larger of the two, in (0 for none).
+/// mean and the maximum and minimum readings, the larger of the two, in (0 for none), rounded
+/// to 0.1 mil as the recorded mean is (so that 5 mils reads 5 mils at any separation).
 pub fn corner_uncertainty(corners: &[f64]) -> f64 {
     let m = corner_mean(corners);
-    corners.iter().map(|c| (c - m).abs()).fold(0.0, f64::max)
+    let u = corners.iter().map(|c| (c - m).abs()).fold(0.0, f64::max);
+    (u * 1e4).round() / 1e4
 }
 
 /// Ch IV's bound on a separation's uncertainty, in: plates leveled at their centres with a
@@ -1044,6 +1046,12 @@ mod tests {
     #[test]
     fn corners_beyond_ch_iv_levelness_are_questioned() {
         assert!(levelness_question(&[10.0, 10.004, 9.996, 10.0]).is_none());
+        // Exactly 5 mils at any separation (unrounded, 10.005 - 10 is above 0.005).
+        for sep in [10.0, 12.0, 20.0, 30.0] {
+            let c = [sep + 0.005, sep - 0.005, sep, sep];
+            assert!(levelness_question(&c).is_none(), "{c:?}");
+            assert_eq!(corner_uncertainty(&c), 0.005);
+        }
         assert!(levelness_question(&[]).is_none());
         let q = levelness_question(&[10.008, 10.0, 10.0, 10.0]).unwrap();
         assert!(
