@@ -441,6 +441,35 @@ mod tests {
         }
     }
 
+    /// The widest stored record, a 20-beacon constellation at its widest encoding with the
+    /// widest calibration, fits a flash record ([`storage::MAX_RECORD`]) and survives a reset.
+    #[test]
+    fn the_widest_configuration_is_stored_and_survives_a_reset() {
+        // As the board saves it ((calibration, constellation), see `save`), every field at
+        // its widest encoding.
+        let mut wide = cta_core::pose::four_array_constellation();
+        for (k, b) in wide.beacons.iter_mut().enumerate() {
+            b.r = [-1.0e30, 1.0e-30, f32::MAX - k as f32];
+        }
+        let cal = widest_calibration();
+        let mut flash = RamFlash::default();
+        storage::save(&mut flash, &(Some(cal), Some(wide.clone()))).unwrap();
+        let (_, back): (u32, Stored) = storage::load(&flash).unwrap();
+        assert_eq!(back.calibration, Some(cal));
+        assert_eq!(back.constellation, Some(wide));
+        // Through the board: the widest calibration and a 20-beacon constellation.
+        let mut b = Board::new(RamFlash::default(), false);
+        let mut io = FakeIo::default();
+        let load = SensorRequest::LoadCalibration(cal);
+        assert_eq!(request(&mut b, &mut io, 1, load), Ok(Response::Ack));
+        let con = cta_core::pose::four_array_constellation();
+        let load = SensorRequest::LoadConstellation(con.clone());
+        assert_eq!(request(&mut b, &mut io, 2, load), Ok(Response::Ack));
+        let b = Board::new(b.flash.clone(), false);
+        assert_eq!(b.stored().calibration, Some(cal));
+        assert_eq!(b.stored().constellation.as_ref(), Some(&con));
+    }
+
     #[test]
     fn the_largest_request_fits_the_receive_buffer() {
         // A full constellation (every beacon, every field at its widest encoding) and a
