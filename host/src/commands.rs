@@ -373,23 +373,33 @@ fn load_budget(path: &PathBuf) -> Result<Vec<(String, [f64; 6])>> {
 /// root-sum-square of larger values can overflow to infinity).
 const MAX_BUDGET_MILS: f64 = 1e6;
 
+/// The budget file's items (`--budget`), or thesis Table 2's.
+fn budget_or_table2(path: Option<&PathBuf>) -> Result<Vec<(String, [f64; 6])>> {
+    Ok(match path {
+        Some(p) => load_budget(p)?,
+        None => uncertainty::TABLE2
+            .iter()
+            .map(|i| (i.name.to_string(), i.mils))
+            .collect(),
+    })
+}
+
+/// [`budget_or_table2`]'s items as the uncertainty functions take them.
+fn budget_items(owned: &[(String, [f64; 6])]) -> Vec<Item<'_>> {
+    owned
+        .iter()
+        .map(|(n, m)| Item { name: n, mils: *m })
+        .collect()
+}
+
 /// Run `cta uncertainty`.
 pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
     check_diameter(a.diameter_in)?;
     if let Some(p) = &a.plot {
         crate::plot::refuse_to_replace_non_svg(p)?;
     }
-    let owned: Vec<(String, [f64; 6])> = match &a.budget {
-        Some(p) => load_budget(p)?,
-        None => uncertainty::TABLE2
-            .iter()
-            .map(|i| (i.name.to_string(), i.mils))
-            .collect(),
-    };
-    let items: Vec<Item<'_>> = owned
-        .iter()
-        .map(|(n, m)| Item { name: n, mils: *m })
-        .collect();
+    let owned = budget_or_table2(a.budget.as_ref())?;
+    let items = budget_items(&owned);
     let r = uncertainty::rss(&items);
     let [ux, uy, uz] = uncertainty::rss_inches(&items);
     // Eq 40 and the near-field comparison at the Ch IV angles.
@@ -835,14 +845,19 @@ pub struct EvaluateArgs {
     pub json: bool,
 }
 
-/// `X,Y,Z`: three finite numbers.
-fn parse_xyz(s: &str) -> std::result::Result<[f64; 3], String> {
-    let bad = || format!("{s:?}: expected three comma-separated numbers x,y,z (e.g. 0.6,0.1,0.06)");
+/// `N` comma-separated finite numbers (`--head X,Y,Z`, `sensor sim --offset X,Y`); `example`
+/// is shown in the error.
+pub fn parse_floats<const N: usize>(
+    s: &str,
+    names: &str,
+    example: &str,
+) -> std::result::Result<[f64; N], String> {
+    let bad = || format!("{s:?}: expected {N} comma-separated numbers {names} (e.g. {example})");
     let parts: Vec<&str> = s.split(',').collect();
-    if parts.len() != 3 {
+    if parts.len() != N {
         return Err(bad());
     }
-    let mut v = [0.0f64; 3];
+    let mut v = [0.0f64; N];
     for (x, p) in v.iter_mut().zip(parts) {
         *x = p.trim().parse().map_err(|_| bad())?;
         if !x.is_finite() {
@@ -850,6 +865,10 @@ fn parse_xyz(s: &str) -> std::result::Result<[f64; 3], String> {
         }
     }
     Ok(v)
+}
+
+fn parse_xyz(s: &str) -> std::result::Result<[f64; 3], String> {
+    parse_floats(s, "x,y,z", "0.6,0.1,0.06")
 }
 
 /// Run `cta evaluate`. The table (or JSON) is printed before `--plot` is written.
@@ -895,18 +914,13 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
             fit::Reference::Fit
         }
     };
-    let budget: Vec<(String, [f64; 6])> = match &a.budget {
-        Some(p) => load_budget(p)?,
-        None => uncertainty::TABLE2
-            .iter()
-            .map(|i| (i.name.to_string(), i.mils))
-            .collect(),
-    };
-    let items: Vec<Item<'_>> = budget
-        .iter()
-        .map(|(n, m)| Item { name: n, mils: *m })
-        .collect();
-    let mut ev = fit::evaluate(&rep.x(), &ds, reference, uncertainty::rss_inches(&items));
+    let budget = budget_or_table2(a.budget.as_ref())?;
+    let mut ev = fit::evaluate(
+        &rep.x(),
+        &ds,
+        reference,
+        uncertainty::rss_inches(&budget_items(&budget)),
+    );
     ev.budget = match &a.budget {
         Some(p) => p.display().to_string(),
         None => "thesis Table 2".into(),
@@ -955,7 +969,7 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
                     )
                     .with_markers(),
                     Series::dashed(
-                        &format!("mean CTA uncertainty (eq 36, {})", ev.budget),
+                        format!("mean CTA uncertainty (eq 36, {})", ev.budget),
                         pts(&ev.cta_uncertainty_deg),
                     )
                     .with_markers(),

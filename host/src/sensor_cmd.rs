@@ -330,19 +330,7 @@ pub fn check_noise_fraction(f: f64) -> Result<()> {
 
 /// Parse `x,y` (two numbers, comma-separated: `--offset 0.3,-0.2`).
 fn parse_xy(s: &str) -> std::result::Result<[f64; 2], String> {
-    let bad = || format!("{s:?}: expected two comma-separated numbers x,y (e.g. 0.3,-0.2)");
-    let parts: Vec<&str> = s.split(',').collect();
-    if parts.len() != 2 {
-        return Err(bad());
-    }
-    let mut xy = [0.0f64; 2];
-    for (v, p) in xy.iter_mut().zip(parts) {
-        *v = p.trim().parse().map_err(|_| bad())?;
-        if !v.is_finite() {
-            return Err(bad());
-        }
-    }
-    Ok(xy)
+    crate::commands::parse_floats(s, "x,y", "0.3,-0.2")
 }
 
 /// The simulated board's scene.

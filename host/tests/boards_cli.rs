@@ -333,7 +333,7 @@ fn sensor_sim_offset_takes_exactly_x_comma_y() {
     );
     fails_with(
         &cta(&["sensor", "sim", "--offset", "0.3", "--seconds", "0.1"]),
-        &["expected two comma-separated numbers x,y"],
+        &["expected 2 comma-separated numbers x,y"],
     );
     fails_with(
         &cta(&[
@@ -349,7 +349,7 @@ fn sensor_sim_offset_takes_exactly_x_comma_y() {
     );
     fails_with(
         &cta(&["sensor", "sim", "--offset", "1,2,3", "--seconds", "0.1"]),
-        &["expected two comma-separated numbers x,y"],
+        &["expected 2 comma-separated numbers x,y"],
     );
     // The accepted form puts the target there (a negative x too).
     let sim = Sim::start(&[

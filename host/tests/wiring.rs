@@ -248,6 +248,16 @@ fn fits_that_succeed_in_centimetres_warn_about_h() {
     assert!(!String::from_utf8_lossy(&o.stdout).contains("scale height"));
 }
 
+/// A copy of `src` at `dst` with every length column times `k`.
+fn every_length_times(src: &Path, dst: &Path, k: f64) {
+    edited(src, dst, &|row| {
+        for c in ["separation_in", "beacon_x_in", "beacon_y_in", "beacon_z_in"] {
+            let f = row.f(c);
+            *f = format!("{}", num(f) * k);
+        }
+    });
+}
+
 /// A file with every length column in centimetres fits perfectly (the outputs depend only on
 /// ratios of lengths), with the cell offset S and d 2.54x the NorthStar's: `cta analyze`
 /// names `proximity` and cautions that the lengths may be in centimetres. A file in inches
@@ -258,12 +268,7 @@ fn a_file_all_in_centimetres_is_cautioned() {
     let base = d.join("base.csv");
     simulate(&base);
     let cm = d.join("cm.csv");
-    edited(&base, &cm, &|row| {
-        for k in ["separation_in", "beacon_x_in", "beacon_y_in", "beacon_z_in"] {
-            let f = row.f(k);
-            *f = format!("{}", num(f) * 2.54);
-        }
-    });
+    every_length_times(&base, &cm, 2.54);
     let o = cta(&["analyze", s(&cm)]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -279,12 +284,7 @@ fn a_file_all_in_centimetres_is_cautioned() {
     // In millimetres too; `cta calibrate` then stops (d is beyond what the board takes) and
     // its error says why.
     let mm = d.join("mm.csv");
-    edited(&base, &mm, &|row| {
-        for k in ["separation_in", "beacon_x_in", "beacon_y_in", "beacon_z_in"] {
-            let f = row.f(k);
-            *f = format!("{}", num(f) * 25.4);
-        }
-    });
+    every_length_times(&base, &mm, 25.4);
     let o = cta(&["analyze", s(&mm)]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains("are the lengths in millimetres?"), "{out}");

@@ -20,6 +20,24 @@ use cta_host::sensor_cmd::{read_reports, Vector3};
 
 type SensorLink = Link<SensorProtocol, Box<dyn serialport::SerialPort>>;
 
+/// A simulated board at 50 Hz whose NorthStar sees the CTA constellation from `truth`'s head
+/// at pose `t`, `q` (noise 32.768 counts, seed 3), loaded with `cal` and the constellation.
+fn configured_board(
+    truth: &Calibration,
+    t: Vector3<f64>,
+    q: Vector3<f64>,
+    cal: Calibration,
+) -> (SimBoard, SensorLink) {
+    let mut ns = SimNorthStar::new(truth, cta_constellation(), t, q, 32.768, 3);
+    ns.rate_hz = 50;
+    let sim = SimBoard::spawn(ns).unwrap();
+    let mut l = connect(&sim);
+    l.call(SensorRequest::LoadCalibration(cal)).unwrap();
+    l.call(SensorRequest::LoadConstellation(cta_constellation()))
+        .unwrap();
+    (sim, l)
+}
+
 fn connect(sim: &SimBoard) -> SensorLink {
     let port = open_serial(sim.path()).expect("open the pty");
     Link::new(
@@ -269,13 +287,7 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
     let t = Vector3::new(0.2, -0.1, 6.0);
     let q = mrp::from_axis_angle(&Vector3::new(0.2, 0.3, 1.0), 2f64.to_radians());
     let mean_error = |cal: Calibration| -> (f64, f64) {
-        let mut ns = SimNorthStar::new(&truth, cta_constellation(), t, q, 32.768, 3);
-        ns.rate_hz = 50;
-        let sim = SimBoard::spawn(ns).unwrap();
-        let mut l = connect(&sim);
-        l.call(SensorRequest::LoadCalibration(cal)).unwrap();
-        l.call(SensorRequest::LoadConstellation(cta_constellation()))
-            .unwrap();
+        let (_sim, mut l) = configured_board(&truth, t, q, cal);
         l.call(SensorRequest::SetMode(Mode::Pose(ModelKind::NearField)))
             .unwrap();
         let ps = poses(&mut l, 12);
@@ -368,13 +380,7 @@ fn the_boards_pinhole_pose_uses_the_pinhole_fits_eye() {
     let t = Vector3::new(0.2, -0.1, 12.0);
     let q = mrp::from_axis_angle(&Vector3::new(0.2, 0.3, 1.0), 2f64.to_radians());
     let range = |cal: Calibration| -> f64 {
-        let mut ns = SimNorthStar::new(&truth, cta_constellation(), t, q, 32.768, 3);
-        ns.rate_hz = 50;
-        let sim = SimBoard::spawn(ns).unwrap();
-        let mut l = connect(&sim);
-        l.call(SensorRequest::LoadCalibration(cal)).unwrap();
-        l.call(SensorRequest::LoadConstellation(cta_constellation()))
-            .unwrap();
+        let (_sim, mut l) = configured_board(&truth, t, q, cal);
         // Read back as loaded: the pinhole head went through the wire and the flash.
         match l.call(SensorRequest::GetConfig).unwrap() {
             Some(SensorResponse::Config(c)) => assert_eq!(c.calibration, Some(cal)),
