@@ -1023,6 +1023,22 @@ fn print_evaluation(rep: &FitReport, ev: &fit::Evaluation) {
             n
         );
     }
+    let railed: Vec<String> = (0..ev.separation_in.len())
+        .filter(|&i| ev.at_rail[i] > 0)
+        .map(|i| {
+            format!(
+                "{} of {} at {} in",
+                ev.at_rail[i], ev.reports[i], ev.separation_in[i]
+            )
+        })
+        .collect();
+    if !railed.is_empty() {
+        println!(
+            "note: reports with an output at the 16-bit rail (a cell in shadow) are counted, as \
+             Figure 57 counts every report, but their error is that of a clipped output: {}",
+            railed.join(", ")
+        );
+    }
     // The thesis plots the std; a bias shared by a separation's beacons comes on top.
     let worst = ev
         .angle_mean_deg

@@ -633,6 +633,10 @@ pub struct Evaluation {
     pub cta_uncertainty_deg: Vec<f64>,
     /// Reports per separation.
     pub reports: Vec<usize>,
+    /// Of them, reports with an output at the 16-bit rail (|count| >= 32767: a cell in
+    /// shadow). They are counted, as the thesis's Figure 57 counts every report, but their
+    /// error in angle is that of a clipped output, not a measurement.
+    pub at_rail: Vec<usize>,
     /// Where the angle is measured from ([`Reference::name`]): "truth" (the file's truth
     /// sidecar), "head" (the head centre measured on the CTA, `--head`) or "fit" (the fit's
     /// own eye point: only the model's consistency with itself, not Figure 57's error).
@@ -681,6 +685,7 @@ pub fn evaluate(x: &Params<f64>, ds: &Dataset, reference: Reference, u: [f64; 3]
         angle_mean_deg: Vec::new(),
         cta_uncertainty_deg: Vec::new(),
         reports: Vec::new(),
+        at_rail: Vec::new(),
         reference: reference.name().into(),
         reference_in: [d.x, d.y, d.z],
         budget: "thesis Table 2".into(),
@@ -712,6 +717,13 @@ pub fn evaluate(x: &Params<f64>, ds: &Dataset, reference: Reference, u: [f64; 3]
         ev.angle_mean_deg.push(mean);
         ev.cta_uncertainty_deg.push(cta);
         ev.reports.push(rows.len());
+        ev.at_rail.push(
+            rows.iter()
+                .filter(|s| {
+                    s.x.abs() >= crate::measurement::RAIL || s.y.abs() >= crate::measurement::RAIL
+                })
+                .count(),
+        );
     }
     ev
 }

@@ -49,6 +49,7 @@ fn simulate_fit_evaluate_round_trip() {
     let std30 = e["angle_std_deg"][2].as_f64().unwrap();
     assert!(std30 > 0.05 && std30 < 0.2, "{std30}");
     assert_eq!(e["reference"], "truth");
+    assert_eq!(e["at_rail"], serde_json::json!([0, 0, 0]));
     // The same data without the sidecar: measured from the fit's own eye point the error
     // is far smaller (self-consistency only), which a warning says; with the head centre
     // given (`--head`, here the truth's) it is the Figure 57 error again.
@@ -1032,4 +1033,28 @@ fn calibrate_drops_an_out_of_range_pinhole_eye() {
     let cal: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     assert!(cal["pinhole"].is_null(), "{cal}");
+}
+
+/// Close in, reports at the 16-bit rail are counted (Figure 57 counts every report), and
+/// `cta evaluate` says how many.
+#[test]
+fn evaluate_counts_reports_at_the_rail() {
+    let d = tmpdir("eval-rail");
+    let csv = d.join("sim.csv");
+    let fit = d.join("fit.json");
+    let o = cta(&["simulate", "--out", s(&csv), "--separations", "2,25,30"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = cta(&["fit", s(&csv), "--separations", "25,30", "--save", s(&fit)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = cta(&["evaluate", s(&fit), s(&csv)]);
+    assert!(o.status.success());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("reports with an output at the 16-bit rail") && out.contains("of 100 at 2 in"),
+        "{out}"
+    );
+    let e = json(&cta(&["evaluate", s(&fit), s(&csv), "--json"]));
+    let at2 = e["at_rail"][0].as_u64().unwrap();
+    assert!(at2 > 0 && at2 < 100, "{e}");
+    assert_eq!(e["at_rail"][2], 0);
 }
