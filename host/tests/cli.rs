@@ -1010,18 +1010,7 @@ fn outputs_create_missing_folders() {
 fn calibrate_drops_an_out_of_range_pinhole_eye() {
     let d = tmpdir("noisy-eye");
     let csv = d.join("noisy.csv");
-    let o = cta(&[
-        "simulate",
-        "--out",
-        s(&csv),
-        "--noise",
-        "1800",
-        "--samples",
-        "2",
-        "--seed",
-        "1",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    common::simulate(&csv, &["--noise", "1800", "--samples", "2", "--seed", "1"]);
     let out = d.join("cal.json");
     let o = cta(&["calibrate", s(&csv), "--out", s(&out)]);
     let text = String::from_utf8_lossy(&o.stdout);
@@ -1042,8 +1031,7 @@ fn evaluate_counts_reports_at_the_rail() {
     let d = tmpdir("eval-rail");
     let csv = d.join("sim.csv");
     let fit = d.join("fit.json");
-    let o = cta(&["simulate", "--out", s(&csv), "--separations", "2,25,30"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    common::simulate(&csv, &["--separations", "2,25,30"]);
     let o = cta(&["fit", s(&csv), "--separations", "25,30", "--save", s(&fit)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let o = cta(&["evaluate", s(&fit), s(&csv)]);
