@@ -115,11 +115,22 @@ fn joined(paths: &[&Path]) -> String {
 /// This test binary, to be started as a child process that runs only the test `test`, with
 /// the environment variable `var` giving it `paths` (read with [`child_paths`]). The child
 /// test does its work only when `var` is set, so it passes at once in the ordinary run; the
-/// parent can kill it, interrupt it or read its output and exit status.
+/// parent can kill it, interrupt it or read its output and exit status. The child's temporary
+/// folder (`TMPDIR`, where a simulated CTA keeps its pseudo-terminal links) is the folder of
+/// the first path, so a child killed before it could clean up leaves nothing behind outside
+/// the test's own folder.
 pub fn child(test: &str, var: &str, paths: &[&Path]) -> Command {
     let mut c = Command::new(std::env::current_exe().unwrap());
     c.args(only(test)).env(var, joined(paths));
+    with_tmpdir(&mut c, paths);
     c
+}
+
+/// Sets the child's `TMPDIR` to the folder of the first path ([`child`]).
+fn with_tmpdir(c: &mut Command, paths: &[&Path]) {
+    if let Some(dir) = paths.first().and_then(|p| p.parent()) {
+        c.env("TMPDIR", dir);
+    }
 }
 
 /// [`child`], started by `sh -c 'SETUP && exec ...'`: `setup` (e.g. `ulimit -f 48`) applies
@@ -130,6 +141,7 @@ pub fn child_in_shell(setup: &str, test: &str, var: &str, paths: &[&Path]) -> Co
         .arg(std::env::current_exe().unwrap())
         .args(only(test))
         .env(var, joined(paths));
+    with_tmpdir(&mut c, paths);
     c
 }
 
