@@ -837,6 +837,11 @@ pub struct EvaluateArgs {
     /// --budget` reads); default: thesis Table 2.
     #[arg(long, value_name = "FILE.toml")]
     pub budget: Option<PathBuf>,
+    /// Leave out reports with an output at the 16-bit rail (a cell in shadow, close in). By
+    /// default they are counted, as the thesis's Figure 57 counts every report, and a note
+    /// says how many; their error in angle is that of a clipped output, not a measurement.
+    #[arg(long)]
+    pub without_rail: bool,
     /// Draw Figure 57 (angle-error std and CTA uncertainty vs separation) to this SVG file.
     #[arg(long)]
     pub plot: Option<PathBuf>,
@@ -920,7 +925,15 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
         &ds,
         reference,
         uncertainty::rss_inches(&budget_items(&budget)),
+        a.without_rail,
     );
+    if ev.separation_in.is_empty() {
+        bail!(
+            "{}: every report is at the 16-bit rail, nothing is left to evaluate without \
+             --without-rail",
+            a.file.display()
+        );
+    }
     ev.budget = match &a.budget {
         Some(p) => p.display().to_string(),
         None => "thesis Table 2".into(),
@@ -1023,21 +1036,29 @@ fn print_evaluation(rep: &FitReport, ev: &fit::Evaluation) {
             n
         );
     }
-    let railed: Vec<String> = (0..ev.separation_in.len())
+    let mut railed: Vec<String> = (0..ev.separation_in.len())
         .filter(|&i| ev.at_rail[i] > 0)
         .map(|i| {
-            format!(
-                "{} of {} at {} in",
-                ev.at_rail[i], ev.reports[i], ev.separation_in[i]
-            )
+            let of = ev.reports[i] + if ev.rail_left_out { ev.at_rail[i] } else { 0 };
+            format!("{} of {of} at {} in", ev.at_rail[i], ev.separation_in[i])
         })
         .collect();
+    railed.extend(ev.all_at_rail_in.iter().map(|s| format!("all at {s} in")));
     if !railed.is_empty() {
-        println!(
-            "note: reports with an output at the 16-bit rail (a cell in shadow) are counted, as \
-             Figure 57 counts every report, but their error is that of a clipped output: {}",
-            railed.join(", ")
-        );
+        if ev.rail_left_out {
+            println!(
+                "note: reports with an output at the 16-bit rail (a cell in shadow) are left out \
+                 (--without-rail; Figure 57 counts every report): {}",
+                railed.join(", ")
+            );
+        } else {
+            println!(
+                "note: reports with an output at the 16-bit rail (a cell in shadow) are counted, \
+                 as Figure 57 counts every report, but their error is that of a clipped output \
+                 (leave them out with --without-rail): {}",
+                railed.join(", ")
+            );
+        }
     }
     // The thesis plots the std; a bias shared by a separation's beacons comes on top.
     let worst = ev

@@ -157,6 +157,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         separations: None,
         head: None,
         budget: None,
+        without_rail: false,
         plot: Some(p("figure57.svg")),
         json: false,
     })?;

@@ -633,10 +633,16 @@ pub struct Evaluation {
     pub cta_uncertainty_deg: Vec<f64>,
     /// Reports per separation.
     pub reports: Vec<usize>,
-    /// Of them, reports with an output at the 16-bit rail (|count| >= 32767: a cell in
-    /// shadow). They are counted, as the thesis's Figure 57 counts every report, but their
-    /// error in angle is that of a clipped output, not a measurement.
+    /// Reports with an output at the 16-bit rail (|count| >= 32767: a cell in shadow). By
+    /// default they are among `reports`, as the thesis's Figure 57 counts every report, but
+    /// their error in angle is that of a clipped output, not a measurement; with
+    /// `rail_left_out` they are not among `reports` and not in the statistics.
     pub at_rail: Vec<usize>,
+    /// Whether reports at the rail were left out (`cta evaluate --without-rail`).
+    pub rail_left_out: bool,
+    /// Separations left out of the table because every report there is at the rail (only with
+    /// `rail_left_out`), inches.
+    pub all_at_rail_in: Vec<f64>,
     /// Where the angle is measured from ([`Reference::name`]): "truth" (the file's truth
     /// sidecar), "head" (the head centre measured on the CTA, `--head`) or "fit" (the fit's
     /// own eye point: only the model's consistency with itself, not Figure 57's error).
@@ -673,8 +679,16 @@ impl Reference {
 }
 
 /// Evaluate a fit on a dataset, the error in angle measured from `reference`; `u` is the
-/// CTA's 1-sigma position uncertainty per axis, inches (eq 26's root-sum-square).
-pub fn evaluate(x: &Params<f64>, ds: &Dataset, reference: Reference, u: [f64; 3]) -> Evaluation {
+/// CTA's 1-sigma position uncertainty per axis, inches (eq 26's root-sum-square). With
+/// `without_rail`, reports with an output at the 16-bit rail are left out (counted in
+/// [`Evaluation::at_rail`]).
+pub fn evaluate(
+    x: &Params<f64>,
+    ds: &Dataset,
+    reference: Reference,
+    u: [f64; 3],
+    without_rail: bool,
+) -> Evaluation {
     let d = match reference {
         Reference::Truth(d) | Reference::Head(d) => d,
         Reference::Fit => Vector3::new(x[0], x[1], x[2]),
@@ -686,16 +700,29 @@ pub fn evaluate(x: &Params<f64>, ds: &Dataset, reference: Reference, u: [f64; 3]
         cta_uncertainty_deg: Vec::new(),
         reports: Vec::new(),
         at_rail: Vec::new(),
+        rail_left_out: without_rail,
+        all_at_rail_in: Vec::new(),
         reference: reference.name().into(),
         reference_in: [d.x, d.y, d.z],
         budget: "thesis Table 2".into(),
     };
+    let railed = |s: &crate::measurement::Sample| {
+        s.x.abs() >= crate::measurement::RAIL || s.y.abs() >= crate::measurement::RAIL
+    };
     for sep in ds.separations() {
-        let rows: Vec<_> = ds
+        let mut rows: Vec<_> = ds
             .samples
             .iter()
             .filter(|s| s.separation_in == sep)
             .collect();
+        let at_rail = rows.iter().filter(|s| railed(s)).count();
+        if without_rail {
+            rows.retain(|s| !railed(s));
+            if rows.is_empty() {
+                ev.all_at_rail_in.push(sep);
+                continue;
+            }
+        }
         let errs: Vec<f64> = rows
             .iter()
             .map(|s| collinearity::angle_error(x, [s.x, s.y], &Vector3::from(s.r), &d).to_degrees())
@@ -717,13 +744,7 @@ pub fn evaluate(x: &Params<f64>, ds: &Dataset, reference: Reference, u: [f64; 3]
         ev.angle_mean_deg.push(mean);
         ev.cta_uncertainty_deg.push(cta);
         ev.reports.push(rows.len());
-        ev.at_rail.push(
-            rows.iter()
-                .filter(|s| {
-                    s.x.abs() >= crate::measurement::RAIL || s.y.abs() >= crate::measurement::RAIL
-                })
-                .count(),
-        );
+        ev.at_rail.push(at_rail);
     }
     ev
 }

@@ -1045,4 +1045,29 @@ fn evaluate_counts_reports_at_the_rail() {
     let at2 = e["at_rail"][0].as_u64().unwrap();
     assert!(at2 > 0 && at2 < 100, "{e}");
     assert_eq!(e["at_rail"][2], 0);
+    assert_eq!(e["rail_left_out"], false);
+
+    // --without-rail leaves them out of the statistics, and says so.
+    let o = cta(&["evaluate", s(&fit), s(&csv), "--without-rail"]);
+    assert!(o.status.success());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("are left out (--without-rail")
+            && out.contains(&format!("{at2} of 100 at 2 in")),
+        "{out}"
+    );
+    let w = json(&cta(&[
+        "evaluate",
+        s(&fit),
+        s(&csv),
+        "--json",
+        "--without-rail",
+    ]));
+    assert_eq!(w["rail_left_out"], true);
+    assert_eq!(w["at_rail"], e["at_rail"]);
+    assert_eq!(w["reports"][0].as_u64().unwrap(), 100 - at2, "{w}");
+    assert_eq!(w["reports"][2], e["reports"][2]);
+    // The clipped reports' errors were part of the 2 in statistics, not of 30 in's.
+    assert_ne!(w["angle_std_deg"][0], e["angle_std_deg"][0]);
+    assert_eq!(w["angle_std_deg"][2], e["angle_std_deg"][2]);
 }
