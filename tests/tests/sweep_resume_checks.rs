@@ -546,20 +546,20 @@ fn a_journal_with_the_older_spread_loads_and_resumes_with_the_ch_iv_uncertainty(
     std::fs::write(&jp, &old).unwrap();
     let plan = Plan::load(&run.join("plan.toml")).unwrap();
     let store = RunDir::open(&run, false, &plan).unwrap();
-    let mut seen = 0;
+    let (mut seen, mut tilted) = (0, 0);
     for e in &store.events {
         if let Event::Separation(s) = e {
             seen += 1;
             assert_eq!(s.corners.len(), 4, "{s:?}");
             let m = s.corners.iter().sum::<f64>() / 4.0;
             let bound = s.corners.iter().map(|c| (c - m).abs()).fold(0.0, f64::max);
-            assert!(
-                bound > 0.0 && (s.uncertainty - bound).abs() < 1e-12,
-                "{s:?}"
-            );
+            assert!((s.uncertainty - bound).abs() < 1e-12, "{s:?}");
+            tilted += usize::from(bound > 0.0);
         }
     }
     assert_eq!(seen, separations);
+    // Not all level: some derived uncertainty differs from zero as well as from the sentinel.
+    assert!(tilted > 0, "every simulated plate level");
     drop(store);
     assert_eq!(resume(&run).unwrap().ending, Ending::Complete);
     let manifest = read(&run.join("manifest.json"));

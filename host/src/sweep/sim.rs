@@ -732,23 +732,16 @@ impl SimCta {
     }
 
     /// Move the plate to separation `sep_idx` of the plan, the array in `quadrant`; returns
-    /// the simulated operator's corner readings (the plate sits slightly tilted: the corners
-    /// differ, their mean is the nominal separation).
+    /// the simulated operator's corner readings, read to 1 mil (the plate sits slightly tilted,
+    /// as leveled by Ch IV's machinist's level: the corners differ from their mean by at most
+    /// 5 mils, [`super::store::LEVEL_BOUND_IN`], and their mean is the nominal separation).
     pub fn move_plate(&self, sep_idx: usize, nominal: f64, quadrant: usize) -> SeparationEntry {
         {
             let mut st = self.world.state();
             st.sep_idx = Some(sep_idx);
             st.quadrant = quadrant;
         }
-        let mut rng =
-            StdRng::seed_from_u64(mix(&[self.world.settings.seed, 0x7117, sep_idx as u64]));
-        // Tilt of the plate, in/in, across the corners 8 in from the centre.
-        let (a, b): (f64, f64) = (rng.sample(StandardNormal), rng.sample(StandardNormal));
-        let l = 8.0 * 0.002;
-        let corners: Vec<f64> = [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
-            .iter()
-            .map(|(x, y)| round3(nominal + l * (a * x + b * y)))
-            .collect();
+        let corners = plate_corners(self.world.settings.seed, sep_idx, nominal);
         separation_entry(sep_idx, nominal, corners, "simulated plate".into())
     }
 
@@ -802,6 +795,21 @@ impl Drop for SimCta {
         }
         let _ = std::fs::remove_dir_all(&self.dir);
     }
+}
+
+/// The simulated operator's corner readings of the plate at separation `sep_idx` (nominal
+/// `nominal` in), for the simulation's `seed` ([`SimCta::move_plate`]).
+fn plate_corners(seed: u64, sep_idx: usize, nominal: f64) -> Vec<f64> {
+    let mut rng = StdRng::seed_from_u64(mix(&[seed, 0x7117, sep_idx as u64]));
+    // Tilt of the plate along x and y, as a fraction of the largest; at most 2 mils each at
+    // the corners, so a corner is within 4 mils of the nominal, within 5 of the readings'
+    // mean after rounding to 1 mil.
+    let (a, b): (f64, f64) = (rng.gen_range(-1.0..=1.0), rng.gen_range(-1.0..=1.0));
+    let l = 0.002;
+    [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
+        .iter()
+        .map(|(x, y)| round3(nominal + l * (a * x + b * y)))
+        .collect()
 }
 
 fn round3(x: f64) -> f64 {
@@ -871,5 +879,26 @@ mod tests {
         // Not measured (`--yes`): the nominal, no uncertainty claimed.
         let e = separation_entry(3, 12.0, vec![], "scripted".into());
         assert_eq!((e.mean, e.uncertainty), (12.0, 0.0));
+    }
+
+    /// The simulated plate is as level as Ch IV's: the operator's question about corners
+    /// beyond +/-5 mils never comes up, and the mean is the nominal to within a mil.
+    #[test]
+    fn simulated_plate_is_level_within_ch_iv() {
+        let mut widest = 0.0f64;
+        for seed in 0..200 {
+            for (i, nominal) in [1.0, 2.0, 7.5, 15.0, 30.0].into_iter().enumerate() {
+                let c = plate_corners(seed, i, nominal);
+                assert!(
+                    super::super::store::levelness_question(&c).is_none(),
+                    "{c:?}"
+                );
+                let e = separation_entry(i, nominal, c, "test".into());
+                assert!((e.mean - nominal).abs() <= 0.001, "{e:?}");
+                widest = widest.max(e.uncertainty);
+            }
+        }
+        // Tilted at all: corners differ by several mils somewhere.
+        assert!(widest > 0.003, "{widest}");
     }
 }
