@@ -45,8 +45,17 @@ fn parse_args<A: clap::Args>(args: &[&str]) -> Result<A> {
     Ok(<Wrap<A> as clap::Parser>::try_parse_from(argv)?.inner)
 }
 
-/// What the demo writes into its folder: `--force` deletes a folder holding only these.
-const DEMO_ENTRIES: [&str; 9] = [
+/// The file the demo writes first into its folder, saying what the folder is; `--force`
+/// deletes only a folder that has it.
+const DEMO_README: &str = "README.txt";
+
+/// Its first line.
+const DEMO_README_HEAD: &str = "written by `cta demo`: `cta demo --force` deletes this folder";
+
+/// What the demo writes into its folder: `--force` deletes a folder holding only these, with
+/// [`DEMO_README`].
+const DEMO_ENTRIES: [&str; 10] = [
+    DEMO_README,
     "nearfield.svg",
     "uncertainty.svg",
     "plan.toml",
@@ -82,6 +91,16 @@ fn remove_earlier_demo(out: &std::path::Path) -> Result<()> {
             foreign.join(", ")
         );
     }
+    let readme = out.join(DEMO_README);
+    if !std::fs::read_to_string(&readme).is_ok_and(|t| t.starts_with(DEMO_README_HEAD)) {
+        bail!(
+            "--out {}: has no {} written by `cta demo` (demos write it first), so it is not known \
+             to be an earlier demo's folder: not deleting it; remove it yourself or choose \
+             another --out",
+            out.display(),
+            readme.display()
+        );
+    }
     std::fs::remove_dir_all(out).with_context(|| format!("{}", out.display()))
 }
 
@@ -97,6 +116,18 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}", a.out.display()))?;
     let p = |f: &str| a.out.join(f);
+    crate::measurement::write_output(
+        &p(DEMO_README),
+        format!(
+            "{DEMO_README_HEAD}\n\nThe walkthrough of `cta demo` on the built-in simulated CTA (see the \
+             top-level README.md):\nnearfield.svg, uncertainty.svg: Ch II errors and Ch IV budget\n\
+             plan.toml, run/: the simulated sweep\nfit.json, figure57.svg: the 20-30 in \
+             calibration and Figure 57\ncal.json, calibration.svg: the sensor board's \
+             calibration\nreport/index.html: cta analyze's report\n"
+        )
+        .as_bytes(),
+    )
+    .map_err(anyhow::Error::msg)?;
     println!("== 1. Ch II: near-field errors (2-D)");
     commands::nearfield(&NearfieldArgs {
         alpha: 30.0,
@@ -187,4 +218,34 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         report.join("index.html").display()
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--force` deletes a folder the demo wrote (its README first), and nothing else: not a
+    /// folder with the demo's file names but no README, nor one with other files.
+    #[test]
+    fn only_an_earlier_demos_folder_is_deleted() {
+        let d = std::env::temp_dir().join(format!("cta-demo-rm-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(d.join("run")).unwrap();
+        std::fs::write(d.join("fit.json"), "mine").unwrap();
+        std::fs::write(d.join("nearfield.svg"), "mine").unwrap();
+        let e = remove_earlier_demo(&d).unwrap_err().to_string();
+        assert!(
+            e.contains("not known to be an earlier demo's folder"),
+            "{e}"
+        );
+        std::fs::write(d.join(DEMO_README), "notes").unwrap();
+        assert!(remove_earlier_demo(&d).is_err());
+        std::fs::write(d.join(DEMO_README), format!("{DEMO_README_HEAD}\n")).unwrap();
+        std::fs::write(d.join("mine.txt"), "x").unwrap();
+        let e = remove_earlier_demo(&d).unwrap_err().to_string();
+        assert!(e.contains("(mine.txt)"), "{e}");
+        std::fs::remove_file(d.join("mine.txt")).unwrap();
+        remove_earlier_demo(&d).unwrap();
+        assert!(!d.exists());
+    }
 }

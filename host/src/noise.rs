@@ -960,8 +960,9 @@ pub fn run(args: &NoiseArgs) -> anyhow::Result<()> {
         print!("{}", render_text(&r));
     }
     if let Some(dir) = &args.plot {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", dir.display()))?;
+        let (svg_path, index) = (dir.join("noise.svg"), dir.join("index.html"));
+        crate::plot::refuse_to_replace(&svg_path)?;
+        crate::plot::refuse_to_replace(&index)?;
         let panels: Vec<Panel> = r
             .factors
             .iter()
@@ -970,16 +971,14 @@ pub fn run(args: &NoiseArgs) -> anyhow::Result<()> {
             .collect();
         let svg = render_svg(&format!("CTA noise: {}", r.file), &panels, 2)
             .map_err(|e| anyhow::anyhow!("plotting failed: {e}"))?;
-        crate::measurement::write_output(&dir.join("noise.svg"), svg.as_bytes())
-            .map_err(anyhow::Error::msg)?;
+        crate::plot::write_marked(&svg_path, &svg)?;
         let html = format!(
             "<!doctype html><meta charset=utf-8><title>cta noise</title>\
              <body style='font-family:sans-serif'>{svg}<pre>{}</pre></body>",
             html_escape(&render_text(&r))
         );
-        crate::measurement::write_output(&dir.join("index.html"), html.as_bytes())
-            .map_err(anyhow::Error::msg)?;
-        eprintln!("plots: {}", dir.join("index.html").display());
+        crate::plot::write_marked(&index, &html)?;
+        eprintln!("plots: {}", index.display());
     }
     Ok(())
 }

@@ -606,18 +606,56 @@ pub fn render_svg(title: &str, panels: &[Panel], cols: usize) -> Result<String, 
     Ok(buf)
 }
 
-/// Render panels to an SVG file, written as every `cta` output is
-/// ([`crate::measurement::write_output`]: missing folders created, `cannot write PATH: reason`).
-pub fn write_svg(path: &Path, title: &str, panels: &[Panel], cols: usize) -> anyhow::Result<()> {
-    refuse_to_replace_non_svg(path)?;
-    let svg = render_svg(title, panels, cols)
-        .map_err(|e| anyhow::anyhow!("{}: plotting failed: {e}", path.display()))?;
-    crate::measurement::write_output(path, svg.as_bytes()).map_err(anyhow::Error::msg)
+/// The comment every file `cta` writes for people to look at (plots, HTML reports) carries
+/// near its start: such a file, and only such a file, a later `cta` output may replace
+/// ([`refuse_to_replace`]).
+pub const MARK: &str = "<!-- written by cta; a later cta output may replace this file -->";
+
+/// Files written before [`MARK`] existed, recognised by their first bytes: plotters' SVG
+/// header as `cta` wrote it, and the two HTML reports.
+const LEGACY_HEADS: [&str; 3] = [
+    "<svg width=\"",
+    "<!doctype html><html><head><meta charset=utf-8><title>cta analyze: ",
+    "<!doctype html><meta charset=utf-8><title>cta noise</title>",
+];
+
+/// Whether the first bytes of a file show that `cta` wrote it ([`MARK`], or an older plot or
+/// report's exact header).
+fn written_by_cta(head: &str) -> bool {
+    head.contains(MARK)
+        || head.starts_with(LEGACY_HEADS[0])
+            && head.lines().next().is_some_and(|l| {
+                l.ends_with(" xmlns=\"http://www.w3.org/2000/svg\">")
+                    && l.contains(" viewBox=\"0 0 ")
+                    && l.matches('=').count() == 4
+            })
+        || LEGACY_HEADS[1..].iter().any(|h| head.starts_with(h))
 }
 
-/// A plot may replace an earlier plot, never another kind of file (`--plot data.csv` by
-/// mistake would otherwise destroy the measurements).
-pub fn refuse_to_replace_non_svg(path: &Path) -> anyhow::Result<()> {
+/// Render panels to an SVG file, written as every `cta` output is
+/// ([`crate::measurement::write_output`]: missing folders created, `cannot write PATH: reason`),
+/// marked as `cta`'s ([`MARK`]); refused when `path` holds a file `cta` did not write.
+pub fn write_svg(path: &Path, title: &str, panels: &[Panel], cols: usize) -> anyhow::Result<()> {
+    refuse_to_replace(path)?;
+    let svg = render_svg(title, panels, cols)
+        .map_err(|e| anyhow::anyhow!("{}: plotting failed: {e}", path.display()))?;
+    write_marked(path, &svg)
+}
+
+/// Write `text` (SVG or HTML) to `path` with [`MARK`] near its start: after an HTML doctype
+/// (a comment before it would put browsers in quirks mode), else first.
+pub fn write_marked(path: &Path, text: &str) -> anyhow::Result<()> {
+    let marked = match text.strip_prefix("<!doctype html>") {
+        Some(rest) => format!("<!doctype html>{MARK}\n{rest}"),
+        None => format!("{MARK}\n{text}"),
+    };
+    crate::measurement::write_output(path, marked.as_bytes()).map_err(anyhow::Error::msg)
+}
+
+/// A plot or report may replace an earlier one `cta` wrote, never another file: not
+/// `--plot data.csv` by mistake, which would destroy the measurements, nor a lab's own SVG
+/// or web page (`--report site/` over `site/index.html`). `cta`'s files carry [`MARK`].
+pub fn refuse_to_replace(path: &Path) -> anyhow::Result<()> {
     use std::io::Read;
     if !path.exists() {
         return Ok(());
@@ -628,21 +666,20 @@ pub fn refuse_to_replace_non_svg(path: &Path) -> anyhow::Result<()> {
             path.display()
         );
     }
-    let mut head = [0u8; 256];
+    let mut head = [0u8; 512];
     let n = std::fs::File::open(path)
         .and_then(|mut f| f.read(&mut head))
         .map_err(|e| {
             anyhow::anyhow!(
-                "{}: exists and cannot be read ({e}), so it is not known to be an earlier plot: \
-                 not replacing it (choose another name, or remove the file)",
+                "{}: exists and cannot be read ({e}), so it is not known to be an earlier cta \
+                 output: not replacing it (choose another name, or remove the file)",
                 path.display()
             )
         })?;
-    let text = String::from_utf8_lossy(&head[..n]);
-    let t = text.trim_start();
-    if !(t.starts_with("<svg") || (t.starts_with("<?xml") && text.contains("<svg"))) {
+    if !written_by_cta(&String::from_utf8_lossy(&head[..n])) {
         anyhow::bail!(
-            "{}: exists and is not an SVG plot: not replacing it (choose another name, or remove the file)",
+            "{}: exists and is not a plot or report cta wrote: not replacing it (choose another \
+             name, or remove the file)",
             path.display()
         );
     }

@@ -408,11 +408,11 @@ fn outputs_never_replace_other_kinds_of_file() {
     // --plot: an earlier plot is replaced, never another file.
     fails_with(
         &cta(&["evaluate", s(&fit), s(&sim), "--plot", s(&data)]),
-        "is not an SVG plot",
+        "is not a plot or report cta wrote",
     );
     fails_with(
         &cta(&["nearfield", "--plot", s(&data)]),
-        "is not an SVG plot",
+        "is not a plot or report cta wrote",
     );
     keep("plot");
     let svg = d.join("f.svg");
@@ -435,6 +435,73 @@ fn outputs_never_replace_other_kinds_of_file() {
         "nothing to write",
     );
     assert!(!none.exists() && !d.join("none.csv.partial").exists());
+}
+
+/// Plots and reports replace only files `cta` wrote (they carry its mark), never a lab's own
+/// SVG or web page; the analysis is printed whatever happens to the report.
+#[test]
+fn plots_and_reports_replace_only_what_cta_wrote() {
+    let d = tmpdir("own-files");
+    let own_svg = "<svg xmlns=\"http://www.w3.org/2000/svg\"><!-- lab schematic --></svg>";
+    let schem = d.join("schem.svg");
+    std::fs::write(&schem, own_svg).unwrap();
+    fails_with(
+        &cta(&["nearfield", "--plot", s(&schem)]),
+        "is not a plot or report cta wrote",
+    );
+    assert_eq!(std::fs::read_to_string(&schem).unwrap(), own_svg);
+    // cta's own plot: replaced, and marked again.
+    let nf = d.join("nf.svg");
+    for _ in 0..2 {
+        let o = cta(&["nearfield", "--plot", s(&nf)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert!(std::fs::read_to_string(&nf)
+        .unwrap()
+        .starts_with("<!-- written by cta"));
+
+    let csv = d.join("sim.csv");
+    common::simulate(&csv, &["--separations", "10,20,30", "--samples", "2"]);
+    let page = "<html>my lab wiki page</html>";
+    let site = d.join("site");
+    std::fs::create_dir_all(&site).unwrap();
+    std::fs::write(site.join("index.html"), page).unwrap();
+    fails_with(
+        &cta(&["analyze", s(&csv), "--report", s(&site)]),
+        "is not a plot or report cta wrote",
+    );
+    let notes = d.join("notes");
+    std::fs::create_dir_all(&notes).unwrap();
+    std::fs::write(notes.join("noise.svg"), "my notes").unwrap();
+    fails_with(
+        &cta(&["noise", s(&csv), "--plot", s(&notes)]),
+        "is not a plot or report cta wrote",
+    );
+    assert_eq!(
+        std::fs::read_to_string(site.join("index.html")).unwrap(),
+        page
+    );
+    assert_eq!(
+        std::fs::read_to_string(notes.join("noise.svg")).unwrap(),
+        "my notes"
+    );
+    // A report cta wrote is replaced; a report path that is a file is named, after the
+    // analysis was printed.
+    let rep = d.join("rep");
+    for _ in 0..2 {
+        let o = cta(&["analyze", s(&csv), "--report", s(&rep)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let o = cta(&["analyze", s(&csv), "--report", s(&csv)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && !o.stdout.is_empty(), "{err}");
+    assert!(
+        err.contains(&format!(
+            "cannot write {}",
+            csv.join("index.html").display()
+        )) && err.contains("the report was not written"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -708,7 +775,7 @@ fn calibrate_writes_what_the_board_loads() {
     );
     fails_with(
         &cta(&["calibrate", s(&csv), "--plot", s(&csv)]),
-        "is not an SVG plot",
+        "is not a plot or report cta wrote",
     );
     let truth = d.join("sweep.truth.json");
     fails_with(

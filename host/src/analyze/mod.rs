@@ -28,7 +28,6 @@ pub mod select;
 pub mod wiring;
 
 use crate::measurement::{parse_separations, Dataset};
-use anyhow::Context;
 use data::{Data, Weights};
 pub use digits::{pm, pm_parts};
 use model::{Base, Cand, FitResult, Model};
@@ -1771,14 +1770,19 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<()> {
     let a = analyze(&ds, &opts, &progress).map_err(anyhow::Error::msg)?;
     bar.finish_and_clear();
     if let Some(dir) = &args.report {
-        report::write(dir, &a)
-            .with_context(|| format!("writing the report to {}", dir.display()))?;
-        eprintln!("report: {}", dir.join("index.html").display());
+        // Checked before printing, written after: the printed analysis is never lost.
+        crate::plot::refuse_to_replace(&dir.join("index.html"))?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&a)?);
     } else {
         print!("{}", render_text(&a));
+    }
+    if let Some(dir) = &args.report {
+        report::write(dir, &a).map_err(|e| {
+            anyhow::anyhow!("{e}; the analysis above is complete, the report was not written")
+        })?;
+        eprintln!("report: {}", dir.join("index.html").display());
     }
     Ok(())
 }

@@ -21,12 +21,14 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::fmt::Write;
 use std::path::Path;
 
-/// Write `DIR/index.html`.
+/// Write `DIR/index.html` (missing folders created; refused over a file `cta` did not write,
+/// [`crate::plot::refuse_to_replace`]; errors read `cannot write PATH: reason`).
 pub fn write(dir: &Path, a: &Analysis) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir)?;
-    let html = render(a).map_err(|e| anyhow::anyhow!("plotting failed: {e}"))?;
-    std::fs::write(dir.join("index.html"), html)?;
-    Ok(())
+    let index = dir.join("index.html");
+    crate::plot::refuse_to_replace(&index)?;
+    let html =
+        render(a).map_err(|e| anyhow::anyhow!("{}: plotting failed: {e}", index.display()))?;
+    crate::plot::write_marked(&index, &html)
 }
 
 /// The correlation lines of a candidate as HTML to append to its estimates cell (empty when

@@ -804,7 +804,7 @@ fn plate_corners(seed: u64, sep_idx: usize, nominal: f64) -> Vec<f64> {
     // Tilt of the plate along x and y, as a fraction of the largest; at most 2 mils each at
     // the corners, so a corner is within 4 mils of the nominal, within 5 of the readings'
     // mean after rounding to 1 mil.
-    let (a, b): (f64, f64) = (rng.gen_range(-1.0..=1.0), rng.gen_range(-1.0..=1.0));
+    let (a, b): (f64, f64) = (rng.random_range(-1.0..=1.0), rng.random_range(-1.0..=1.0));
     let l = 0.002;
     [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
         .iter()
