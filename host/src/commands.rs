@@ -366,7 +366,33 @@ fn load_budget(path: &PathBuf) -> Result<Vec<(String, [f64; 6])>> {
             path.display()
         );
     }
+    if let Some(w) = budget_unit_warning(&out) {
+        eprintln!("warning: {}: {w}", path.display());
+    }
     Ok(out)
+}
+
+/// A caution when a budget's values look like inches rather than mils: every value below
+/// 0.1 mil (Table 2's items are 0.5-21 mils; 0.005 in is 5 mils), or one above 1 in.
+fn budget_unit_warning(items: &[(String, [f64; 6])]) -> Option<String> {
+    let values = || items.iter().flat_map(|(_, v)| v.iter().copied());
+    let largest = values().fold(0.0f64, f64::max);
+    if largest < 0.1 {
+        return Some(format!(
+            "the largest uncertainty is {largest} mils: the budget is in mils (thousandths of an \
+             inch; Table 2's items are 0.5-21 mils), are these inches?"
+        ));
+    }
+    items
+        .iter()
+        .find(|(_, v)| v.iter().any(|m| *m > 1000.0))
+        .map(|(name, v)| {
+            format!(
+            "item `{name}`: {} mils is more than 1 in: the budget is in mils (Table 2's items are \
+             0.5-21 mils)",
+            v.iter().copied().fold(0.0f64, f64::max)
+        )
+        })
 }
 
 /// Largest uncertainty of a budget item, mils: 1,000 in, far beyond any apparatus (the

@@ -137,8 +137,35 @@ fn nearfield_and_uncertainty_json() {
         "[[item]]\nname = \"a\"\nx = 3\n[[item]]\nname = \"b\"\nx = 4\nz_plus = 1\n",
     )
     .unwrap();
-    let u = json(&cta(&["uncertainty", "--budget", s(&b), "--json"]));
+    let o = cta(&["uncertainty", "--budget", s(&b), "--json"]);
+    assert!(
+        o.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let u = json(&o);
     assert!((u["rss_mils"]["x"].as_f64().unwrap() - 5.0).abs() < 1e-12);
+    // Values that look like inches (or beyond 1 in) are taken, with a caution naming mils.
+    for (text, needle) in [
+        (
+            "[[item]]\nname = \"a\"\nx = 0.005\n",
+            "the largest uncertainty is 0.005 mils",
+        ),
+        (
+            "[[item]]\nname = \"a\"\nx = 3\n[[item]]\nname = \"b\"\nz = 5000\n",
+            "item `b`: 5000 mils is more than 1 in",
+        ),
+    ] {
+        std::fs::write(&b, text).unwrap();
+        let o = cta(&["uncertainty", "--budget", s(&b)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success() && err.contains(needle), "{err}");
+    }
+    std::fs::write(
+        &b,
+        "[[item]]\nname = \"a\"\nx = 3\n[[item]]\nname = \"b\"\nx = 4\nz_plus = 1\n",
+    )
+    .unwrap();
     std::fs::write(&b, "[[item]]\nname = \"a\"\nxx = 3\n").unwrap();
     // TOML errors quote the offending line under the one-line summary.
     let o = cta(&["uncertainty", "--budget", s(&b)]);
