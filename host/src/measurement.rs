@@ -1211,6 +1211,13 @@ pub fn parse_separations(s: &str) -> Result<Vec<f64>, String> {
             "separation {bad} in must be a positive, finite number of inches"
         ));
     }
+    // Twice the same separation would simulate (or select) it twice: a file its readers
+    // refuse as pasted in twice.
+    let mut sorted = out.clone();
+    sorted.sort_by(f64::total_cmp);
+    if let Some(w) = sorted.windows(2).find(|w| w[1] - w[0] < 1e-9) {
+        return Err(format!("{} in is listed twice in `{s}`", w[0]));
+    }
     Ok(out)
 }
 
@@ -1749,6 +1756,12 @@ mod tests {
         assert!(parse_separations("a").is_err());
         assert!(parse_separations("-1").is_err());
         assert!(parse_separations("5..2").is_err());
+        assert_eq!(
+            parse_separations("25,25").unwrap_err(),
+            "25 in is listed twice in `25,25`"
+        );
+        assert!(parse_separations("2..30:2,10").is_err());
+        assert!(parse_separations("2..30:2,25").is_ok());
     }
 
     #[test]
