@@ -637,4 +637,255 @@ mod tests {
         let t = Emulator::new(head, pose, e).output(&r).unwrap();
         assert!((t[0] - o0[0]).abs() > 1.0);
     }
+
+    // Closed-form checks of each effect's direction and sign. The expected values come from
+    // the conventions (module docs, REFERENCE.md section 1) by hand, not from the code: a
+    // head at the N origin, level (`C = I`), so cell 1 sits at `+s` on x facing `+x`, cell 3
+    // at `+s` on y facing `+y`.
+
+    fn level() -> Pose<f64> {
+        Pose {
+            d: Vector3::zeros(),
+            p: Vector3::zeros(),
+        }
+    }
+
+    const DEG: f64 = core::f64::consts::PI / 180.0;
+
+    fn close(a: f64, b: f64, tol: f64, what: &str) {
+        assert!((a - b).abs() <= tol, "{what}: {a} want {b}");
+    }
+
+    /// `beacon_tilt`: the boresight leaves `-z` of N by `tilt` toward the azimuth `tilt_az`
+    /// (0 = +x, 90 deg = +y): `(sin t cos az, sin t sin az, -cos t)`.
+    #[test]
+    fn boresight_tilts_toward_its_azimuth() {
+        let t = 10.0 * DEG;
+        for (az, want) in [
+            (0.0, Vector3::new(t.sin(), 0.0, -t.cos())),
+            (90.0, Vector3::new(0.0, t.sin(), -t.cos())),
+            (180.0, Vector3::new(-t.sin(), 0.0, -t.cos())),
+            (-90.0, Vector3::new(0.0, -t.sin(), -t.cos())),
+        ] {
+            let e = Effects::<f64> {
+                tilt: t,
+                tilt_az: az * DEG,
+                ..Effects::default()
+            };
+            let b = e.boresight();
+            assert!((b - want).norm() < 1e-15, "az {az}: {b:?} want {want:?}");
+            assert_eq!(
+                Emulator::new(Head::northstar(), level(), e).boresight(),
+                b,
+                "the emulator uses the effects' boresight"
+            );
+        }
+        assert_eq!(
+            Effects::<f64>::default().boresight(),
+            Vector3::new(0.0, 0.0, -1.0)
+        );
+    }
+
+    /// A beacon straight above the level head at height `h`, its LED (Lambertian, m = 1)
+    /// tilted by `t` toward +x: cells 1 and 2 see it under the same cosine and intensity (the
+    /// rays `(-s, 0, h)` and `(s, 0, h)` have one length and meet mirrored normals), so only
+    /// the pattern differs: `c = -(ray . e)/|ray|` = `(h cos t +/- s sin t)/|ray|`, and
+    /// `X = beta (c1 - c2)/(c1 + c2) = beta (s/h) tan t`, `Y = 0`: the LED tilted toward +x
+    /// lights the +x cell more. At azimuth 90 deg the same holds for Y.
+    #[test]
+    fn beacon_tilt_lights_the_cell_it_tilts_toward() {
+        let head = Head::<f64>::northstar();
+        let (h, t) = (5.0, 10.0 * DEG);
+        let r = Vector3::new(0.0, 0.0, h);
+        let want = BETA * 0.175 / h * t.tan(); // 202.23 counts
+        for (az, wx, wy) in [
+            (0.0, want, 0.0),
+            (90.0, 0.0, want),
+            (180.0, -want, 0.0),
+            (270.0, 0.0, -want),
+        ] {
+            let e = Effects {
+                tilt: t,
+                tilt_az: az * DEG,
+                ..Effects::default()
+            };
+            let o = Emulator::new(head, level(), e).output(&r).unwrap();
+            close(o[0], wx, 1e-9, &format!("X, tilt azimuth {az}"));
+            close(o[1], wy, 1e-9, &format!("Y, tilt azimuth {az}"));
+        }
+        // No tilt: the beacon straight above reads (0, 0).
+        let o = Emulator::new(head, level(), Effects::default())
+            .output(&r)
+            .unwrap();
+        close(o[0], 0.0, 1e-9, "X untilted");
+        close(o[1], 0.0, 1e-9, "Y untilted");
+    }
+
+    /// `cell_gain`: with the beacon straight above the level head, the cells of a pair see
+    /// equal signals `S`, so a gain `g` on cell 1 gives `X = beta (g - 1)/(g + 1)` (GX > 0:
+    /// X > 0), and on cell 3 the same for Y.
+    #[test]
+    fn cell_gain_scales_cell_1_and_cell_3() {
+        let head = Head::<f64>::northstar();
+        let r = Vector3::new(0.0, 0.0, 4.0);
+        let g = 1.05;
+        let want = BETA * 0.05 / 2.05; // 799.22 counts
+        for (k, wx, wy) in [
+            (0, want, 0.0),
+            (1, -want, 0.0),
+            (2, 0.0, want),
+            (3, 0.0, -want),
+        ] {
+            let mut e = Effects::default();
+            e.gain[k] = g;
+            let o = Emulator::new(head, level(), e).output(&r).unwrap();
+            close(o[0], wx, 1e-9, &format!("X, gain on cell {}", k + 1));
+            close(o[1], wy, 1e-9, &format!("Y, gain on cell {}", k + 1));
+        }
+    }
+
+    /// `cell_bias`: in the far field (no proximity or intensity, uniform beacon) every cell
+    /// straight below the beacon reads its cosine `cos 30 deg`; a bias `b` on cell 1 gives
+    /// `X = beta b / (2 cos 30 deg + b)` (BX > 0: X > 0), on cell 3 the same for Y.
+    #[test]
+    fn cell_bias_adds_to_cell_1_and_cell_3() {
+        let head = Head::<f64>::northstar();
+        let r = Vector3::new(0.0, 0.0, 7.0);
+        let b = 0.1;
+        let want = BETA * b / (2.0 * (30.0 * DEG).cos() + b); // 1788.7 counts
+        for (k, wx, wy) in [
+            (0, want, 0.0),
+            (1, -want, 0.0),
+            (2, 0.0, want),
+            (3, 0.0, -want),
+        ] {
+            let mut e = Effects::far_field();
+            e.bias[k] = b;
+            let o = Emulator::new(head, level(), e).output(&r).unwrap();
+            close(o[0], wx, 1e-9, &format!("X, bias on cell {}", k + 1));
+            close(o[1], wy, 1e-9, &format!("Y, bias on cell {}", k + 1));
+        }
+    }
+
+    /// `saturation` and cross-talk, far field, a beacon 20 deg off boresight toward +x:
+    /// cell 1 (normal 30 deg toward +x) sees it 10 deg off its normal, cell 2 50 deg, cells 3
+    /// and 4 under `cos 30 cos 20`. Unclipped `X = beta (cos 10 - cos 50)/(cos 10 + cos 50)`
+    /// `= beta tan 30 tan 20` (eq 65's `H tan theta`). Clipped at `cos 30` (between the
+    /// two), cell 1 reads `cos 30`: X falls toward the boresight, Y stays 0. Cross-talk `x`:
+    /// cell 1 picks up `x` of cell 3 and cell 3 `x` of cell 1 (1<->3, 2<->4), so Y turns
+    /// positive with X.
+    #[test]
+    fn saturation_and_crosstalk_in_closed_form() {
+        let head = Head::<f64>::northstar();
+        let r = Vector3::new((20.0 * DEG).sin(), 0.0, (20.0 * DEG).cos()) * 6.0;
+        let (s1, s2) = ((10.0 * DEG).cos(), (50.0 * DEG).cos());
+        let s3 = (30.0 * DEG).cos() * (20.0 * DEG).cos();
+        let free = Emulator::new(head, level(), Effects::far_field())
+            .output(&r)
+            .unwrap();
+        close(
+            free[0],
+            BETA * (30.0 * DEG).tan() * (20.0 * DEG).tan(),
+            1e-9,
+            "X free",
+        );
+        close(
+            free[0],
+            BETA * (s1 - s2) / (s1 + s2),
+            1e-9,
+            "X free (cells)",
+        );
+        close(free[1], 0.0, 1e-9, "Y free");
+
+        let sat = (30.0 * DEG).cos();
+        let e = Effects {
+            saturation: Some(sat),
+            ..Effects::far_field()
+        };
+        let o = Emulator::new(head, level(), e).output(&r).unwrap();
+        close(o[0], BETA * (sat - s2) / (sat + s2), 1e-9, "X clipped");
+        assert!(o[0] < free[0] && o[0] > 0.0, "{o:?} {free:?}");
+        close(o[1], 0.0, 1e-9, "Y clipped");
+
+        let x = 0.02;
+        let e = Effects {
+            crosstalk: x,
+            ..Effects::far_field()
+        };
+        let o = Emulator::new(head, level(), e).output(&r).unwrap();
+        let (c1, c2, c3, c4) = (s1 + x * s3, s2 + x * s3, s3 + x * s1, s3 + x * s2);
+        close(o[0], BETA * (c1 - c2) / (c1 + c2), 1e-9, "X cross-talk");
+        close(o[1], BETA * (c3 - c4) / (c3 + c4), 1e-9, "Y cross-talk");
+        assert!(o[1] > 0.0, "cross-talk 1<->3: Y follows X: {o:?}");
+    }
+
+    /// Proximity (parallax), intensity and the beacon pattern, one at a time, for a beacon at
+    /// `(1, 0, 3)` in over the level head. Proximity alone: cell 1 at `+s` sees it
+    /// `phi1 = atan((1 - s)/3)` toward +x, i.e. `30 - phi1` off its normal, cell 2 at `-s`
+    /// `30 + phi2` with `phi2 = atan((1 + s)/3)`. Each effect makes the beacon look farther
+    /// off boresight (REFERENCE.md section 3: with the convex pairing all three errors have
+    /// one sign): intensity (cell 1 is nearer) and the Lambertian pattern (cell 1 is nearer
+    /// the LED's axis) both raise X above proximity alone, which is above the far field's
+    /// `H/3`; mirrored at `x = -1`.
+    #[test]
+    fn near_field_effects_push_beacons_off_boresight() {
+        let head = Head::<f64>::northstar();
+        let s = 0.175;
+        let a = 30.0 * DEG;
+        for side in [1.0, -1.0] {
+            let r = Vector3::new(side, 0.0, 3.0);
+            let out = |e: Effects<f64>| Emulator::new(head, level(), e).output(&r).unwrap();
+            let far = out(Effects::far_field());
+            close(far[0], side * BETA * a.tan() / 3.0, 1e-9, "far field");
+            let prox = Effects {
+                proximity: true,
+                ..Effects::far_field()
+            };
+            let p = out(prox);
+            let (phi1, phi2) = (((1.0 - s) / 3.0f64).atan(), ((1.0 + s) / 3.0f64).atan());
+            let (v1, v2) = ((a - phi1).cos(), (a + phi2).cos());
+            close(p[0], side * BETA * (v1 - v2) / (v1 + v2), 1e-9, "proximity");
+            assert!(side * p[0] > side * far[0], "proximity: {p:?} vs {far:?}");
+            let i = out(Effects {
+                intensity: true,
+                ..prox
+            });
+            assert!(side * i[0] > side * p[0], "intensity: {i:?} vs {p:?}");
+            let l = out(Effects {
+                pattern: Pattern::vsml3710(),
+                ..prox
+            });
+            assert!(side * l[0] > side * p[0], "pattern: {l:?} vs {p:?}");
+            for o in [far, p, i, l] {
+                close(o[1], 0.0, 1e-9, "Y on the x axis");
+            }
+        }
+    }
+
+    /// The pose: `d` is where the head sits (a beacon straight above it reads (0, 0)), and
+    /// `C` maps N to O: a head turned +90 deg about z sees N's +x as its own -y, so a beacon
+    /// at `(1, 0, 4)` reads `X = 0`, `Y = -H/4` in the far field.
+    #[test]
+    fn pose_offset_and_rotation_signs() {
+        let head = Head::<f64>::northstar();
+        let r = Vector3::new(1.0, 0.0, 4.0);
+        let shifted = Pose {
+            d: Vector3::new(1.0, 0.0, 0.0),
+            p: Vector3::zeros(),
+        };
+        let o = Emulator::new(head, shifted, Effects::default())
+            .output(&r)
+            .unwrap();
+        close(o[0], 0.0, 1e-9, "X above the head");
+        close(o[1], 0.0, 1e-9, "Y above the head");
+        let turned = Pose {
+            d: Vector3::zeros(),
+            p: Vector3::new(0.0, 0.0, (22.5 * DEG).tan()),
+        };
+        let o = Emulator::new(head, turned, Effects::far_field())
+            .output(&r)
+            .unwrap();
+        close(o[0], 0.0, 1e-9, "X turned");
+        close(o[1], -BETA * (30.0 * DEG).tan() / 4.0, 1e-9, "Y turned");
+    }
 }
