@@ -483,7 +483,15 @@ mod tests {
         let pose = Pose::table3();
         let em = Emulator::new(head, pose, Effects::far_field());
         let x = collinearity::Params::from_pose(&pose, head.h());
-        for sep in [1.0, 3.0, 10.0, 30.0] {
+        // How many beacons each separation must compare at least. A cell is lit while the
+        // beacon is less than 90 deg off its normal, i.e. (the head nearly level at d =
+        // (0.6, 0.1, 0.062)) while |x - 0.6| and |y - 0.1| stay below (sep - 0.062) / tan 30:
+        // at 1 in, 1.62 in: x in {-0.5, 0.5, 1.5}, y in {-1.5 (barely), -0.5, 0.5, 1.5}, at
+        // least the 3 x 3 well inside; at 3 in, 5.09 in: all but the x = -4.5 column (which
+        // the head's 0.5 deg tilt may let in), at least 9 x 9 well inside; at 10 and 30 in,
+        // every beacon.
+        for (sep, min) in [(1.0, 9), (3.0, 81), (10.0, 100), (30.0, 100)] {
+            let mut compared = 0;
             for i in 0..100 {
                 let r = grid_position(10, 1.0, sep, i);
                 // Only inside the field of view (every cell lit): past 60 deg off boresight
@@ -497,7 +505,12 @@ mod tests {
                     (a[0] - b[0]).abs() < 1e-8 && (a[1] - b[1]).abs() < 1e-8,
                     "{a:?} {b:?}"
                 );
+                compared += 1;
             }
+            assert!(
+                compared >= min,
+                "{sep} in: only {compared} beacons compared (want >= {min})"
+            );
         }
     }
 
