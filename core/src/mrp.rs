@@ -274,6 +274,48 @@ mod tests {
         }
     }
 
+    /// Near 180 deg the trace is no longer the largest candidate of [`from_dcm`]: the
+    /// diagonal element of the dominant axis is (`C_ii = cos phi + (1 - cos phi) e_i^2`), so
+    /// rotations of 170-179.9 deg about x, y and z, and about axes mostly along one of them
+    /// (then the off-diagonal terms of that branch are not zero), go through each of the
+    /// x-, y- and z-dominant branches; small angles through the trace branch.
+    #[test]
+    fn round_trip_near_180_deg_through_every_branch() {
+        let axes = [
+            (Vector3::x(), 0),
+            (Vector3::y(), 1),
+            (Vector3::z(), 2),
+            (Vector3::new(1.0, 0.3, -0.2), 0),
+            (Vector3::new(-0.25, 1.0, 0.35), 1),
+            (Vector3::new(0.3, -0.2, -1.0), 2),
+            (Vector3::new(-1.0, -0.4, 0.3), 0),
+            (Vector3::new(0.2, -1.0, -0.3), 1),
+        ];
+        for (axis, dominant) in axes {
+            for deg in [170.0f64, 175.0, 178.0, 179.0, 179.9] {
+                let p = from_axis_angle(&axis, deg.to_radians());
+                assert!(p.norm() < 1.0);
+                let c = dcm(&p);
+                // The branch this attitude takes: the largest of trace and diagonal.
+                let diag = [c[(0, 0)], c[(1, 1)], c[(2, 2)]];
+                let tr = diag.iter().sum::<f64>();
+                let k = (0..3)
+                    .max_by(|&i, &j| diag[i].partial_cmp(&diag[j]).unwrap())
+                    .unwrap();
+                assert!(k == dominant && diag[k] > tr, "{axis:?} {deg}");
+                let q = from_dcm(&c);
+                assert_relative_eq!(q, p, epsilon = 1e-12);
+                assert_relative_eq!(dcm(&q), c, epsilon = 1e-12);
+                // The attitude reversed (the rotation by -phi): the same branch.
+                let q = from_dcm(&c.transpose());
+                assert_relative_eq!(q, -p, epsilon = 1e-12);
+            }
+            // The trace branch: a small rotation about the same axis.
+            let p = from_axis_angle(&axis, 0.5);
+            assert_relative_eq!(from_dcm(&dcm(&p)), p, epsilon = 1e-12);
+        }
+    }
+
     #[test]
     fn composition_matches_dcm_product() {
         let p1 = Vector3::new(0.2, -0.1, 0.05);
