@@ -486,6 +486,79 @@ mod tests {
         assert_eq!(d.stats().bad(), 0);
     }
 
+    /// The CRC is CRC-32C: its catalogue check value (the CRC of the ASCII digits
+    /// "123456789"), which CRC-32/ISO-HDLC (0xCBF43926) and the other 32-bit CRCs do not have.
+    #[test]
+    fn crc_is_crc32c() {
+        assert_eq!(CRC.checksum(b"123456789"), 0xE306_9283);
+    }
+
+    /// Golden frames: the exact bytes on the wire, so any change of the format (header,
+    /// envelope, varints, CRC, COBS, delimiters) fails here. They were computed without this
+    /// crate, by a short Python script written from the specifications: CRC-32C bitwise
+    /// (reflected polynomial 0x82F63B78, init and final XOR 0xFFFFFFFF; its check value is
+    /// 0xE3069283), postcard's varints (7 bits per byte, least significant first, high bit =
+    /// more) for the u16 header fields, the enum variant indices and the u32, and COBS (each
+    /// zero-free run prefixed with its length + 1):
+    ///
+    /// ```text
+    /// def crc32c(d):
+    ///     c = 0xFFFFFFFF
+    ///     for b in d:
+    ///         c ^= b
+    ///         for _ in range(8): c = (c >> 1) ^ (0x82F63B78 if c & 1 else 0)
+    ///     return c ^ 0xFFFFFFFF
+    /// def varint(n):  # [n & 0x7F | 0x80, ...] until n < 0x80
+    /// def cobs(d):    # split at zeros, each run r -> [len(r) + 1] + r (runs of 254 split)
+    /// frame = [0] + cobs(payload + crc32c(payload).to_bytes(4, 'little')) + [0]
+    /// ```
+    ///
+    /// Frame 1: header (version 5, seq 7) = 05 07, `Request::Board` = variant 2 = 02,
+    /// 0xdeadbeef = varint ef fd b6 f5 0d; CRC-32C 0xf7a405f5 = f5 05 a4 f7 (LE); no zero,
+    /// so COBS is one run of 12: 0d then the 12 bytes.
+    /// Frame 2: header (5, seq 300 = varint ac 02), `Request::Board` 02,
+    /// `SensorRequest::Status` = variant 0 = 00; CRC 0xfdef4a6b = 6b 4a ef fd; COBS splits at
+    /// the zero: 05 | 05 ac 02 02, 05 | 6b 4a ef fd.
+    #[test]
+    fn golden_frames() {
+        assert_eq!(
+            PROTOCOL_VERSION, 5,
+            "a protocol version bump changes the golden frames: recompute them (see above)"
+        );
+        let mut buf = [0u8; 64];
+        let f = encode_frame(
+            Header::new(7),
+            &Request::<u32>::Board(0xdead_beef),
+            &mut buf,
+        )
+        .unwrap();
+        assert_eq!(
+            f,
+            [
+                0x00, 0x0d, 0x05, 0x07, 0x02, 0xef, 0xfd, 0xb6, 0xf5, 0x0d, 0xf5, 0x05, 0xa4, 0xf7,
+                0x00
+            ]
+        );
+        let mut d = FrameDecoder::<64>::new();
+        assert_eq!(
+            feed(&mut d, f)[0],
+            Ok((Header::new(7), Request::Board(0xdead_beef)))
+        );
+
+        let status = Request::Board(sensor::SensorRequest::Status);
+        let f = encode_frame(Header::new(300), &status, &mut buf).unwrap();
+        assert_eq!(
+            f,
+            [0x00, 0x05, 0x05, 0xac, 0x02, 0x02, 0x05, 0x6b, 0x4a, 0xef, 0xfd, 0x00]
+        );
+        let mut d = FrameDecoder::<64>::new();
+        let got = f
+            .iter()
+            .filter_map(|&b| d.push::<Request<sensor::SensorRequest>>(b))
+            .collect::<heapless::Vec<_, 2>>();
+        assert_eq!(got.as_slice(), [Ok((Header::new(300), status))]);
+    }
+
     #[test]
     fn corrupted_frame_is_counted_and_next_frame_survives() {
         let good = frame(3, &Request::Heartbeat);
