@@ -1405,6 +1405,105 @@ mod tests {
         assert!(s.condition > 1.0);
     }
 
+    /// `y = a + b t + c t^2 + k (t^3 - 7 t)` at `t = -3..3`: the cubic term is the discrete
+    /// orthogonal polynomial of degree 3 on these points (`sum t^j (t^3 - 7t) = 0` for
+    /// j = 0, 1, 2: the values are -6, 6, 6, 0, -6, -6, 6), so the normal equations'
+    /// solution is `(a, b, c)` exactly, with residuals `k (t^3 - 7t)` (cost `108 k^2`).
+    struct Quadratic {
+        truth: [f64; 3],
+        k: f64,
+    }
+    impl Problem<f64> for Quadratic {
+        type D = nalgebra::U3;
+        fn dim(&self) -> nalgebra::U3 {
+            nalgebra::U3
+        }
+        fn n_rows(&self) -> usize {
+            7
+        }
+        fn rows(
+            &self,
+            x: &nalgebra::Vector3<f64>,
+            _jac: bool,
+            sink: &mut dyn FnMut(f64, f64, &[f64]),
+        ) -> Result<(), ModelError> {
+            let [a, b, c] = self.truth;
+            for i in -3..=3 {
+                let t = f64::from(i);
+                let y = a + b * t + c * t * t + self.k * (t * t * t - 7.0 * t);
+                sink(y - (x[0] + x[1] * t + x[2] * t * t), 1.0, &[1.0, t, t * t]);
+            }
+            Ok(())
+        }
+    }
+
+    /// A linear problem from a far start with large residuals: the first Gauss-Newton step
+    /// lands on the answer up to the rounding of a 1e5-long step (~1e-11), and the final,
+    /// tiny step (taken without a model evaluation, `Stop::SmallPredictedDecrease`) must
+    /// remove that: the answer equals the closed-form least-squares solution to 1e-12.
+    #[test]
+    fn linear_problem_matches_the_normal_equations() {
+        let truth = [2.0, -3.0, 0.5];
+        for (k, x0) in [
+            (100.0, [1e5, -1e5, 1e5]),
+            (3.0, [-4e4, 7e4, 2e4]),
+            (0.0, [1e5, 1e5, -1e5]),
+        ] {
+            let p = Quadratic { truth, k };
+            let s = solve(&p, nalgebra::Vector3::from(x0), &Settings::default()).unwrap();
+            for (i, (got, want)) in s.x.iter().zip(truth).enumerate() {
+                assert!(
+                    (got - want).abs() < 1e-12,
+                    "k {k}: x{i} = {got} want {want} ({:?})",
+                    s.stop
+                );
+            }
+            assert!((s.cost - 108.0 * k * k).abs() <= 1e-9 * (1.0 + 108.0 * k * k));
+        }
+    }
+
+    /// The nonlinear `y = a exp(b t)` with residuals that do not vanish at the answer: GLSDC's
+    /// answer against an independent plain Gauss-Newton run to convergence (2 x 2 normal
+    /// equations by Cramer's rule, 200 steps). GLSDC stops once a Gauss-Newton step would
+    /// gain less than `cost_tol` (16 eps) of the cost, so it ends a little short of the
+    /// minimum: here 1.2-1.4e-9 from it; without the final step (taken without evaluating
+    /// the model), 1.3-1.5e-8. Hence 4e-9.
+    #[test]
+    fn nonlinear_problem_converges_to_the_minimum() {
+        let t: [f64; 10] = core::array::from_fn(|i| i as f64 * 0.4);
+        let wiggle = [0.3, -0.2, 0.25, -0.4, 0.1, 0.35, -0.3, 0.05, -0.15, 0.2];
+        let y: [f64; 10] = core::array::from_fn(|i| 2.0 * (-0.7 * t[i]).exp() + wiggle[i]);
+        let mut r = [2.0f64, -0.7];
+        for _ in 0..200 {
+            let (mut n00, mut n01, mut n11, mut g0, mut g1) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            for i in 0..10 {
+                let e = (r[1] * t[i]).exp();
+                let (j0, j1, res) = (e, r[0] * t[i] * e, y[i] - r[0] * e);
+                n00 += j0 * j0;
+                n01 += j0 * j1;
+                n11 += j1 * j1;
+                g0 += j0 * res;
+                g1 += j1 * res;
+            }
+            let det = n00 * n11 - n01 * n01;
+            r[0] += (n11 * g0 - n01 * g1) / det;
+            r[1] += (n00 * g1 - n01 * g0) / det;
+        }
+        for x0 in [
+            Vector2::new(10.0, 1.0),
+            Vector2::new(1.0, -2.0),
+            Vector2::new(2.5, -0.5),
+        ] {
+            let s = solve(&Exp::new(&t, &y), x0, &Settings::default()).unwrap();
+            assert!(
+                (s.x[0] - r[0]).abs() < 4e-9 && (s.x[1] - r[1]).abs() < 4e-9,
+                "from {x0:?}: {:?} want {r:?} ({:?})",
+                s.x,
+                s.stop
+            );
+        }
+    }
+
     #[test]
     fn iteration_cap_reports_last_cost_not_nan() {
         let t: [f64; 8] = [0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5];
