@@ -56,7 +56,16 @@ fn figure57_curve() {
     assert!(s30 > 0.07 / 1.5 && s30 < 0.14 * 1.5, "30 in: {s30}");
     assert!(s100 > 0.007 / 1.5 && s100 < 0.017 * 1.5, "100 in: {s100}");
     // The CTA uncertainty is NOT an order of magnitude below the error at 30 in
-    // (REFERENCE: the ratio is 1.3-2.6 there).
+    // (REFERENCE.md section 3, Figure 57: "the ratio is 1.3-2.6 at 30 in"). Those bounds
+    // are given to one decimal, and so they are read: the ratio rounds into 1.3-2.6. CTA
+    // measures 1.298 (std 0.0978 deg over a mean CTA uncertainty of 0.0753 deg), which
+    // rounds to the lower bound; README inconsistency 6 says "about 1.3", i.e. it rounds to
+    // 1.3.
     let ratio = s30 / u30;
-    assert!(ratio > 1.0 && ratio < 4.0, "ratio at 30 in {ratio}");
+    eprintln!("ratio at 30 in: {ratio:.4}");
+    assert!((1.25..2.65).contains(&ratio), "ratio at 30 in {ratio}");
+    assert!(
+        (1.25..1.35).contains(&ratio),
+        "README: about 1.3 at 30 in; got {ratio}"
+    );
 }
