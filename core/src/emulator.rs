@@ -835,9 +835,9 @@ mod tests {
     /// Proximity (parallax), intensity and the beacon pattern, one at a time, for a beacon at
     /// `(1, 0, 3)` in over the level head. Proximity alone: cell 1 at `+s` sees it
     /// `phi1 = atan((1 - s)/3)` toward +x, i.e. `30 - phi1` off its normal, cell 2 at `-s`
-    /// `30 + phi2` with `phi2 = atan((1 + s)/3)`. Each effect makes the beacon look farther
-    /// off boresight (REFERENCE.md section 3: with the convex pairing all three errors have
-    /// one sign): intensity (cell 1 is nearer) and the Lambertian pattern (cell 1 is nearer
+    /// `30 + phi2` with `phi2 = atan((1 + s)/3)`; intensity and pattern as noted below. Each
+    /// effect makes the beacon look farther off boresight (REFERENCE.md section 3: with the
+    /// convex pairing all three errors have one sign): intensity (cell 1 is nearer) and the Lambertian pattern (cell 1 is nearer
     /// the LED's axis) both raise X above proximity alone, which is above the far field's
     /// `H/3`; mirrored at `x = -1`.
     #[test]
@@ -859,15 +859,21 @@ mod tests {
             let (v1, v2) = ((a - phi1).cos(), (a + phi2).cos());
             close(p[0], side * BETA * (v1 - v2) / (v1 + v2), 1e-9, "proximity");
             assert!(side * p[0] > side * far[0], "proximity: {p:?} vs {far:?}");
+            // Intensity: cell k at distance `L_k = 3 / cos phi_k` gets `1/L_k^2`; the
+            // Lambertian LED (boresight -z) gives it `cos phi_k = 3/L_k`.
+            let (l1, l2) = (3.0 / phi1.cos(), 3.0 / phi2.cos());
+            let x = |s1: f64, s2: f64| side * BETA * (s1 - s2) / (s1 + s2);
             let i = out(Effects {
                 intensity: true,
                 ..prox
             });
+            close(i[0], x(v1 / (l1 * l1), v2 / (l2 * l2)), 1e-9, "intensity");
             assert!(side * i[0] > side * p[0], "intensity: {i:?} vs {p:?}");
             let l = out(Effects {
                 pattern: Pattern::vsml3710(),
                 ..prox
             });
+            close(l[0], x(v1 * phi1.cos(), v2 * phi2.cos()), 1e-9, "pattern");
             assert!(side * l[0] > side * p[0], "pattern: {l:?} vs {p:?}");
             for o in [far, p, i, l] {
                 close(o[1], 0.0, 1e-9, "Y on the x axis");
