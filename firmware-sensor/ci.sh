@@ -79,9 +79,16 @@ for run in pinhole nearfield nearfield20; do
   echo "target: ${f32line[$run]}"
   echo "host:   $ref"
   # Position within 1e-3 in and MRP within 1e-4 (0.03 deg): far below the noise floor.
+  # Both lines must read "... t= x y z q= a b c" with six numbers (awk would take a
+  # missing or non-numeric field, NaN included, for 0 and pass).
   printf '%s\n%s\n' "${f32line[$run]}" "$ref" | awk '
-    { for (i = 1; i <= NF; i++) if ($i == "t=") { for (k = 0; k < 3; k++) t[NR, k] = $(i + 1 + k); for (k = 0; k < 3; k++) q[NR, k] = $(i + 5 + k) } }
+    { for (i = 1; i <= NF; i++) if ($i == "t=" && $(i + 4) == "q=") { ok[NR] = 1; for (k = 0; k < 3; k++) t[NR, k] = $(i + 1 + k); for (k = 0; k < 3; k++) q[NR, k] = $(i + 5 + k) } }
     END {
+      if (NR != 2) { printf "  expected two POSE lines, got %d\n", NR; exit 1 }
+      for (l = 1; l <= 2; l++) {
+        if (!ok[l]) { printf "  POSE line %d has no \"t= x y z q= a b c\"\n", l; exit 1 }
+        for (k = 0; k < 3; k++) if (t[l, k] !~ /^[-+]?([0-9]+[.]?[0-9]*|[.][0-9]+)([eE][-+]?[0-9]+)?$/ || q[l, k] !~ /^[-+]?([0-9]+[.]?[0-9]*|[.][0-9]+)([eE][-+]?[0-9]+)?$/) { printf "  POSE line %d: a field of t= or q= is not a number\n", l; exit 1 }
+      }
       dt = 0; dq = 0
       for (k = 0; k < 3; k++) { a = t[1, k] - t[2, k]; if (a < 0) a = -a; if (a > dt) dt = a; b = q[1, k] - q[2, k]; if (b < 0) b = -b; if (b > dq) dq = b }
       printf "  max |dt| = %.2e in, max |dq| = %.2e\n", dt, dq
