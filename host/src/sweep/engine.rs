@@ -18,7 +18,7 @@
 use std::io::{BufRead, IsTerminal, Write};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
-use std::sync::{Arc, LazyLock};
+use std::sync::{Arc, LazyLock, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
@@ -616,16 +616,7 @@ impl<'a> Engine<'a> {
                     }
                     self.stats.samples += rows.len() as u64;
                     self.stats.lost_reports += m.lost as u64;
-                    bars.point_done();
-                    let per = plan.per_separation().max(1);
-                    if (i + 1) % per == 0 || i + 1 == plan.len() {
-                        bars.log(&format!(
-                            "separation {} in done: {}/{} points",
-                            p.separation,
-                            i + 1,
-                            plan.len()
-                        ));
-                    }
+                    bars.point_done(plan, i, p.separation);
                 }
                 None if INTERRUPTED.load(Ordering::SeqCst) => {
                     self.quiet_off();
@@ -965,8 +956,9 @@ fn sleep_interruptible(d: Duration) -> bool {
 
 /// The progress bars: the whole run and the current separation, with ETA. When stderr is not
 /// a terminal (a run under `nohup`, `tee`, cron or systemd) there are no bars; plain log lines
-/// take their place ([`Bars::log`]): the start, each separation finished, each fault, retry
-/// and reconnection, each wait for the operator, the stop.
+/// take their place ([`Bars::log`]): the start, each separation finished, the progress with
+/// its ETA at least every [`PROGRESS_EVERY`] (a separation of the Ch VI plan takes hours),
+/// each fault, retry and reconnection, each wait for the operator, the stop.
 #[derive(Clone)]
 pub struct Bars {
     /// The bars' container (prompts suspend it).
@@ -975,6 +967,44 @@ pub struct Bars {
     sep: ProgressBar,
     /// Log lines instead of bars: when the session started.
     log: Option<Instant>,
+    /// When the last line about progress was logged.
+    last_progress: Arc<Mutex<Instant>>,
+}
+
+/// Log mode: the longest time without a line about progress.
+pub const PROGRESS_EVERY: Duration = Duration::from_secs(60);
+
+/// The log line after point `i` (0-based) of `n`, at `separation`, when a separation is done
+/// (`per` points each) or `since` the last progress line is [`PROGRESS_EVERY`] or more;
+/// `per_sec` and `eta` are the run's rate and estimate.
+fn progress_line(
+    i: usize,
+    n: usize,
+    per: usize,
+    separation: f64,
+    since: Duration,
+    per_sec: f64,
+    eta: Duration,
+) -> Option<String> {
+    let eta = || {
+        let s = eta.as_secs();
+        format!("{}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60)
+    };
+    if (i + 1).is_multiple_of(per.max(1)) || i + 1 == n {
+        Some(format!(
+            "separation {separation} in done: {}/{n} points",
+            i + 1
+        ))
+    } else if since >= PROGRESS_EVERY {
+        Some(format!(
+            "point {}/{n} at {separation} in: {:.1} points/min, ETA {}",
+            i + 1,
+            per_sec * 60.0,
+            eta()
+        ))
+    } else {
+        None
+    }
 }
 
 impl Bars {
@@ -1007,6 +1037,7 @@ impl Bars {
             total,
             sep,
             log: log.then(Instant::now),
+            last_progress: Arc::new(Mutex::new(Instant::now())),
         }
     }
 
@@ -1043,9 +1074,27 @@ impl Bars {
         self.sep.reset_eta();
     }
 
-    fn point_done(&self) {
+    /// Point `i` of `plan`, at `separation`, is committed: the bars move, and in log mode a
+    /// line is logged when the separation is done or a while has passed ([`progress_line`]).
+    fn point_done(&self, plan: &Plan, i: usize, separation: f64) {
         self.total.inc(1);
         self.sep.inc(1);
+        if self.log.is_none() {
+            return;
+        }
+        let mut last = self.last_progress.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(line) = progress_line(
+            i,
+            plan.len(),
+            plan.per_separation(),
+            separation,
+            last.elapsed(),
+            self.total.per_sec(),
+            self.total.eta(),
+        ) {
+            self.log(&line);
+            *last = Instant::now();
+        }
     }
 
     fn message(&self, m: &str) {
@@ -1056,5 +1105,31 @@ impl Bars {
     pub fn finish(&self) {
         self.sep.finish_and_clear();
         self.total.finish_and_clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// In log mode a line comes at each separation's end, and in between at least every
+    /// [`PROGRESS_EVERY`], with the rate and the ETA.
+    #[test]
+    fn log_lines_come_per_separation_and_every_minute() {
+        let eta = Duration::from_secs(3 * 3600 + 12 * 60 + 5);
+        let line = |i, since| progress_line(i, 2400, 800, 10.0, since, 0.2, eta);
+        assert_eq!(
+            line(799, Duration::ZERO).as_deref(),
+            Some("separation 10 in done: 800/2400 points")
+        );
+        assert_eq!(
+            line(2399, Duration::ZERO).as_deref(),
+            Some("separation 10 in done: 2400/2400 points")
+        );
+        assert_eq!(line(5, PROGRESS_EVERY - Duration::from_millis(1)), None);
+        assert_eq!(
+            line(5, PROGRESS_EVERY).as_deref(),
+            Some("point 6/2400 at 10 in: 12.0 points/min, ETA 3:12:05")
+        );
     }
 }

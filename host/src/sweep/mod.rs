@@ -108,11 +108,13 @@ pub struct SweepArgs {
     /// power switches assumed set. For scripted runs.
     #[arg(long, short = 'y')]
     pub yes: bool,
-    /// No progress bars (the summary is still printed).
+    /// No progress bars, and no log lines when stderr is not a terminal (the summary is still
+    /// printed).
     #[arg(long, short = 'q')]
     pub quiet: bool,
-    /// Do not fsync after each point (faster; a power cut may then lose the last points, a
-    /// killed process still loses nothing).
+    /// Do not fsync the data and journal (by default synced after each point, grouped to at
+    /// most one sync every 250 ms); faster: a power cut may then lose the last points, a killed
+    /// process still loses nothing.
     #[arg(long)]
     pub no_sync: bool,
 }
