@@ -224,6 +224,11 @@ pub struct NearFieldSolution {
 /// alone then mislead (each is known far better once the other is).
 pub const STRONG_CORRELATION: f64 = 0.8;
 
+/// Closest near-field separation, inches, from which on a calibration out of the board's range
+/// is put down to the separations rather than the data: the face angle and cell offset show
+/// in how the outputs change close in (a fit of 25 and 30 in alone leaves s free).
+const FAR_ONLY_IN: f64 = 10.0;
+
 /// Fit `d, p, a, s` (and when `extended` the cells' gains and offsets and the Y pair's own
 /// face angle) of the eq 60-63 model to `obs` (weights absolute), starting from `start`'s
 /// `d, p` and near-field parameters (nominal when it has none); `start`'s `beta`, beacon
@@ -718,9 +723,26 @@ pub fn calibrate(
     }
     cal.validate().map_err(|e| {
         let unit = wiring::s_unit_note(nf.x[7], "s").map_or(String::new(), |n| format!("; {n}"));
+        let value = match e {
+            ConfigError::CalibrationOutOfRange { field: CalField::S } => {
+                format!(" (fitted s = {:.3} +/- {:.3} in)", nf.x[7], nf.sigma[7])
+            }
+            _ => String::new(),
+        };
+        let closest = seps.iter().copied().fold(f64::INFINITY, f64::min);
+        let cause = if closest >= FAR_ONLY_IN {
+            format!(
+                "the near-field parameters show close in, and these separations start at \
+                 {closest} in: give a spread of separations down to a few inches (e.g. \
+                 --separations 2..30), or check the file's columns and units"
+            )
+        } else {
+            "the data do not look like a NorthStar on the CTA (check the file's columns and \
+             units)"
+                .into()
+        };
         anyhow!(
-            "the fitted calibration is outside what the board accepts: {e}; the data do not \
-             look like a NorthStar on the CTA (check the file's columns and units){unit}"
+            "the fitted calibration is outside what the board accepts: {e}{value}; {cause}{unit}"
         )
     })?;
 
