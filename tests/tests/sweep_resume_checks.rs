@@ -573,3 +573,21 @@ fn a_journal_with_the_older_spread_loads_and_resumes_with_the_ch_iv_uncertainty(
     let j = read(&jp);
     assert!(j.starts_with(&old), "{j}");
 }
+
+/// A run with its journal or its data gone cannot be resumed; the refusal names what is left
+/// and warns that starting over with --force would delete it.
+#[test]
+fn half_a_run_is_named_not_taken_for_no_run() {
+    for (gone, left) in [("journal.jsonl", "data.csv"), ("data.csv", "journal.jsonl")] {
+        let (_dir, run) = complete_run(&format!("half-{gone}"));
+        let kept = read(&run.join(left));
+        std::fs::remove_file(run.join(gone)).unwrap();
+        let e = resume(&run).unwrap_err();
+        assert!(
+            e.contains(&format!("has {left} but no {gone}"))
+                && e.contains(&format!("--force` would delete {left}")),
+            "{e}"
+        );
+        assert_eq!(read(&run.join(left)), kept, "{left} touched");
+    }
+}

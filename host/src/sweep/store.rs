@@ -487,11 +487,25 @@ impl RunDir {
     ) -> Result<RunDir> {
         let jp = dir.join(JOURNAL);
         let dp = dir.join(DATA);
-        if !jp.exists() || !dp.exists() {
-            bail!(
-                "{}: not a sweep run directory (no {JOURNAL} or {DATA}); start a run with --out",
+        match (jp.exists(), dp.exists()) {
+            (true, true) => {}
+            (false, false) => bail!(
+                "{}: not a sweep run directory (no {JOURNAL} and no {DATA}); start a run with --out",
                 dir.display()
-            );
+            ),
+            // Half a run: nothing to resume from, and --out --force would delete the half
+            // that is left, so it is named and kept.
+            (journal, _) => {
+                let (have, missing) = if journal { (JOURNAL, DATA) } else { (DATA, JOURNAL) };
+                bail!(
+                    "{}: has {have} but no {missing}, so the run cannot be resumed (the journal \
+                     records what data.csv holds; one without the other cannot be checked). \
+                     Restore {missing} if you have it; `--out {} --force` would delete {have}: \
+                     copy it away first",
+                    dir.display(),
+                    dir.display()
+                )
+            }
         }
         let (lock, stale) = Lock::acquire(dir)?;
         let mut notes: Vec<String> = stale.map(took_over).into_iter().collect();
