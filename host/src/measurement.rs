@@ -285,6 +285,13 @@ impl fmt::Display for ReadError {
                 value,
                 reason,
             } => {
+                if value.trim().is_empty() && !matches!(reason, Reason::NotUtf8) {
+                    return write!(
+                        f,
+                        "{}:{line}: column `{column}` is empty: it needs a value on every line",
+                        path.display()
+                    );
+                }
                 write!(f, "{}:{line}: column `{column}`: `{value}` ", path.display())?;
                 match reason {
                     Reason::NotFinite if value == column => write!(
@@ -1512,6 +1519,10 @@ mod tests {
         );
         assert!(row("", "", "20", "-32768").is_ok());
         assert!(row("", "", "20", "32767.4").is_err());
+        assert_eq!(
+            err(row("", "", "20", " ")),
+            "m.csv:2: column `x` is empty: it needs a value on every line"
+        );
         for sep in ["0", "-2"] {
             assert!(
                 err(row("", "", sep, "1")).contains("column `separation_in`"),
