@@ -14,7 +14,7 @@
 //! `intensity` has no test of its own on top of the thesis physics (the `thesis` model
 //! already contains it: injecting it changes nothing); it is found from `pinhole` below.
 
-use cta_host::analyze::{analyze, model::Base, render_text, Analysis, Options};
+use cta_host::analyze::{analyze, model::Base, render_text, Analysis, Cause, Options};
 use cta_host::effects::{Effect, VOCABULARY};
 use cta_host::simulate::{SimConfig, Truth};
 use rand::rngs::StdRng;
@@ -25,6 +25,10 @@ const SEPS: [f64; 13] = [
     2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0, 18.0, 21.0, 25.0, 30.0,
 ];
 const NOISE: f64 = 32.768;
+/// Datasets per effect in `every_effect_at_random_sizes`.
+const RANDOM_SEEDS: usize = 3;
+/// Clean datasets in `ruled_out_one_sigma_is_honest_on_clean_data` (a clean analysis is cheap).
+const CLEAN_SEEDS: std::ops::Range<u64> = 500..530;
 
 fn sim(effects: &[&str], seed: u64) -> SimConfig {
     SimConfig {
@@ -51,17 +55,69 @@ fn names(a: &Analysis) -> Vec<&str> {
     a.causes.iter().map(|c| c.effect.as_str()).collect()
 }
 
-/// Parameter `p` of the first cause is within `k` sigma (and `tol` absolute, whichever is
-/// larger) of `truth`.
-fn near(a: &Analysis, p: &str, truth: f64, tol: f64) {
-    let c = &a.causes[0];
+/// How far a fitted parameter may lie from the truth, in its reported 1-sigma. With ~100
+/// parameters checked over the default run, a 4-sigma excursion of an honest Gaussian
+/// estimate (P = 6e-5 each) is not expected; a larger 1-sigma would make every check easier,
+/// which `every_effect_at_random_sizes` and
+/// `ruled_out_one_sigma_is_honest_on_clean_data` guard against.
+const K_SIGMA: f64 = 4.0;
+
+/// `(value - truth) / sigma` of parameter `p` of cause `c`; the 1-sigma must be reported,
+/// positive and finite.
+fn z_of(c: &Cause, p: &str, truth: f64) -> f64 {
     let v = c.params[p];
-    let s = c.sigma.get(p).copied().unwrap_or(0.0);
+    let s = c.sigma.get(p).copied().unwrap_or(f64::NAN);
+    assert!(s > 0.0 && s.is_finite(), "{}: {p} = {v} +/- {s}", c.effect);
+    (v - truth) / s
+}
+
+/// Parameter `p` of the first cause is within [`K_SIGMA`] of its 1-sigma of `truth`.
+fn near(a: &Analysis, p: &str, truth: f64) -> f64 {
+    let c = &a.causes[0];
+    let z = z_of(c, p, truth);
     assert!(
-        (v - truth).abs() <= (5.0 * s).max(tol),
-        "{}: {p} = {v} +/- {s}, truth {truth}",
-        c.effect
+        z.abs() <= K_SIGMA,
+        "{}: {p} = {} +/- {}, truth {truth} (z = {z:.2})",
+        c.effect,
+        c.params[p],
+        c.sigma[p]
     );
+    z
+}
+
+/// The per-separation corrections of the first cause (`plate_offset`: `x`, `y`;
+/// `separation_error`: `z`) against the truth relative to its mean over the separations (the
+/// common part is the head offset d), each within [`K_SIGMA`]; their z values.
+fn near_per_separation(a: &Analysis, t: &Truth) -> Vec<f64> {
+    let n = t.separations.len() as f64;
+    let mean = |f: &dyn Fn(usize) -> f64| (0..t.separations.len()).map(f).sum::<f64>() / n;
+    let truths: Vec<(&str, Vec<f64>)> = match a.causes[0].effect.as_str() {
+        "plate_offset" => (0..2)
+            .map(|j| {
+                let m = mean(&|k| t.plate_offsets[k][j]);
+                let name = if j == 0 { "x" } else { "y" };
+                (name, t.plate_offsets.iter().map(|o| o[j] - m).collect())
+            })
+            .collect(),
+        "separation_error" => {
+            let m = mean(&|k| t.separation_errors[k]);
+            vec![("z", t.separation_errors.iter().map(|e| e - m).collect())]
+        }
+        other => panic!("{other} has no per-separation corrections"),
+    };
+    let mut zs = Vec::new();
+    for (name, tv) in truths {
+        for (k, sep) in t.separations.iter().enumerate() {
+            zs.push(near(a, &format!("{name}@{sep}in"), tv[k]));
+        }
+    }
+    assert_eq!(zs.len() % SEPS.len(), 0);
+    zs
+}
+
+/// Root mean square.
+fn rms(z: &[f64]) -> f64 {
+    (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt()
 }
 
 /// The effect is named first, alone, with a held-out gain and chi2/dof brought near 1.
@@ -83,108 +139,157 @@ fn named_first(effect: &str, seed: u64) -> (Analysis, Truth) {
 #[test]
 fn proximity() {
     let (a, _) = named_first("proximity=0.21", 11);
-    near(&a, "S", 0.21, 0.002);
+    near(&a, "S", 0.21);
 }
 
 #[test]
 fn beacon_pattern() {
     let (a, _) = named_first("beacon_pattern=45", 12);
-    near(&a, "H_deg", 45.0, 0.5);
+    near(&a, "H_deg", 45.0);
 }
 
 #[test]
 fn beacon_tilt() {
     let (a, _) = named_first("beacon_tilt=3,45", 13);
-    near(&a, "T_deg", 3.0, 0.3);
-    near(&a, "AZ_deg", 45.0, 10.0);
+    near(&a, "T_deg", 3.0);
+    near(&a, "AZ_deg", 45.0);
 }
 
 #[test]
 fn cell_gain() {
     let (a, _) = named_first("cell_gain=0.03,-0.02", 14);
-    near(&a, "GX", 0.03, 0.001);
-    near(&a, "GY", -0.02, 0.001);
+    near(&a, "GX", 0.03);
+    near(&a, "GY", -0.02);
 }
 
 #[test]
 fn cell_bias() {
     let (a, _) = named_first("cell_bias=1e-5,-1e-5", 15);
-    near(&a, "BX", 1e-5, 5e-7);
-    near(&a, "BY", -1e-5, 5e-7);
+    near(&a, "BX", 1e-5);
+    near(&a, "BY", -1e-5);
 }
 
 #[test]
 fn face_angle() {
     let (a, _) = named_first("face_angle=1,-0.5", 16);
-    near(&a, "DX", 1.0, 0.02);
-    near(&a, "DY", -0.5, 0.02);
+    near(&a, "DX", 1.0);
+    near(&a, "DY", -0.5);
 }
 
 #[test]
 fn saturation() {
     let (a, _) = named_first("saturation=0.08", 17);
-    near(&a, "S", 0.08, 0.001);
+    near(&a, "S", 0.08);
 }
 
 #[test]
 fn plate_offset() {
     let (a, t) = named_first("plate_offset=0.05", 18);
-    // Per-separation offsets are relative to their mean (the common part is d1, d2).
-    let n = t.plate_offsets.len() as f64;
-    let mx = t.plate_offsets.iter().map(|o| o[0]).sum::<f64>() / n;
-    for (k, sep) in t.separations.iter().enumerate() {
-        let v = a.causes[0].params[&format!("x@{sep}in")];
-        assert!(
-            (v - (t.plate_offsets[k][0] - mx)).abs() < 0.01,
-            "x offset at {sep} in: {v} vs {}",
-            t.plate_offsets[k][0] - mx
-        );
-    }
+    assert_eq!(near_per_separation(&a, &t).len(), 2 * SEPS.len());
 }
 
+/// The per-separation 1-sigma grows from 0.002 in at 2 in to 0.016 in at 30 in: a fixed
+/// tolerance is too loose near and too tight far.
 #[test]
 fn separation_error() {
     let (a, t) = named_first("separation_error=0.05", 19);
-    let n = t.separation_errors.len() as f64;
-    let m = t.separation_errors.iter().sum::<f64>() / n;
-    for (k, sep) in t.separations.iter().enumerate() {
-        let v = a.causes[0].params[&format!("z@{sep}in")];
-        assert!(
-            (v - (t.separation_errors[k] - m)).abs() < 0.01,
-            "z at {sep} in: {v} vs {}",
-            t.separation_errors[k] - m
-        );
-    }
+    assert_eq!(near_per_separation(&a, &t).len(), SEPS.len());
 }
 
-/// A hidden effect chosen at random (seeded) among the vocabulary, at a random size within a
-/// detectable range.
+/// Every vocabulary effect (but `intensity`, part of the `thesis` physics) hidden at random
+/// sizes within a detectable range, on [`RANDOM_SEEDS`] seeded datasets each: named first and
+/// alone, every parameter within [`K_SIGMA`] of the truth; and the reported 1-sigma are
+/// honest: pooled over all of them, the RMS of `(estimate - truth) / sigma` is near 1 (a
+/// 1-sigma twice the true one gives ~0.5, half of it ~2). The per-separation corrections
+/// are pooled separately (26 or 13 per dataset, they would swamp the global parameters).
+/// The sizes and seeds come from one seeded generator; each case is printed.
 #[test]
-fn random_effect() {
+fn every_effect_at_random_sizes() {
     let mut rng = StdRng::seed_from_u64(2024);
-    let testable: Vec<&str> = VOCABULARY
-        .iter()
-        .copied()
-        .filter(|n| *n != "intensity")
-        .collect();
-    let name = testable[rng.random_range(0..testable.len())];
-    let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-    let u: f64 = rng.random_range(0.0..1.0);
-    let spec = match name {
-        "proximity" => format!("proximity={}", 0.175 + sign * (0.02 + 0.04 * u)),
-        "beacon_pattern" => format!("beacon_pattern={}", 40.0 + 15.0 * u),
-        "beacon_tilt" => format!("beacon_tilt={},{}", 3.0 + 3.0 * u, 360.0 * u),
-        "cell_gain" => format!("cell_gain={},{}", sign * (0.01 + 0.03 * u), 0.02 * u),
-        "cell_bias" => format!("cell_bias={},{}", sign * (5e-6 + 1e-5 * u), 0.0),
-        "face_angle" => format!("face_angle={},{}", sign * (0.5 + u), -0.5 * u),
-        "saturation" => format!("saturation={}", 0.05 + 0.05 * u),
-        "plate_offset" => format!("plate_offset={}", 0.03 + 0.05 * u),
-        "separation_error" => format!("separation_error={}", 0.03 + 0.05 * u),
-        other => unreachable!("{other}"),
-    };
-    let seed = rng.random_range(1..1000);
-    let (a, _) = named_first(&spec, seed);
-    assert_eq!(a.causes.len(), 1, "{spec}: {:?}", names(&a));
+    let sign = |rng: &mut StdRng| if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    let (mut z_global, mut z_local) = (Vec::new(), Vec::new());
+    for name in VOCABULARY.iter().copied().filter(|n| *n != "intensity") {
+        for _ in 0..RANDOM_SEEDS {
+            let (s1, s2) = (sign(&mut rng), sign(&mut rng));
+            let (u, v): (f64, f64) = (rng.random_range(0.0..1.0), rng.random_range(0.0..1.0));
+            // The effect and the truth of each reported parameter.
+            let (spec, truth): (String, Vec<(&str, f64)>) = match name {
+                "proximity" => {
+                    let s = 0.175 + s1 * (0.02 + 0.04 * u);
+                    (format!("proximity={s}"), vec![("S", s)])
+                }
+                "beacon_pattern" => {
+                    let h = 40.0 + 15.0 * u;
+                    (format!("beacon_pattern={h}"), vec![("H_deg", h)])
+                }
+                "beacon_tilt" => {
+                    let (t, az) = (3.0 + 3.0 * u, 360.0 * v - 180.0);
+                    (
+                        format!("beacon_tilt={t},{az}"),
+                        vec![("T_deg", t), ("AZ_deg", az)],
+                    )
+                }
+                "cell_gain" => {
+                    let (gx, gy) = (s1 * (0.01 + 0.03 * u), s2 * 0.02 * v);
+                    (format!("cell_gain={gx},{gy}"), vec![("GX", gx), ("GY", gy)])
+                }
+                "cell_bias" => {
+                    let (bx, by) = (s1 * (5e-6 + 1e-5 * u), s2 * 1e-5 * v);
+                    (format!("cell_bias={bx},{by}"), vec![("BX", bx), ("BY", by)])
+                }
+                "face_angle" => {
+                    let (dx, dy) = (s1 * (0.5 + u), s2 * 0.5 * v);
+                    (
+                        format!("face_angle={dx},{dy}"),
+                        vec![("DX", dx), ("DY", dy)],
+                    )
+                }
+                "saturation" => {
+                    let l = 0.05 + 0.05 * u;
+                    (format!("saturation={l}"), vec![("S", l)])
+                }
+                "plate_offset" => (format!("plate_offset={}", 0.03 + 0.05 * u), vec![]),
+                "separation_error" => (format!("separation_error={}", 0.03 + 0.05 * u), vec![]),
+                other => unreachable!("{other}"),
+            };
+            let seed = rng.random_range(1..1000);
+            println!("{spec} seed {seed}");
+            let (a, t) = named_first(&spec, seed);
+            assert_eq!(a.causes.len(), 1, "{spec} seed {seed}: {:?}", names(&a));
+            for (p, v) in truth {
+                let z = if p == "AZ_deg" {
+                    // The azimuth is reported in (-180, 180].
+                    let c = &a.causes[0];
+                    let d = (c.params[p] - v + 180.0).rem_euclid(360.0) - 180.0;
+                    let z = d / c.sigma[p];
+                    assert!(z.abs() <= K_SIGMA, "{spec} seed {seed}: AZ off by {d} deg");
+                    z
+                } else {
+                    near(&a, p, v)
+                };
+                z_global.push(z);
+            }
+            if t.plate_offsets.iter().any(|o| o != &[0.0, 0.0])
+                || t.separation_errors.iter().any(|e| *e != 0.0)
+            {
+                z_local.extend(near_per_separation(&a, &t));
+            }
+        }
+    }
+    let (rg, rl) = (rms(&z_global), rms(&z_local));
+    println!(
+        "RMS (estimate - truth) / 1-sigma: {rg:.2} over {} global parameters, {rl:.2} over {} \
+         per-separation ones",
+        z_global.len(),
+        z_local.len()
+    );
+    // The RMS of n standard normals is 1 +/- 1/sqrt(2n): +/- 0.12 for the 33 global ones,
+    // +/- 0.06 for the 117 per-separation ones; the band is 2.5 and 5 of those wide below.
+    assert!(
+        (0.7..=1.4).contains(&rg),
+        "global RMS z {rg:.2}: {z_global:.2?}"
+    );
+    assert!((0.7..=1.4).contains(&rl), "per-separation RMS z {rl:.2}");
 }
 
 #[test]
@@ -229,7 +334,7 @@ fn a_cause_that_stood_in_for_others_is_dropped() {
                 && r.note.as_deref().unwrap_or("").contains("dropped")),
         "{text}"
     );
-    near(&a, "GX", 0.03, 0.0005);
+    near(&a, "GX", 0.03);
     // The angle columns compare the same points: near the rail the final model turns a few
     // counts into degrees where the starting model has no direction at all (3.3 deg at 2 in
     // when each column kept its own points).
@@ -275,8 +380,18 @@ fn clean_data_rules_every_candidate_out() {
     for r in &a.ruled_out {
         assert!(r.dbic <= 10.0, "{}: dBIC {}", r.effect, r.dbic);
         if r.effect == "saturation" {
-            // No finite no-effect value; on clean data no clipping level fits better.
-            assert!(!r.fitted || r.params[0].no_effect.is_none(), "{r:?}");
+            // No finite no-effect value: on clean data no clipping level of the scan (which
+            // starts at the median predicted peak signal) fits better than none, so it is not
+            // fitted at all, and says why.
+            assert!(
+                !r.fitted
+                    && r.params.is_empty()
+                    && r.note.as_deref().is_some_and(|n| n.contains(
+                        "no scanned clipping level (each clips >= 0.5 % of the points) fits \
+                         better than none"
+                    )),
+                "{r:?}"
+            );
             continue;
         }
         assert!(r.fitted && r.note.is_none(), "{}: {:?}", r.effect, r.note);
@@ -326,6 +441,42 @@ fn clean_data_rules_every_candidate_out() {
         .trials
         .iter()
         .all(|t| !t.fitted || !t.params.is_empty() || t.effect == "intensity"));
+}
+
+/// The default-run share of `detection_limits`' calibration (tests/tests/detection_limits.rs,
+/// 200 seeds, ignored): on [`CLEAN_SEEDS`] clean datasets every candidate's estimate of the
+/// effect, `z = (estimate - no-effect value) / 1-sigma`, pooled over the candidates' global
+/// parameters, has an RMS near 1. The ruled-out intervals the report prints ("the data allow
+/// about estimate +/- 2 sigma") are only honest if it does.
+#[test]
+fn ruled_out_one_sigma_is_honest_on_clean_data() {
+    let mut z: Vec<f64> = Vec::new();
+    for seed in CLEAN_SEEDS {
+        let (a, _) = run(&sim(&[], seed), Base::Thesis);
+        assert!(a.causes.is_empty(), "seed {seed}: {}", a.verdict);
+        for r in &a.ruled_out {
+            for p in &r.params {
+                if let Some(null) = p.no_effect {
+                    z.push((p.value - null) / p.sigma);
+                }
+            }
+        }
+    }
+    let n = CLEAN_SEEDS.count();
+    // proximity S, beacon_pattern H, and two each of beacon_tilt, cell_gain, cell_bias,
+    // face_angle.
+    assert_eq!(z.len(), 10 * n);
+    let r = rms(&z);
+    println!(
+        "ruled-out RMS z over {} estimates, {n} seeds: {r:.2}",
+        z.len()
+    );
+    // ANALYZE.md's 200 seeds give 0.88-1.07 per parameter (slightly conservative). The
+    // candidates' estimates on one dataset are correlated (face_angle and cell_gain absorb
+    // the same noise), so the 300 values count for fewer: seeds 500-559 gave 0.77 over the
+    // first 15 and 0.88 over all 60. The band leaves room for that and still fails a 1-sigma
+    // twice too large (~0.45) or half the true one (~1.8).
+    assert!((0.6..=1.6).contains(&r), "RMS z {r:.2}: {z:.2?}");
 }
 
 /// An effect too small to be named on this seed is not named, and the ruled-out interval
@@ -464,8 +615,23 @@ fn tiny_grid_names_nothing_false() {
     let (ds, _) = cfg.run();
     let a = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
     assert!(a.causes.is_empty(), "{}", a.verdict);
-    for u in &a.untested {
-        assert!(!u.reason.is_empty());
+    // 4 points per separation: the per-separation corrections are listed as untested, each
+    // with the reason.
+    let u: Vec<(&str, &str)> = a
+        .untested
+        .iter()
+        .map(|u| (u.effect.as_str(), u.reason.as_str()))
+        .collect();
+    assert_eq!(
+        u.iter().map(|u| u.0).collect::<Vec<_>>(),
+        ["plate_offset", "separation_error"],
+        "{u:?}"
+    );
+    for (e, reason) in u {
+        assert!(
+            reason.contains("a separation has only 4 usable points: too few to estimate"),
+            "{e}: {reason}"
+        );
     }
 }
 
