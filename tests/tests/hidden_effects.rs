@@ -633,6 +633,14 @@ fn tiny_grid_names_nothing_false() {
             "{e}: {reason}"
         );
     }
+    // Untested means not tried: neither fitted in any round nor shown as ruled out.
+    for name in ["plate_offset", "separation_error"] {
+        assert!(!a.trials.iter().any(|t| t.effect == name), "{name} tried");
+        assert!(
+            !a.ruled_out.iter().any(|r| r.effect == name),
+            "{name} ruled out"
+        );
+    }
 }
 
 /// The detection table of host/ANALYZE.md: every effect at a moderate size on 5 seeds, which

@@ -40,6 +40,10 @@ use std::path::PathBuf;
 /// unexplained structure (and no cause is named with confidence).
 pub const UNEXPLAINED_CHI2_DOF: f64 = 1.2;
 
+/// Fewest usable points at every separation for the per-separation corrections
+/// (`plate_offset`, `separation_error`) to be tried.
+pub const MIN_POINTS_PER_SEPARATION: usize = 8;
+
 /// `cta analyze`: find what the model misses in measured data, name the physical cause,
 /// and measure how much better the extended model predicts data it was not fitted on.
 #[derive(Debug, Clone, clap::Args)]
@@ -1232,10 +1236,18 @@ pub fn analyze(
             .sqrt()
     };
     let min_pts = per_sep.iter().copied().min().unwrap_or(0);
+    // Per-separation corrections need enough points at every separation: with fewer they are
+    // neither fitted nor named (listed as untested below).
+    let few_points = min_pts < MIN_POINTS_PER_SEPARATION;
     let sel_opts = select::Options {
         base: opts.from,
         folds: opts.folds,
-        candidates: opts.candidates.clone(),
+        candidates: opts
+            .candidates
+            .iter()
+            .filter(|c| !few_points || c.local_names().is_empty())
+            .cloned()
+            .collect(),
         max_effects: opts.max_effects,
     };
     let sel = select::select_with_folds(&data, &sel_opts, &fold_seps, progress)
@@ -1248,7 +1260,7 @@ pub fn analyze(
             reason: r.clone(),
         })
         .collect();
-    if min_pts < 8 {
+    if few_points {
         for c in &opts.candidates {
             if !c.local_names().is_empty() && !untested.iter().any(|u| u.effect == c.name()) {
                 untested.push(Untested {
