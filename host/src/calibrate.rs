@@ -912,7 +912,7 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
         check_out(out, &a.file, a.force)?;
     }
     if let Some(p) = &a.plot {
-        crate::plot::refuse_to_replace(p)?;
+        crate::plot::check_plot_path(p)?;
     }
     if let Some(v) = a.noise {
         if !(v.is_finite() && v > 0.0) {

@@ -99,7 +99,7 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
     }
     check_diameter(a.diameter_in)?;
     if let Some(p) = &a.plot {
-        crate::plot::refuse_to_replace(p)?;
+        crate::plot::check_plot_path(p)?;
     }
     let thetas = parse_list(&a.theta).context("--theta")?;
     let max_theta = 90.0 - a.alpha;
@@ -422,7 +422,7 @@ fn budget_items(owned: &[(String, [f64; 6])]) -> Vec<Item<'_>> {
 pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
     check_diameter(a.diameter_in)?;
     if let Some(p) = &a.plot {
-        crate::plot::refuse_to_replace(p)?;
+        crate::plot::check_plot_path(p)?;
     }
     let owned = budget_or_table2(a.budget.as_ref())?;
     let items = budget_items(&owned);
@@ -965,7 +965,7 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
         None => "thesis Table 2".into(),
     };
     if let Some(p) = &a.plot {
-        crate::plot::refuse_to_replace(p)?;
+        crate::plot::check_plot_path(p)?;
     }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&ev)?);

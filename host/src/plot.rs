@@ -635,11 +635,31 @@ fn written_by_cta(head: &str) -> bool {
 /// Render panels to an SVG file, written as every `cta` output is
 /// ([`crate::measurement::write_output`]: missing folders created, `cannot write PATH: reason`),
 /// marked as `cta`'s ([`MARK`]); refused when `path` holds a file `cta` did not write.
+/// Says so on stderr (`plot: PATH`) once written.
 pub fn write_svg(path: &Path, title: &str, panels: &[Panel], cols: usize) -> anyhow::Result<()> {
-    refuse_to_replace(path)?;
+    check_plot_path(path)?;
     let svg = render_svg(title, panels, cols)
         .map_err(|e| anyhow::anyhow!("{}: plotting failed: {e}", path.display()))?;
-    write_marked(path, &svg)
+    write_marked(path, &svg)?;
+    eprintln!("plot: {}", path.display());
+    Ok(())
+}
+
+/// Whether `--plot PATH` may be written: a name ending in `.svg` (plots are SVG: an SVG in
+/// `out.png` opens nowhere) that is new or an earlier `cta` output ([`refuse_to_replace`]).
+/// Checked before the work, so a bad name costs nothing.
+pub fn check_plot_path(path: &Path) -> anyhow::Result<()> {
+    refuse_to_replace(path)?;
+    let svg = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+    if !svg {
+        anyhow::bail!(
+            "{}: plots are SVG files: give a name ending in .svg",
+            path.display()
+        );
+    }
+    Ok(())
 }
 
 /// Write `text` (SVG or HTML) to `path` with [`MARK`] near its start: after an HTML doctype

@@ -555,12 +555,18 @@ pub fn run(args: &SensorArgs) -> Result<()> {
     match &args.command {
         SensorCommand::Sim(s) => return run_sim(s),
         SensorCommand::Floor(a) => {
+            if let Some(p) = &a.plot {
+                crate::plot::check_plot_path(p)?;
+            }
             let table = crate::pose_floor::floor_table(a)?;
             return print_table(&table, table.render(), a.json, a.plot.as_deref(), |p| {
                 table.plot(p)
             });
         }
         SensorCommand::Accuracy(a) => {
+            if let Some(p) = &a.plot {
+                crate::plot::check_plot_path(p)?;
+            }
             let table = accuracy_table(a)?;
             print_table(&table, table.render(), a.json, a.plot.as_deref(), |p| {
                 table.plot(p)

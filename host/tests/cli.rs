@@ -486,6 +486,18 @@ fn plots_and_reports_replace_only_what_cta_wrote() {
     assert!(std::fs::read_to_string(&nf)
         .unwrap()
         .starts_with("<!-- written by cta"));
+    let o = cta(&["nearfield", "--plot", s(&nf)]);
+    assert_eq!(
+        String::from_utf8_lossy(&o.stderr).trim(),
+        format!("plot: {}", nf.display())
+    );
+    // Plots are SVG: not written under another extension.
+    let png = d.join("out.png");
+    fails_with(
+        &cta(&["nearfield", "--plot", s(&png)]),
+        "plots are SVG files: give a name ending in .svg",
+    );
+    assert!(!png.exists());
 
     let csv = d.join("sim.csv");
     common::simulate(&csv, &["--separations", "10,20,30", "--samples", "2"]);
