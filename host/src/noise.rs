@@ -748,7 +748,11 @@ pub fn render_text(r: &NoiseReport) -> String {
         } else {
             String::new()
         };
-        let _ = writeln!(s, "by {} ({ratio}{test}):", f.factor);
+        let unit = match f.factor.as_str() {
+            "signal magnitude" => " (groups in the file's magnitude units)",
+            _ => "",
+        };
+        let _ = writeln!(s, "by {}{unit} ({ratio}{test}):", f.factor);
         let _ = writeln!(
             s,
             "  {:<16} {:>7} {:>8} {:>10} {:>10}",

@@ -309,6 +309,29 @@ pub struct SceneArgs {
     pub depth: f64,
 }
 
+impl TestScene {
+    /// Refuse ranges at which a beacon would sit at or behind the sensor (raised by `--depth`
+    /// or by the file to the range or beyond): such a pose sees fewer beacons and the tables
+    /// would compare something else than they say.
+    pub fn check_ranges(&self, ranges: &[f64]) -> Result<()> {
+        let highest = self
+            .con
+            .beacons
+            .iter()
+            .map(|b| -f64::from(b.r[2]))
+            .fold(f64::NEG_INFINITY, f64::max);
+        let closest = ranges.iter().copied().fold(f64::INFINITY, f64::min);
+        if highest >= closest {
+            bail!(
+                "a beacon stands {highest:.1} in toward the sensor (--depth, or the \
+                 constellation's heights): at the {closest} in range it would be at the sensor \
+                 or behind it; keep the ranges beyond the highest beacon"
+            );
+        }
+        Ok(())
+    }
+}
+
 impl SceneArgs {
     /// Resolve the arguments ([`test_scene`]).
     pub fn scene(&self) -> Result<TestScene> {

@@ -356,6 +356,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
     let noise = args.noise_fraction * cta_core::emulator::BETA;
     truth.noise = noise as f32;
     let test = args.scene.scene()?;
+    test.check_ranges(&args.ranges)?;
     let con = test.con;
     let em: Emulator<f64> = cta_firmware_sensor::sim::physics(&truth);
     let scene = Scene { em: &em, con: &con };

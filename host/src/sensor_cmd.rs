@@ -1188,7 +1188,8 @@ impl AccuracyTable {
         }
         s += "floor = RMS of the near-field solver's predicted 1-sigma (the noise floor of one frame). Errors are RMS;\n\
               'not ok' counts solves whose status was not Ok (the pinhole's at 2 in: residual RMS above the\n\
-              2000-count limit, i.e. the model cannot fit the frame; the error columns include those solves).\n\n";
+              2000-count limit, i.e. the model cannot fit the frame; the error columns include those solves).\n\
+              seen = beacons in view, mean over the trials.\n\n";
         s += "range  seen |  position error (in)                    |  attitude error (deg)                  | not ok\n";
         s += " (in)       |  near-field   pinhole   ratio    floor  |  near-field  pinhole   ratio    floor | nf  ph\n";
         for r in &self.rows {
@@ -1567,6 +1568,7 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
     let noise = args.noise_fraction * cta_core::emulator::BETA;
     truth.noise = noise as f32;
     let scene = args.scene.scene()?;
+    scene.check_ranges(&args.ranges)?;
     let con = scene.con;
     let ph_cal = pinhole_calibration(&truth, scene.plate)?;
     let em: Emulator<f64> = cta_firmware_sensor::sim::physics(&truth);

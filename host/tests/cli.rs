@@ -197,6 +197,11 @@ fn nearfield_and_uncertainty_json() {
         &cta(&["analyze", "any.csv", "--max-effects", "0"]),
         "--max-effects 0: no effect could be named",
     );
+    // Beacons raised to the sensor or past it: refused before any work.
+    fails_with(
+        &cta(&["sensor", "accuracy", "--depth", "50", "--ranges", "4,30"]),
+        "at the 4 in range it would be at the sensor or behind it",
+    );
     fails_with(
         &cta(&["uncertainty", "--diameter-in=-1"]),
         "the sensor diameter must be > 0",

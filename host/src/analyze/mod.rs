@@ -1637,7 +1637,13 @@ pub fn render_text(a: &Analysis) -> String {
     let _ = writeln!(s, "\nfinal parameters:");
     for p in &a.params_after {
         let (v, sg) = pm_parts(p.value, p.sigma);
-        let _ = writeln!(s, "  {:<26} {v:>14} +/- {sg}", p.name);
+        let unit = match p.name.split_once('.') {
+            Some((effect, param)) => unit(effect, param),
+            None if ["d1", "d2", "d3"].contains(&p.name.as_str()) => " in",
+            None if p.name == "H" => " counts",
+            None => "",
+        };
+        let _ = writeln!(s, "  {:<26} {v:>14} +/- {sg}{unit}", p.name);
     }
     s
 }
