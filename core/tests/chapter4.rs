@@ -3,7 +3,8 @@
 //! order of magnitude)". The far-field combined error (deg D, times D in inches) is compared
 //! with `u_theta R` (deg in), both falling as 1/R, so the ratio does not depend on range.
 //! At 18 deg the ratio depends on the beacon pattern reading: 15.4 with the printed quartic,
-//! 11.8 with the Lambertian default; the reference band 12-15 lies between them.
+//! 11.8 with the Lambertian default. Neither is inside the reference band 12-15 as printed:
+//! the band has no tolerance and is read to its last digit (11.5-15.5), as README.md says.
 
 use cta_core::nearfield2d::{Effect, Model2d};
 use cta_core::pattern::Pattern;
