@@ -733,7 +733,7 @@ pub fn calibrate(
         let cause = if closest >= FAR_ONLY_IN {
             format!(
                 "the near-field parameters show close in, and these separations start at \
-                 {closest} in: give a spread of separations down to a few inches (e.g. \
+                 {closest} in: measure or select separations down to a few inches (e.g. \
                  --separations 2..30), or check the file's columns and units"
             )
         } else {

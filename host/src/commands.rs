@@ -590,7 +590,8 @@ pub struct SimulateArgs {
 
 /// Build a simulation config from the arguments.
 pub fn sim_config(a: &SimulateArgs) -> Result<SimConfig> {
-    let seps = parse_separations(&a.separations).map_err(|e| anyhow!("--separations: {e}"))?;
+    let seps = crate::measurement::parse_new_separations(&a.separations)
+        .map_err(|e| anyhow!("--separations: {e}"))?;
     let grid = parse_grid(&a.grid).map_err(|e| anyhow!("--grid: {e}"))?;
     let effects: Vec<Effect> = a
         .effects
@@ -955,8 +956,8 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
     );
     if ev.separation_in.is_empty() {
         bail!(
-            "{}: every report is at the 16-bit rail, nothing is left to evaluate without \
-             --without-rail",
+            "{}: every report is at the 16-bit rail, so --without-rail leaves nothing to \
+             evaluate; leave out --without-rail to count them",
             a.file.display()
         );
     }
@@ -985,9 +986,14 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
             "Error in angle vs separation (thesis Figure 57)",
             &[Panel {
                 title: format!(
-                    "fit on {} in; angle against the {}",
+                    "fit on {} in; angle against the {}{}",
                     fmt_list(&rep.separations),
-                    ev.reference
+                    ev.reference,
+                    if ev.rail_left_out {
+                        "; reports at the rail left out"
+                    } else {
+                        ""
+                    }
                 ),
                 x_desc: "separation (in)".into(),
                 y_desc: "error in angle (deg)".into(),

@@ -92,11 +92,22 @@ fn remove_earlier_demo(out: &std::path::Path) -> Result<()> {
         );
     }
     let readme = out.join(DEMO_README);
-    if !std::fs::read_to_string(&readme).is_ok_and(|t| t.starts_with(DEMO_README_HEAD)) {
+    let ours = std::fs::read_to_string(&readme).is_ok_and(|t| t.starts_with(DEMO_README_HEAD));
+    // A demo folder of an older cta (before README.txt) is known by its report; an empty
+    // folder holds nothing to lose.
+    let head = |p: &std::path::Path| {
+        let mut b = Vec::new();
+        let _ = std::fs::File::open(p)
+            .and_then(|f| std::io::Read::read_to_end(&mut std::io::Read::take(f, 512), &mut b));
+        String::from_utf8_lossy(&b).into_owned()
+    };
+    let older = crate::plot::written_by_cta(&head(&out.join("report").join("index.html")));
+    let empty = std::fs::read_dir(out).is_ok_and(|mut d| d.next().is_none());
+    if !(ours || older || empty) {
         bail!(
-            "--out {}: has no {} written by `cta demo` (demos write it first), so it is not known \
-             to be an earlier demo's folder: not deleting it; remove it yourself or choose \
-             another --out",
+            "--out {}: has no {} written by `cta demo` (demos write it first) nor a report by \
+             an older cta, so it is not known to be an earlier demo's folder: not deleting it; \
+             remove it yourself or choose another --out",
             out.display(),
             readme.display()
         );
@@ -240,6 +251,20 @@ mod tests {
         );
         std::fs::write(d.join(DEMO_README), "notes").unwrap();
         assert!(remove_earlier_demo(&d).is_err());
+        // An older demo's folder: no README.txt, but its report is cta's.
+        std::fs::remove_file(d.join(DEMO_README)).unwrap();
+        std::fs::create_dir_all(d.join("report")).unwrap();
+        std::fs::write(
+            d.join("report").join("index.html"),
+            "<!doctype html><html><head><meta charset=utf-8><title>cta analyze: x</title>",
+        )
+        .unwrap();
+        remove_earlier_demo(&d).unwrap();
+        assert!(!d.exists());
+        // An empty folder holds nothing to lose.
+        std::fs::create_dir_all(&d).unwrap();
+        remove_earlier_demo(&d).unwrap();
+        std::fs::create_dir_all(d.join("run")).unwrap();
         std::fs::write(d.join(DEMO_README), format!("{DEMO_README_HEAD}\n")).unwrap();
         std::fs::write(d.join("mine.txt"), "x").unwrap();
         let e = remove_earlier_demo(&d).unwrap_err().to_string();

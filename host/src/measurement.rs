@@ -1218,8 +1218,14 @@ pub fn parse_separations(s: &str) -> Result<Vec<f64>, String> {
             "separation {bad} in must be a positive, finite number of inches"
         ));
     }
-    // Twice the same separation would simulate (or select) it twice: a file its readers
-    // refuse as pasted in twice.
+    Ok(out)
+}
+
+/// [`parse_separations`] for a list that makes data (`simulate --separations`): a separation
+/// given twice is refused, as it would be simulated twice, a file its readers refuse as pasted
+/// in twice. (A selection may overlap: `2..10,10..30:5` selects 10 in once.)
+pub fn parse_new_separations(s: &str) -> Result<Vec<f64>, String> {
+    let out = parse_separations(s)?;
     let mut sorted = out.clone();
     sorted.sort_by(f64::total_cmp);
     if let Some(w) = sorted.windows(2).find(|w| w[1] - w[0] < 1e-9) {
@@ -1768,11 +1774,12 @@ mod tests {
         assert!(parse_separations("-1").is_err());
         assert!(parse_separations("5..2").is_err());
         assert_eq!(
-            parse_separations("25,25").unwrap_err(),
+            parse_new_separations("25,25").unwrap_err(),
             "25 in is listed twice in `25,25`"
         );
-        assert!(parse_separations("2..30:2,10").is_err());
-        assert!(parse_separations("2..30:2,25").is_ok());
+        assert!(parse_new_separations("2..30:2,10").is_err());
+        assert!(parse_new_separations("2..30:2,25").is_ok());
+        assert!(parse_separations("2..10,10..30:5").is_ok());
     }
 
     #[test]

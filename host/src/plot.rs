@@ -621,7 +621,7 @@ const LEGACY_HEADS: [&str; 3] = [
 
 /// Whether the first bytes of a file show that `cta` wrote it ([`MARK`], or an older plot or
 /// report's exact header).
-fn written_by_cta(head: &str) -> bool {
+pub(crate) fn written_by_cta(head: &str) -> bool {
     head.contains(MARK)
         || head.starts_with(LEGACY_HEADS[0])
             && head.lines().next().is_some_and(|l| {
@@ -663,11 +663,16 @@ pub fn check_plot_path(path: &Path) -> anyhow::Result<()> {
 }
 
 /// Write `text` (SVG or HTML) to `path` with [`MARK`] near its start: after an HTML doctype
-/// (a comment before it would put browsers in quirks mode), else first.
+/// (a comment before it would put browsers in quirks mode), inside an SVG's root element
+/// after its opening tag (a comment before the root makes content sniffers take the file for
+/// SGML, not `image/svg+xml`), else first.
 pub fn write_marked(path: &Path, text: &str) -> anyhow::Result<()> {
-    let marked = match text.strip_prefix("<!doctype html>") {
-        Some(rest) => format!("<!doctype html>{MARK}\n{rest}"),
-        None => format!("{MARK}\n{text}"),
+    let marked = if let Some(rest) = text.strip_prefix("<!doctype html>") {
+        format!("<!doctype html>{MARK}\n{rest}")
+    } else if let (true, Some(end)) = (text.starts_with("<svg"), text.find('>')) {
+        format!("{}\n{MARK}{}", &text[..=end], &text[end + 1..])
+    } else {
+        format!("{MARK}\n{text}")
     };
     crate::measurement::write_output(path, marked.as_bytes()).map_err(anyhow::Error::msg)
 }
@@ -682,7 +687,7 @@ pub fn refuse_to_replace(path: &Path) -> anyhow::Result<()> {
     }
     if path.is_dir() {
         anyhow::bail!(
-            "{}: is a folder; give a file name for the plot",
+            "{}: is a folder; give a file name for the output",
             path.display()
         );
     }
@@ -708,6 +713,39 @@ pub fn refuse_to_replace(path: &Path) -> anyhow::Result<()> {
 
 #[cfg(test)]
 mod tests {
+
+    /// Files cta wrote, marked or from before the mark, are recognised; a lab's own SVG,
+    /// even one shaped like plotters' header with one more attribute, and web pages are not.
+    #[test]
+    fn cta_outputs_are_recognised_by_their_first_bytes() {
+        let svg = render_svg("t", &[], 1).unwrap();
+        let older = svg.clone();
+        assert!(written_by_cta(&older), "{older:.200}");
+        let d = std::env::temp_dir().join(format!("cta-mark-{}", std::process::id()));
+        let f = d.join("p.svg");
+        write_marked(&f, &svg).unwrap();
+        let marked = std::fs::read_to_string(&f).unwrap();
+        assert!(
+            marked.starts_with("<svg ") && written_by_cta(&marked),
+            "{marked:.200}"
+        );
+        std::fs::remove_dir_all(&d).unwrap();
+        for head in [
+            "<!doctype html><html><head><meta charset=utf-8><title>cta analyze: a.csv</title>",
+            "<!doctype html><meta charset=utf-8><title>cta noise</title><body>",
+        ] {
+            assert!(written_by_cta(head), "{head}");
+        }
+        for foreign in [
+            "<svg xmlns=\"http://www.w3.org/2000/svg\"><!-- lab schematic --></svg>",
+            "<svg width=\"10\" height=\"10\" viewBox=\"0 0 10 10\" id=\"mine\" xmlns=\"http://www.w3.org/2000/svg\">\n",
+            "<?xml version=\"1.0\"?>\n<svg width=\"10\" height=\"10\" viewBox=\"0 0 10 10\" xmlns=\"http://www.w3.org/2000/svg\">",
+            "<!doctype html><html><head><title>my wiki</title>",
+            "separation_in,x_in",
+        ] {
+            assert!(!written_by_cta(foreign), "{foreign}");
+        }
+    }
     use super::*;
 
     #[test]

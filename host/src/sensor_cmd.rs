@@ -496,10 +496,8 @@ fn print_table(
         print!("{text}");
     }
     if let Some(p) = plot {
+        // Announced on stderr by `write_svg`.
         draw(p)?;
-        if !json {
-            println!("\nplot: {}", p.display());
-        }
     }
     Ok(())
 }

@@ -161,11 +161,6 @@ fn nearfield_and_uncertainty_json() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.success() && err.contains(needle), "{err}");
     }
-    std::fs::write(
-        &b,
-        "[[item]]\nname = \"a\"\nx = 3\n[[item]]\nname = \"b\"\nx = 4\nz_plus = 1\n",
-    )
-    .unwrap();
     std::fs::write(&b, "[[item]]\nname = \"a\"\nxx = 3\n").unwrap();
     // TOML errors quote the offending line under the one-line summary.
     let o = cta(&["uncertainty", "--budget", s(&b)]);
@@ -488,9 +483,14 @@ fn plots_and_reports_replace_only_what_cta_wrote() {
         let o = cta(&["nearfield", "--plot", s(&nf)]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
-    assert!(std::fs::read_to_string(&nf)
-        .unwrap()
-        .starts_with("<!-- written by cta"));
+    let text = std::fs::read_to_string(&nf).unwrap();
+    // The root element first (content sniffers see an SVG), the mark on the next line.
+    let mut lines = text.lines();
+    assert!(lines.next().unwrap().starts_with("<svg "), "{text:.300}");
+    assert!(
+        lines.next().unwrap().starts_with("<!-- written by cta"),
+        "{text:.300}"
+    );
     let o = cta(&["nearfield", "--plot", s(&nf)]);
     assert_eq!(
         String::from_utf8_lossy(&o.stderr).trim(),
@@ -510,10 +510,9 @@ fn plots_and_reports_replace_only_what_cta_wrote() {
     let site = d.join("site");
     std::fs::create_dir_all(&site).unwrap();
     std::fs::write(site.join("index.html"), page).unwrap();
-    fails_with(
-        &cta(&["analyze", s(&csv), "--report", s(&site)]),
-        "is not a plot or report cta wrote",
-    );
+    let o = cta(&["analyze", s(&csv), "--report", s(&site)]);
+    fails_with(&o, "is not a plot or report cta wrote");
+    assert!(o.stdout.is_empty(), "refused after the work");
     let notes = d.join("notes");
     std::fs::create_dir_all(&notes).unwrap();
     std::fs::write(notes.join("noise.svg"), "my notes").unwrap();

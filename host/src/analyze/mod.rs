@@ -1758,6 +1758,10 @@ pub fn g(v: f64) -> String {
 /// Run `cta analyze`.
 pub fn run(args: &AnalyzeArgs) -> anyhow::Result<()> {
     let opts = args.options().map_err(anyhow::Error::msg)?;
+    if let Some(dir) = &args.report {
+        // Before the work: a folder whose index.html cta did not write costs nothing.
+        crate::plot::refuse_to_replace(&dir.join("index.html"))?;
+    }
     let bar = if args.quiet {
         indicatif::ProgressBar::hidden()
     } else {
@@ -1787,10 +1791,7 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<()> {
     };
     let a = analyze(&ds, &opts, &progress).map_err(anyhow::Error::msg)?;
     bar.finish_and_clear();
-    if let Some(dir) = &args.report {
-        // Checked before printing, written after: the printed analysis is never lost.
-        crate::plot::refuse_to_replace(&dir.join("index.html"))?;
-    }
+    // Printed before the report is written: the analysis is never lost to a failed write.
     if args.json {
         println!("{}", serde_json::to_string_pretty(&a)?);
     } else {
