@@ -95,13 +95,7 @@ fn remove_earlier_demo(out: &std::path::Path) -> Result<()> {
     let ours = std::fs::read_to_string(&readme).is_ok_and(|t| t.starts_with(DEMO_README_HEAD));
     // A demo folder of an older cta (before README.txt) is known by its report; an empty
     // folder holds nothing to lose.
-    let head = |p: &std::path::Path| {
-        let mut b = Vec::new();
-        let _ = std::fs::File::open(p)
-            .and_then(|f| std::io::Read::read_to_end(&mut std::io::Read::take(f, 512), &mut b));
-        String::from_utf8_lossy(&b).into_owned()
-    };
-    let older = crate::plot::written_by_cta(&head(&out.join("report").join("index.html")));
+    let older = crate::plot::is_cta_output(&out.join("report").join("index.html"));
     let empty = std::fs::read_dir(out).is_ok_and(|mut d| d.next().is_none());
     if !(ours || older || empty) {
         bail!(

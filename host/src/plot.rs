@@ -619,9 +619,25 @@ const LEGACY_HEADS: [&str; 3] = [
     "<!doctype html><meta charset=utf-8><title>cta noise</title>",
 ];
 
+/// The first 512 bytes of the file at `path`, as text.
+fn read_head(path: &Path) -> std::io::Result<String> {
+    use std::io::Read;
+    let mut head = Vec::new();
+    std::fs::File::open(path)?
+        .take(512)
+        .read_to_end(&mut head)?;
+    Ok(String::from_utf8_lossy(&head).into_owned())
+}
+
+/// Whether the file at `path` is one `cta` wrote ([`written_by_cta`]); false when it cannot be
+/// read.
+pub(crate) fn is_cta_output(path: &Path) -> bool {
+    read_head(path).is_ok_and(|h| written_by_cta(&h))
+}
+
 /// Whether the first bytes of a file show that `cta` wrote it ([`MARK`], or an older plot or
 /// report's exact header).
-pub(crate) fn written_by_cta(head: &str) -> bool {
+fn written_by_cta(head: &str) -> bool {
     head.contains(MARK)
         || head.starts_with(LEGACY_HEADS[0])
             && head.lines().next().is_some_and(|l| {
@@ -681,7 +697,6 @@ pub fn write_marked(path: &Path, text: &str) -> anyhow::Result<()> {
 /// `--plot data.csv` by mistake, which would destroy the measurements, nor a lab's own SVG
 /// or web page (`--report site/` over `site/index.html`). `cta`'s files carry [`MARK`].
 pub fn refuse_to_replace(path: &Path) -> anyhow::Result<()> {
-    use std::io::Read;
     if !path.exists() {
         return Ok(());
     }
@@ -691,17 +706,14 @@ pub fn refuse_to_replace(path: &Path) -> anyhow::Result<()> {
             path.display()
         );
     }
-    let mut head = [0u8; 512];
-    let n = std::fs::File::open(path)
-        .and_then(|mut f| f.read(&mut head))
-        .map_err(|e| {
-            anyhow::anyhow!(
-                "{}: exists and cannot be read ({e}), so it is not known to be an earlier cta \
-                 output: not replacing it (choose another name, or remove the file)",
-                path.display()
-            )
-        })?;
-    if !written_by_cta(&String::from_utf8_lossy(&head[..n])) {
+    let head = read_head(path).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: exists and cannot be read ({e}), so it is not known to be an earlier cta \
+             output: not replacing it (choose another name, or remove the file)",
+            path.display()
+        )
+    })?;
+    if !written_by_cta(&head) {
         anyhow::bail!(
             "{}: exists and is not a plot or report cta wrote: not replacing it (choose another \
              name, or remove the file)",
