@@ -223,8 +223,31 @@ impl Diagnostics {
 }
 
 /// Angle error (deg) of every point: the direction the model infers from the measured
-/// output against the one it predicts (see the module doc).
+/// output against the one it predicts (see the module doc). NaN where the model cannot reach
+/// the measured output.
 pub fn angle_errors(model: &Model, x: &[f64], data: &Data) -> Vec<f64> {
+    let d = Vector3::new(x[0], x[1], x[2]);
+    inferred_directions(model, x, data)
+        .iter()
+        .zip(&data.points)
+        .map(|(dir, p)| match dir {
+            Some(v) => angle_deg(v, &(p.r + model.offset(x, p.sep) - d)),
+            None => f64::NAN,
+        })
+        .collect()
+}
+
+/// Angle between two vectors, deg (atan2 of the cross and dot products: accurate at small
+/// angles, where acos is not).
+pub fn angle_deg(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
+    a.cross(b).norm().atan2(a.dot(b)).to_degrees()
+}
+
+/// The beacon direction the model infers from every point's measured output: a unit vector
+/// in the CTA frame from the model's head, found by Newton iteration on the model at the
+/// beacon's range in the tangent plane of the predicted direction (for the pinhole model
+/// this is eq 67). None where the model cannot reach the measured output.
+pub fn inferred_directions(model: &Model, x: &[f64], data: &Data) -> Vec<Option<Vector3<f64>>> {
     let em = model.emulator(x);
     let d = Vector3::new(x[0], x[1], x[2]);
     data.points
@@ -240,27 +263,22 @@ pub fn angle_errors(model: &Model, x: &[f64], data: &Data) -> Vec<f64> {
             };
             let e1 = un.cross(&helper).normalize();
             let e2 = un.cross(&e1);
+            let dir = |t: &Vector2<f64>| (un + e1 * t.x + e2 * t.y).normalize();
             let at = |t: &Vector2<f64>| -> Option<Vector2<f64>> {
-                let dir = (un + e1 * t.x + e2 * t.y).normalize();
-                em.output(&(d + dir * len))
+                em.output(&(d + dir(t) * len))
                     .map(|o| Vector2::new(o[0], o[1]))
             };
             let meas = Vector2::new(p.y[0], p.y[1]);
             let mut t = Vector2::zeros();
             let h = 1e-6;
             for _ in 0..6 {
-                let (Some(y0), Some(y1), Some(y2)) = (
-                    at(&t),
-                    at(&(t + Vector2::new(h, 0.0))),
-                    at(&(t + Vector2::new(0.0, h))),
-                ) else {
-                    return f64::NAN;
-                };
+                let (y0, y1, y2) = (
+                    at(&t)?,
+                    at(&(t + Vector2::new(h, 0.0)))?,
+                    at(&(t + Vector2::new(0.0, h)))?,
+                );
                 let j = Matrix2::from_columns(&[(y1 - y0) / h, (y2 - y0) / h]);
-                let Some(ji) = j.try_inverse() else {
-                    return f64::NAN;
-                };
-                let step = ji * (meas - y0);
+                let step = j.try_inverse()? * (meas - y0);
                 // Keep Newton inside a sane neighbourhood (0.5 rad).
                 let n = step.norm();
                 t += if n > 0.5 { step * (0.5 / n) } else { step };
@@ -268,8 +286,7 @@ pub fn angle_errors(model: &Model, x: &[f64], data: &Data) -> Vec<f64> {
                     break;
                 }
             }
-            // t is the tangent-plane offset; the angle is atan(|t|).
-            t.norm().atan().to_degrees()
+            Some(dir(&t))
         })
         .collect()
 }
