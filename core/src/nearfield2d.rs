@@ -121,15 +121,34 @@ impl<T: Real> Model2d<T> {
                 Effect::Intensity => v_far / dot(bk, bk),
                 // eq 20: c_k from the angle between the beacon boresight (-y) and the ray
                 // beacon -> cell k; I_inf cancels.
-                Effect::Pattern => {
-                    let ray = unit([-bk[0], -bk[1]]);
-                    let gamma = (-ray[1]).max(-T::one()).min(T::one()).acos();
-                    self.pattern.eval(gamma) * v_far
-                }
+                Effect::Pattern => self.pattern.eval(Self::gamma(bk)) * v_far,
                 Effect::Combined => unreachable!("combined is the sum of the errors"),
             };
         }
         (sig[0] - sig[1]) / (sig[0] + sig[1])
+    }
+
+    /// Angle (radians) between the beacon's boresight (-y) and the ray beacon -> cell, for
+    /// the cell-to-beacon vector `bk` (eq 20's gamma).
+    fn gamma(bk: [T; 2]) -> T {
+        let n = (bk[0] * bk[0] + bk[1] * bk[1]).sqrt();
+        (bk[1] / n).max(-T::one()).min(T::one()).acos()
+    }
+
+    /// The largest angle (radians) off the beacon's boresight at which the pattern effect
+    /// evaluates the beacon pattern (eq 20's gamma, over both cells) for a beacon `theta`
+    /// radians off the sensor's boresight at range `r` (D). Close in it exceeds `theta`: the
+    /// printed quartic's validity (see [`Pattern::out_of_range`]) depends on it, not on
+    /// `theta` alone.
+    pub fn pattern_angle(&self, theta: T, r: T) -> T {
+        let binf = [r * theta.sin(), r * theta.cos()];
+        let g = |cx: T| Self::gamma([binf[0] - cx, binf[1]]);
+        let (a, b) = (g(self.half_sep), g(-self.half_sep));
+        if a > b {
+            a
+        } else {
+            b
+        }
     }
 
     /// Error in angle `delta theta = theta_inf - theta_effect` (radians) at range `r` (D)
@@ -220,6 +239,19 @@ pub enum Crossing<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Eq 20's gamma, worked by hand: a beacon on the boresight at 1 D sees each cell (0.5 D
+    /// off the axis) atan(0.5) = 26.57 deg off its own axis; at 30 deg and 2 D the farther
+    /// cell's ray is atan2(1 + 0.5, 1.732) = 40.89 deg; far away the angle is theta.
+    #[test]
+    fn pattern_angle_is_the_ray_to_the_farther_cell() {
+        let m = Model2d::thesis(Pattern::<f64>::Quartic);
+        let deg = |t: f64, r: f64| m.pattern_angle(rad(t), r).to_degrees();
+        assert!((deg(0.0, 1.0) - 0.5f64.atan().to_degrees()).abs() < 1e-12);
+        let want = 1.5f64.atan2(3f64.sqrt()).to_degrees();
+        assert!((deg(30.0, 2.0) - want).abs() < 1e-12, "{}", deg(30.0, 2.0));
+        assert!((deg(30.0, 1e7) - 30.0).abs() < 1e-5);
+    }
 
     #[test]
     fn a_tiny_noise_is_above_noise_not_below_it() {

@@ -112,11 +112,16 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
         pattern: a.profile.pattern(a.half_angle),
     };
     let mut warnings = Vec::new();
-    if a.profile == Profile::Quartic && thetas.iter().any(|t| *t > QUARTIC_VALID_DEG) {
-        warnings.push(format!(
-            "the printed eq 17 quartic is evaluated past {QUARTIC_VALID_DEG} deg, where it is no longer a radiation \
-             pattern (0 at 37.8 deg, -4.93 at 60 deg; README, thesis inconsistency 1): pattern errors there are not physical"
-        ));
+    if a.profile == Profile::Quartic {
+        let past = quartic_out_of_range(&model, &thetas, a.diameter_in);
+        if !past.is_empty() {
+            warnings.push(format!(
+                "the printed eq 17 quartic is evaluated past {QUARTIC_VALID_DEG} deg off the beacon's axis, where it is no \
+                 longer a radiation pattern (0 at 37.8 deg, -4.93 at 60 deg; README, thesis inconsistency 1): pattern and \
+                 combined errors there are not physical: {}",
+                past.join("; ")
+            ));
+        }
     }
     let noise = rad(a.noise_deg);
     // `crossing_D` holds the distance or null; `crossing_kind` says what a null means.
@@ -125,7 +130,7 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
     for e in NfEffect::ALL {
         let c: Vec<Crossing<f64>> = thetas
             .iter()
-            .map(|t| model.crossing(e, rad(*t), noise, 0.6))
+            .map(|t| model.crossing(e, rad(*t), noise, NEAREST_D))
             .collect();
         let at = |c: &Crossing<f64>| match c {
             Crossing::At(r) => Some(*r),
@@ -417,6 +422,41 @@ fn budget_items(owned: &[(String, [f64; 6])]) -> Vec<Item<'_>> {
         .map(|(n, m)| Item { name: n, mils: *m })
         .collect()
 }
+
+/// Where the printed quartic is evaluated past its valid angle: for each `theta` (deg) whose
+/// pattern angle (the ray to the farther cell, eq 20) exceeds [`QUARTIC_VALID_DEG`] at the
+/// nearest distance the command evaluates ([`NEAREST_D`]), the distance inside which it
+/// does, in words.
+fn quartic_out_of_range(model: &Model2d<f64>, thetas: &[f64], diameter_in: f64) -> Vec<String> {
+    let past = |th: f64, r: f64| model.pattern.out_of_range(model.pattern_angle(th, r));
+    thetas
+        .iter()
+        .filter(|&&t| past(rad(t), NEAREST_D))
+        .map(|&t| {
+            let th = rad(t);
+            if past(th, CROSSING_MAX_D) {
+                return format!("theta = {t} deg at every distance");
+            }
+            // The angle falls towards theta with distance: bisect on a log scale.
+            let (mut lo, mut hi) = (NEAREST_D, CROSSING_MAX_D);
+            for _ in 0..100 {
+                let mid = (lo * hi).sqrt();
+                if past(th, mid) {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            format!(
+                "theta = {t} deg closer than {hi:.1} D [{:.2} in]",
+                hi * diameter_in
+            )
+        })
+        .collect()
+}
+
+/// The nearest distance (D) `cta nearfield` evaluates: the crossing search's inner end.
+const NEAREST_D: f64 = 0.6;
 
 /// Run `cta uncertainty`.
 pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {

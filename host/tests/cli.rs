@@ -126,6 +126,20 @@ fn nearfield_and_uncertainty_json() {
     assert!((p - 68.5).abs() < 0.02 * 68.5);
     assert!(n["coeff_deg_D"]["intensity"][0].as_f64().unwrap() > 10.0);
     assert_eq!(n["theta_deg"][0], 6.0);
+    // The quartic is evaluated at the ray to the farther cell, past theta close in: at
+    // theta = 30 deg (below its 31 deg limit) it is past the limit inside 24.6 D.
+    let n = json(&cta(&[
+        "nearfield",
+        "--profile",
+        "quartic",
+        "--theta",
+        "30",
+        "--json",
+    ]));
+    let w = n["warnings"].to_string();
+    assert!(w.contains("theta = 30 deg closer than 24.6 D"), "{w}");
+    let n = json(&cta(&["nearfield", "--theta", "30", "--json"]));
+    assert_eq!(n["warnings"], serde_json::json!([]));
     let u = json(&cta(&["uncertainty", "--json"]));
     assert!((u["rss_mils"]["x"].as_f64().unwrap() - 31.54).abs() < 0.05);
     assert!((u["rss_mils"]["z"].as_f64().unwrap() - 17.52).abs() < 0.05);
