@@ -41,6 +41,9 @@ pub const TABLE2: [Item<'static>; 13] = [
     },
     Item {
         name: "Plate offset",
+        // The text's worst case (Figure 39: 21.25 mils); Table 2 prints it rounded to 21.3,
+        // with which the root-sum-square is REFERENCE's X 31.54, Y 24.41 (printed 31.5,
+        // 24.4). CTA keeps the text's: X 31.50, Y 24.37 (within REFERENCE's 0.05).
         mils: [21.25, 21.25, 21.25, 21.25, 0.0, 0.0],
     },
     Item {

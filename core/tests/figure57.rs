@@ -50,11 +50,12 @@ fn figure57_curve() {
     let (s30, u30) = curve(30.0);
     let (s100, _) = curve(100.0);
     eprintln!("std: 1 in {s1:.3} deg, 30 in {s30:.4} deg (CTA {u30:.4}), 100 in {s100:.5} deg");
-    // Thesis: just over 5 deg at 1 in (factor 2); 0.07-0.14 at 30 in, 0.007-0.017 at 100 in
-    // (factor 1.5 around that band).
-    assert!(s1 > 2.5 && s1 < 10.0, "1 in: {s1}");
-    assert!(s30 > 0.07 / 1.5 && s30 < 0.14 * 1.5, "30 in: {s30}");
-    assert!(s100 > 0.007 / 1.5 && s100 < 0.017 * 1.5, "100 in: {s100}");
+    // Thesis: just over 5 deg at 1 in, ~0.1 deg at 30 in, ~0.01 deg at 100 in; REFERENCE's
+    // tolerance is a factor 2 at 1 in and 1.5 at 30 and 100 in, around the thesis's values
+    // (its independent computations, 0.07-0.14 and 0.007-0.017, fall inside that too).
+    assert!(s1 > 5.0 / 2.0 && s1 < 5.0 * 2.0, "1 in: {s1}");
+    assert!(s30 > 0.1 / 1.5 && s30 < 0.1 * 1.5, "30 in: {s30}");
+    assert!(s100 > 0.01 / 1.5 && s100 < 0.01 * 1.5, "100 in: {s100}");
     // The CTA uncertainty is NOT an order of magnitude below the error at 30 in
     // (REFERENCE.md section 3, Figure 57: "the ratio is 1.3-2.6 at 30 in"). Those bounds
     // are given to one decimal, and so they are read: the ratio rounds into 1.3-2.6. CTA

@@ -267,7 +267,7 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
 // ---------------------------------------------------------------------------------------
 // uncertainty
 
-/// Ch IV: the CTA uncertainty budget (eq 26) and the angle uncertainty it implies (eqs 36, 40).
+/// Ch IV: the CTA uncertainty budget (eq 26) and the 2-D angle uncertainty it implies (eq 40).
 #[derive(Debug, Args)]
 pub struct UncertaintyArgs {
     /// Budget file (TOML, `[[item]]` tables with `name` and mils `x`, `y`, `z` or
@@ -507,12 +507,18 @@ pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
             "{:<36} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2}",
             "root-sum-square", r[0], r[1], r[2], r[3], r[4], r[5]
         );
+        if a.budget.is_none() {
+            println!(
+                "(Table 2 rounds the text's 21.25 mil plate offset to 21.3: with it X is 31.54, Y 24.41, printed 31.5, 24.4; 21.25 is used here)"
+            );
+        }
         println!("Angle uncertainty in 2-D (eq 40), u_theta x R, and the near-field error over it (D = {} in):", a.diameter_in);
         for (t, u, l, q) in &rows {
             println!("  theta {t:>4} deg: {u:.3} deg in; near-field / CTA = {l:.1} (Lambertian), {q:.1} (printed quartic)");
         }
-        println!("Note: the thesis's 3-D sensitivities (eqs 34/35) are singular at x = y = z; CTA uses the corrected");
-        println!("|d theta/d x| = sqrt(y^2+z^2)/|b|^2 (README, thesis inconsistency 4), about 1.4x larger.");
+        println!("Note: the 3-D angle uncertainty (eq 36), which `cta evaluate` gives per separation, does not use the");
+        println!("thesis's sensitivities (eqs 34/35: singular at x = y = z) but the corrected |d theta/d x| =");
+        println!("sqrt(y^2+z^2)/|b|^2 (README, thesis inconsistency 4), about 1.4x larger.");
     }
     if let Some(p) = &a.plot {
         let mut panels = Vec::new();
@@ -541,7 +547,7 @@ pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
                 .collect();
             panels.push(Panel {
                 title: format!("theta = {t} deg"),
-                x_desc: "separation (in)".into(),
+                x_desc: "range along the beacon ray (in)".into(),
                 y_desc: "angle (deg)".into(),
                 log_x: true,
                 log_y: true,
@@ -1131,6 +1137,29 @@ fn print_evaluation(rep: &FitReport, ev: &fit::Evaluation) {
                 railed.join(", ")
             );
         }
+    }
+    // Figure 57's claim: the CTA uncertainty an order of magnitude below the error.
+    let ratios: Vec<String> = (0..ev.separation_in.len())
+        .filter(|&i| ev.reports[i] > 1 && ev.cta_uncertainty_deg[i] > 0.0)
+        .map(|i| {
+            format!(
+                "{:.1}x at {} in",
+                ev.angle_std_deg[i] / ev.cta_uncertainty_deg[i],
+                ev.separation_in[i]
+            )
+        })
+        .collect();
+    if let (Some(first), Some(last)) = (ratios.first(), ratios.last()) {
+        let span = if ratios.len() > 1 {
+            format!("{first} to {last}")
+        } else {
+            first.clone()
+        };
+        println!(
+            "note: std over the CTA uncertainty: {span} (the thesis's \"an order of magnitude \
+             below\" holds only near 1 in: README, thesis inconsistency 6); the uncertainty is eq 36 \
+             with the corrected sensitivities, about 1.4x the thesis's eqs 34/35 (inconsistency 4)"
+        );
     }
     // The thesis plots the std; a bias shared by a separation's beacons comes on top.
     let worst = ev

@@ -29,7 +29,7 @@ enum Cmd {
     /// falls below the sensor noise, in sensor diameters (2-D model, eqs 1-22).
     Nearfield(commands::NearfieldArgs),
     /// Ch IV: the apparatus uncertainty budget (root-sum-square, eq 26; default Table 2)
-    /// and the angle uncertainty it causes (eqs 36, 40) against the near-field error.
+    /// and the 2-D angle uncertainty it causes (eq 40) against the near-field error.
     Uncertainty(commands::UncertaintyArgs),
     /// Ch V: emulated NorthStar reports of the CTA beacon grid (eqs 60-63), optionally with
     /// noise and hidden effects; the truth is written next to the data.

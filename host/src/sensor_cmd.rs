@@ -1424,7 +1424,7 @@ pub fn sim_calibration() -> Result<Calibration> {
 }
 
 /// The 7-parameter pinhole calibration fitted (GLSDC, eq 65) to noise-free eq 63 data of
-/// every LED of `plate` at 25 and 30 in (Table 3's recommended procedure; for the one-array
+/// every LED of `plate` at 25 and 30 in (Ch VI's recommended procedure, from Table 3; for the one-array
 /// plate, the thesis's own 10 x 10 grid).
 pub fn pinhole_calibration(truth: &Calibration, plate: Plate) -> Result<Calibration> {
     let em = cta_firmware_sensor::sim::physics(truth);

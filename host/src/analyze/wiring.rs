@@ -340,7 +340,7 @@ pub fn s_unit_note(s: f64, name: &str) -> Option<String> {
 pub const S_UNIT_TOL: f64 = 0.05;
 
 /// A warning when a fit that succeeded gives a scale height `h` more than `H_OFF` times off
-/// the NorthStar's (eq 65's `H = beta tan a`): with [`diagnose`]'s sentences when a common
+/// the NorthStar's (`H = beta tan a`: eq 5's scale height in counts, as eq 65 uses it): with [`diagnose`]'s sentences when a common
 /// mistake (lengths in cm or mm, ...) explains it. `cta calibrate` and `cta fit` succeed on a
 /// file in centimetres (the angles are right; only H and d scale), so this is where it shows.
 ///
