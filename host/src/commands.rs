@@ -216,6 +216,7 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
             );
         }
         println!("All three errors make the beacon appear farther off boresight (convex pairing, README, thesis inconsistency 2).");
+        println!("Intensity (eq 15) weighs the far-field voltages of eq 3, the reading that reproduces Ch II (inconsistency 3).");
         for w in warnings {
             println!("warning: {w}");
         }

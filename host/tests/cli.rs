@@ -169,6 +169,18 @@ fn nearfield_and_uncertainty_json() {
     let u = json(&cta(&["uncertainty", "--json"]));
     assert!((u["rss_mils"]["x"].as_f64().unwrap() - 31.54).abs() < 0.05);
     assert!((u["rss_mils"]["z"].as_f64().unwrap() - 17.52).abs() < 0.05);
+    // Eq 40 at 6 and 18 deg (REFERENCE: 1.800 and 1.746 deg in, 0.5 %), and the near-field
+    // error over it: "over four times" at 6 deg, 11.8 / 15.4 at 18 deg (README).
+    for (k, (t, v)) in [(6.0, 1.800), (18.0, 1.746)].into_iter().enumerate() {
+        let e = &u["eq40_u_theta_times_R_deg_in"][k];
+        assert_eq!(e["theta_deg"], t);
+        let got = e["value"].as_f64().unwrap();
+        assert!((got / v - 1.0).abs() < 0.005, "{t} deg: {got}");
+    }
+    let ratio = |k: usize, p: &str| u["nearfield_over_cta"][k][p].as_f64().unwrap();
+    assert!(ratio(0, "lambertian") > 4.0 && ratio(0, "quartic") > 3.95);
+    assert!((ratio(1, "lambertian") - 11.76).abs() < 0.05, "{u}");
+    assert!((ratio(1, "quartic") - 15.38).abs() < 0.05, "{u}");
     // A user budget.
     let d = tmpdir("budget");
     let b = d.join("b.toml");
