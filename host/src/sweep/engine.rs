@@ -22,7 +22,9 @@ use std::sync::{Arc, LazyLock, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
-use cta_core::wire::beacon::{Beacon, BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting};
+use cta_core::wire::beacon::{
+    Beacon, BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting, DEADMAN_DEFAULT_MS,
+};
 use cta_core::wire::sensor::{Mode, SensorProtocol, SensorRequest, SensorResponse, SpotReport};
 use cta_core::wire::{Identity, Protocol, Response};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -108,7 +110,7 @@ impl<P: Protocol> Conn<P> {
             LinkError::WrongBoard { .. } => {
                 Fault::Fatal(anyhow!("{} port {}: {e}", self.name, self.path))
             }
-            e => Fault::Lost(self.name, e.to_string()),
+            e => Fault::Lost(self.name, format!("on {}: {e}", self.path)),
         })?;
         self.link = Some(link);
         Ok(id)
@@ -371,6 +373,20 @@ struct Measured {
     lost: u32,
 }
 
+/// Spot reports in a row at another sensitivity than the point's before the sweep counts the
+/// sensor board as reset behind its back (its own resends fix a detector that missed a
+/// setting within a frame or two, `firmware-sensor` `RESEND_EVERY`).
+pub const WRONG_SENSITIVITY_REPORTS: u32 = 3;
+
+/// The beacon board's status at the last reading: what a reset or a dead-man trip since
+/// then changes ([`Engine::check_beacon`]).
+#[derive(Debug, Clone, Copy)]
+struct BeaconSeen {
+    at: Instant,
+    uptime_ms: u64,
+    deadman_trips: u32,
+}
+
 /// The engine.
 pub struct Engine<'a> {
     plan: &'a Plan,
@@ -385,6 +401,8 @@ pub struct Engine<'a> {
     /// The beacon board's frequency table (millihertz), as read at the last connection and
     /// checked against the plan ([`Engine::check_table`]): the table the run lights from.
     pub table_mhz: Vec<u32>,
+    /// The beacon board's status at the last reading.
+    beacon_seen: Option<BeaconSeen>,
 }
 
 impl<'a> Engine<'a> {
@@ -413,6 +431,7 @@ impl<'a> Engine<'a> {
             skip_settle: false,
             stats: Stats::default(),
             table_mhz: Vec::new(),
+            beacon_seen: None,
         }
     }
 
@@ -422,13 +441,98 @@ impl<'a> Engine<'a> {
             .beacon
             .connect()
             .and_then(|id| self.check_table(false).map(|()| id))
+            .and_then(|id| self.check_beacon(false).map(|()| id))
             .map_err(|f| fault_error(&self.beacon.path, f))?;
         let s = self
             .sensor
             .connect()
             .map_err(|f| fault_error(&self.sensor.path, f))?;
-        self.restore().map_err(|f| fault_error("", f))?;
+        self.restore().map_err(|f| {
+            let path = match &f {
+                Fault::Lost("beacon", _) => &self.beacon.path,
+                _ => &self.sensor.path,
+            };
+            fault_error(path, f)
+        })?;
         Ok((b, s))
+    }
+
+    /// Read the beacon board's status and compare it with the last reading
+    /// ([`Engine::beacon_seen`]; none: this reading is the first, after a connection). The
+    /// board answers heartbeats whatever its LEDs do, so a reset (a watchdog, a brown-out)
+    /// or a dead-man trip would otherwise darken a point unnoticed, and the point would be
+    /// committed as "partial" or "no signal" and never measured again: both are a
+    /// [`Fault::Lost`] (reconnect, check the table, measure the point again). `lit`: the
+    /// point's LED must still be lit. A dead-man timeout too short for the plan's heartbeat
+    /// is [`Fault::Fatal`]: every point would trip it.
+    fn check_beacon(&mut self, lit: bool) -> Result<(), Fault> {
+        let s = match self
+            .beacon
+            .link()?
+            .call(BeaconRequest::Status)
+            .map_err(|e| link_fault("beacon", e))?
+        {
+            Some(BeaconResponse::Status(s)) => s,
+            other => {
+                return Err(Fault::Lost(
+                    "beacon",
+                    format!("unexpected reply to Status: {other:?}"),
+                ))
+            }
+        };
+        let heartbeat = self.plan.heartbeat_ms;
+        if u64::from(s.limits.deadman_ms) < 2 * heartbeat {
+            let port = &self.beacon.path;
+            return Err(Fault::Fatal(anyhow!(
+                "beacon board on {port}: its dead-man timeout is {} ms, shorter than twice the \
+                 plan's heartbeat ({heartbeat} ms): it would turn the LED off mid-point. Set it \
+                 back with `cta beacon --port {port} limits --deadman-ms {DEADMAN_DEFAULT_MS}` \
+                 (or lower [timing] heartbeat_ms), then resume",
+                s.limits.deadman_ms
+            )));
+        }
+        let now = Instant::now();
+        let prev = self.beacon_seen.replace(BeaconSeen {
+            at: now,
+            uptime_ms: s.uptime_ms,
+            deadman_trips: s.deadman_trips,
+        });
+        if let Some(prev) = prev {
+            // The board's uptime must have grown with the host's clock (1 s and 1 % slack).
+            let elapsed = now.duration_since(prev.at).as_millis() as u64;
+            let least = (prev.uptime_ms + elapsed).saturating_sub(1000 + elapsed / 100);
+            if s.uptime_ms < least {
+                return Err(Fault::Lost(
+                    "beacon",
+                    format!(
+                        "the board was reset behind the sweep (up {:.1} s, where {:.1} s had \
+                         passed since it was up {:.1} s): its LEDs went dark",
+                        s.uptime_ms as f64 / 1e3,
+                        elapsed as f64 / 1e3,
+                        prev.uptime_ms as f64 / 1e3
+                    ),
+                ));
+            }
+            if s.deadman_trips != prev.deadman_trips {
+                return Err(Fault::Lost(
+                    "beacon",
+                    format!(
+                        "its dead-man switch turned the LEDs off (trips {} -> {}): no frame \
+                         reached it for {} ms",
+                        prev.deadman_trips, s.deadman_trips, s.limits.deadman_ms
+                    ),
+                ));
+            }
+        }
+        if lit && s.lit == 0 {
+            return Err(Fault::Lost(
+                "beacon",
+                "the point's LED is off on the board (nothing lit: reset, or switched off by \
+                 another program)"
+                    .into(),
+            ));
+        }
+        Ok(())
     }
 
     /// Read the beacon board's frequency table and check that every entry the plan lights
@@ -664,6 +768,8 @@ impl<'a> Engine<'a> {
         let mut attempts = 0u32;
         let mut first_failure: Option<Instant> = None;
         let mut backoff = Duration::from_millis(100);
+        // Why the last reconnection failed (the board and its error, with the port).
+        let mut reconnect_error: Option<(&'static str, String)> = None;
         loop {
             if INTERRUPTED.load(Ordering::SeqCst) {
                 return Ok(None);
@@ -671,6 +777,10 @@ impl<'a> Engine<'a> {
             attempts += 1;
             let r = match (self.beacon.link.is_some(), self.sensor.link.is_some()) {
                 (true, true) => self.measure(p),
+                _ if reconnect_error.is_some() => {
+                    let (b, w) = reconnect_error.take().expect("checked");
+                    Err(Fault::Lost(b, format!("cannot reconnect: {w}")))
+                }
                 (false, true) => Err(Fault::Lost("beacon", "not connected (reconnecting)".into())),
                 (true, false) => Err(Fault::Lost("sensor", "not connected (reconnecting)".into())),
                 (false, false) => Err(Fault::Lost(
@@ -750,7 +860,13 @@ impl<'a> Engine<'a> {
             if matches!(fault, Fault::Lost(b, _) if b != "sensor") || self.beacon.link.is_none() {
                 // A beacon board that comes back must still hold the plan's frequencies (it
                 // may have been reset, or its table changed while it was away).
-                match self.beacon.connect().and_then(|_| self.check_table(true)) {
+                self.beacon_seen = None;
+                match self
+                    .beacon
+                    .connect()
+                    .and_then(|_| self.check_table(true))
+                    .and_then(|()| self.check_beacon(false))
+                {
                     Ok(()) => {}
                     Err(Fault::Fatal(e)) => {
                         bars.log(&format!("fault at point {}: {e:#}; stop", p.index));
@@ -764,17 +880,45 @@ impl<'a> Engine<'a> {
                         self.quiet_off();
                         return Err(e);
                     }
-                    Err(_) => ok = false,
+                    Err(f) => {
+                        ok = false;
+                        reconnect_error = Some(("beacon", fault_text(f)));
+                    }
                 }
             }
             if ok
                 && (matches!(fault, Fault::Lost(b, _) if b != "beacon")
                     || self.sensor.link.is_none())
             {
-                ok &= reconnect(&mut || self.sensor.connect()).is_ok();
+                match reconnect(&mut || self.sensor.connect()) {
+                    Ok(_) => {}
+                    Err(Fault::Fatal(e)) => {
+                        bars.log(&format!("fault at point {}: {e:#}; stop", p.index));
+                        store.log(Event::Fault {
+                            at: now(),
+                            point: p.index,
+                            board: "sensor".into(),
+                            what: format!("{e:#}"),
+                            action: "stop".into(),
+                        })?;
+                        self.quiet_off();
+                        return Err(e);
+                    }
+                    Err(f) => {
+                        ok = false;
+                        reconnect_error = Some(("sensor", fault_text(f)));
+                    }
+                }
             }
             if ok {
-                ok = self.restore().is_ok();
+                if let Err(f) = self.restore() {
+                    ok = false;
+                    let board = match &f {
+                        Fault::Lost(b, _) => b,
+                        _ => "host",
+                    };
+                    reconnect_error = Some((board, fault_text(f)));
+                }
             }
             if ok && matches!(fault, Fault::Lost(..)) {
                 self.stats.reconnects += 1;
@@ -846,6 +990,11 @@ impl<'a> Engine<'a> {
         let stopped = self.sensor_mode(Mode::Idle);
         collected?;
         stopped?;
+        // Samples short: was the LED dark (a beacon reset or dead-man trip) rather than out
+        // of view? A full point saw its LED's channel throughout.
+        if m.status != PointStatus::Ok {
+            self.check_beacon(true)?;
+        }
         self.set_led(p, LedMode::Off)?;
         Ok(m)
     }
@@ -872,18 +1021,27 @@ impl<'a> Engine<'a> {
                 || (m.samples.is_empty() && m.reports >= plan.no_signal_reports)
                 || m.reports >= plan.max_reports
         };
-        let mut absorb = |r: SpotReport, m: &mut Measured| {
+        // Reports in a row at another sensitivity than the point's, and the last one's.
+        let mut wrong_sensitivity = (0u32, 0u8);
+        // Takes a report in; returns the sensitivity it reports when that is not the point's.
+        let mut absorb = |r: SpotReport, m: &mut Measured| -> Option<u8> {
             if done(m) {
-                return;
+                return None;
             }
             if let Some(prev) = last_seq {
                 m.lost += r.seq.wrapping_sub(prev).wrapping_sub(1).min(1_000_000);
             }
             last_seq = Some(r.seq);
+            // Never recorded under the point's sensitivity: a board reset behind the sweep
+            // (it starts at 4) or a detector that has not taken the setting yet.
+            if r.sensitivity != p.sensitivity {
+                return Some(r.sensitivity);
+            }
             m.reports += 1;
             if let Some(s) = r.spots.iter().find(|s| s.id == p.channel) {
                 m.samples.push((s.x, s.y, s.magnitude));
             }
+            None
         };
         while !done(m) {
             let next = self
@@ -892,8 +1050,21 @@ impl<'a> Engine<'a> {
                 .next_unsolicited(Duration::from_millis(10))
                 .map_err(|e| Fault::Lost("sensor", format!("serial port error: {e}")))?;
             if let Some(Response::Board(SensorResponse::Spots(r))) = next {
-                absorb(r, m);
+                wrong_sensitivity = match absorb(r, m) {
+                    Some(s) => (wrong_sensitivity.0 + 1, s),
+                    None => (0, 0),
+                };
                 last_report = Instant::now();
+                if wrong_sensitivity.0 >= WRONG_SENSITIVITY_REPORTS {
+                    return Err(Fault::Lost(
+                        "sensor",
+                        format!(
+                            "the detector reports sensitivity {} in {} reports in a row, the \
+                             point's is {} (was the board reset?)",
+                            wrong_sensitivity.1, wrong_sensitivity.0, p.sensitivity
+                        ),
+                    ));
+                }
             } else if last_report.elapsed() > timeout {
                 return Err(Fault::Stalled(format!(
                     "no spot report for {} ms while streaming",
@@ -931,6 +1102,15 @@ pub fn table_mismatches(plan: &Plan, table: &[u32]) -> Vec<String> {
         wrong.push(format!("entry {i} {said}, the plan records {hz} Hz"));
     }
     wrong
+}
+
+/// A fault's words, without its board.
+fn fault_text(f: Fault) -> String {
+    match f {
+        Fault::Lost(_, w) | Fault::Stalled(w) => w,
+        Fault::Fatal(e) => format!("{e:#}"),
+        Fault::Interrupted => "interrupted".into(),
+    }
 }
 
 fn fault_error(path: &str, f: Fault) -> anyhow::Error {

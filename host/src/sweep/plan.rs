@@ -24,7 +24,8 @@ use toml::Spanned;
 use crate::measurement::parse_separations;
 
 /// Longest `[timing] heartbeat_ms` accepted: half the beacon board's dead-man timeout
-/// ([`DEADMAN_DEFAULT_MS`], 10 s; the sweep never changes it), so a heartbeat that is late by a
+/// ([`DEADMAN_DEFAULT_MS`], 10 s; the sweep never changes it, and refuses a board whose timer
+/// is shorter than twice the plan's heartbeat when it connects), so a heartbeat that is late by a
 /// slow request or a settle step still arrives before the board turns the LED off mid-point.
 pub const MAX_HEARTBEAT_MS: u64 = DEADMAN_DEFAULT_MS as u64 / 2;
 

@@ -84,6 +84,11 @@ pub enum FaultKind {
     Silent,
     /// The NorthStar stops sending frames (the sensor board still answers requests).
     Stall,
+    /// The board restarts behind the host's back (a watchdog or a brown-out; the port stays):
+    /// the beacon board at the `at`-th stream start, so the point's LED goes dark and its
+    /// uptime starts again; the sensor board when the `at`-th stream ends, between points, so
+    /// it comes back idle at sensitivity 4.
+    Reset,
 }
 
 /// A fault that starts when the sensor board enters stream mode for the `at`-th time
@@ -113,7 +118,8 @@ pub struct Faults {
 
 impl Faults {
     /// Parse a comma-separated spec: `drop=P`, `corrupt=P`,
-    /// `KIND=BOARD@N:MS` with KIND `vanish`, `silent` or `stall`, BOARD `beacon` or `sensor`.
+    /// `KIND=BOARD@N:MS` with KIND `vanish`, `silent` or `stall`, BOARD `beacon` or `sensor`,
+    /// and `reset=BOARD@N` ([`FaultKind::Reset`]).
     pub fn parse(spec: &str) -> Result<Faults, String> {
         let mut f = Faults::default();
         for part in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
@@ -129,6 +135,22 @@ impl Faults {
             match k {
                 "drop" => f.drop = prob(v)?,
                 "corrupt" => f.corrupt = prob(v)?,
+                "reset" => {
+                    let bad =
+                        || format!("fault `{part}`: expected reset=BOARD@N, e.g. reset=beacon@5");
+                    let (b, n) = v.split_once('@').ok_or_else(bad)?;
+                    let board = match b {
+                        "beacon" => Which::Beacon,
+                        "sensor" => Which::Sensor,
+                        _ => return Err(bad()),
+                    };
+                    f.events.push(ScheduledFault {
+                        kind: FaultKind::Reset,
+                        board,
+                        at: n.parse().ok().filter(|n| *n >= 1).ok_or_else(bad)?,
+                        for_ms: 0,
+                    });
+                }
                 "vanish" | "silent" | "stall" => {
                     let bad = || {
                         format!("fault `{part}`: expected {k}=BOARD@N:MS, e.g. {k}=sensor@5:1500")
@@ -157,7 +179,7 @@ impl Faults {
                 }
                 _ => {
                     return Err(format!(
-                        "unknown fault `{k}` (drop, corrupt, vanish, silent, stall)"
+                        "unknown fault `{k}` (drop, corrupt, vanish, silent, stall, reset)"
                     ))
                 }
             }
@@ -214,10 +236,22 @@ struct World {
     settings: SimSettings,
     state: Mutex<Apparatus>,
     stream_starts: AtomicU64,
+    /// Beacon-board resets ordered so far ([`FaultKind::Reset`]).
+    beacon_resets: AtomicU64,
     stop: AtomicBool,
 }
 
 impl World {
+    /// Whether a [`FaultKind::Reset`] of `board` is scheduled at `n` (the `n`-th stream
+    /// start for the beacon board, end for the sensor board).
+    fn resets_due(&self, board: Which, n: u64) -> bool {
+        self.settings
+            .faults
+            .events
+            .iter()
+            .any(|e| e.kind == FaultKind::Reset && e.board == board && e.at == n)
+    }
+
     fn state(&self) -> std::sync::MutexGuard<'_, Apparatus> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
@@ -386,7 +420,12 @@ impl FaultState {
         let starts = world.stream_starts.load(Ordering::Relaxed);
         if self.until.is_none() {
             for (i, e) in events.iter().enumerate() {
-                if !self.fired[i] && e.board == which && starts >= e.at {
+                // Resets happen in the sensor board's loop, where the streams start and end
+                // ([`World::resets_due`]).
+                if self.fired[i] || e.board != which || e.kind == FaultKind::Reset {
+                    continue;
+                }
+                if starts >= e.at {
                     self.fired[i] = true;
                     self.until = Some((e.kind, Instant::now() + Duration::from_millis(e.for_ms)));
                     break;
@@ -453,7 +492,8 @@ impl Outputs for LedOutputs<'_> {
 fn beacon_loop(world: Arc<World>, mut ep: Endpoint) {
     let mut board = BeaconBoard::new(true, false);
     board.start(&mut LedOutputs(&world));
-    let t0 = Instant::now();
+    let mut t0 = Instant::now();
+    let mut resets = 0;
     let mut rx = [0u8; 512];
     let mut tx = [0u8; cta_core::wire::MAX_FRAME];
     let f = &world.settings.faults;
@@ -474,6 +514,14 @@ fn beacon_loop(world: Arc<World>, mut ep: Endpoint) {
         let fault = faults.poll(&world, Which::Beacon);
         vanish(&mut ep, fault);
         let n = read_some(&mut ep, &mut rx, Duration::from_millis(2));
+        // After the read: a request sent after the reset was ordered meets the new board.
+        let due = world.beacon_resets.load(Ordering::Relaxed);
+        if resets < due {
+            resets = due;
+            board = BeaconBoard::new(true, false);
+            board.start(&mut LedOutputs(&world));
+            t0 = Instant::now();
+        }
         let now_ms = t0.elapsed().as_millis() as u64;
         if fault.is_none() {
             bytes.clear();
@@ -524,7 +572,7 @@ impl Detector {
 
 fn sensor_loop(world: Arc<World>, mut ep: Endpoint) {
     let mut board = SensorBoard::new(RamFlash::default(), true);
-    let t0 = Instant::now();
+    let mut t0 = Instant::now();
     let mut det = Detector {
         sensitivity: 4,
         rate_hz: 10,
@@ -556,6 +604,7 @@ fn sensor_loop(world: Arc<World>, mut ep: Endpoint) {
     let mut rx = [0u8; 512];
     let mut bytes = Vec::new();
     let mut k: u64 = 0;
+    let mut ends: u64 = 0;
     let mut faults = FaultState::default();
     let mut next_frame = Instant::now();
     let mut frame_buf = [0u8; northstar::MAX_FRAME];
@@ -582,7 +631,23 @@ fn sensor_loop(world: Arc<World>, mut ep: Endpoint) {
             board.on_pc_bytes(&bytes, &mut io);
             if board.mode() == Mode::Stream && before != Mode::Stream {
                 k = 0;
-                world.stream_starts.fetch_add(1, Ordering::Relaxed);
+                let n = world.stream_starts.fetch_add(1, Ordering::Relaxed) + 1;
+                if world.resets_due(Which::Beacon, n) {
+                    // Dark before the point's first frame; the beacon loop restarts its board.
+                    world.state().leds = [LedMode::Off; LED_COUNT];
+                    world.beacon_resets.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+            if before == Mode::Stream && board.mode() != Mode::Stream {
+                ends += 1;
+                if world.resets_due(Which::Sensor, ends) {
+                    // A new board (a new flash too: the sweep stores nothing) that sends the
+                    // detector its start-up settings, as on power-up.
+                    board = SensorBoard::new(RamFlash::default(), true);
+                    t0 = Instant::now();
+                    io.t0 = t0;
+                    board.start(&mut io);
+                }
             }
             if !io.ns.is_empty() {
                 let acks = det.commands(&std::mem::take(&mut io.ns));
@@ -692,6 +757,7 @@ impl SimCta {
                 leds: [LedMode::Off; LED_COUNT],
             }),
             stream_starts: AtomicU64::new(0),
+            beacon_resets: AtomicU64::new(0),
             stop: AtomicBool::new(false),
         });
         static COUNTER: AtomicU64 = AtomicU64::new(0);
