@@ -3,8 +3,10 @@
 //! protocol) and over the port (any `Read + Write`: a real serial port, the pseudo-terminal
 //! of a simulated board, an in-memory pipe in tests).
 //!
-//! Every request gets a fresh sequence number (1..=65535, skipping [`SEQ_NONE`]), is framed
-//! by [`encode_frame`] and answered by the board with the same sequence number. [`Link`]
+//! Every request gets a fresh sequence number (1..=65535, skipping [`SEQ_NONE`]; each link
+//! starts at a random one, so a late reply meant for an earlier process or connection on the
+//! same port cannot pass for the answer to a new request), is framed by [`encode_frame`] and
+//! answered by the board with the same sequence number. [`Link`]
 //! waits for that reply up to [`LinkConfig::timeout`], ignoring stale replies (other sequence
 //! numbers), corrupted frames and the board's answers to line garbage ([`SEQ_NONE`]), and
 //! resends (with a new sequence number) up to [`LinkConfig::retries`] times. All the boards'
@@ -143,12 +145,17 @@ pub type LinkResult<T, P> = Result<T, LinkError<<P as Protocol>::Error>>;
 
 impl<P: Protocol, S: Read + Write> Link<P, S> {
     /// Client over `port`. Reads on `port` should time out after a short while (a few ms;
-    /// [`open_serial`] sets 10 ms) so the link can keep its own deadlines.
+    /// [`open_serial`] sets 10 ms) so the link can keep its own deadlines. The first request
+    /// gets a random sequence number (the boards echo whatever they are sent): replies still
+    /// on their way to an earlier link on the same port (another process, or this one before
+    /// a reconnection) then match a new request only by a 1 in 65535 chance, not always, as
+    /// they did when every link counted from 1.
     pub fn new(port: S, config: LinkConfig) -> Self {
         Link {
             port,
             config,
-            seq: 0,
+            // next_seq() steps past it before the first request.
+            seq: rand::random(),
             decoder: FrameDecoder::new(),
             stats: LinkStats::default(),
             pending: VecDeque::new(),
@@ -357,12 +364,21 @@ impl Protocol for AnyBoard {
     type Error = Never;
 }
 
-/// Open a board's serial port (115200 8N1, 10 ms read timeout).
+/// Open a board's serial port (115200 8N1, 10 ms read timeout), discarding whatever input was
+/// already waiting on it: replies to an earlier process or connection (a command that timed
+/// out, a sweep's link before it reconnected) must not be taken for answers to this one's
+/// requests. What still arrives later is told apart by its sequence number ([`Link::new`]).
 pub fn open_serial(path: &str) -> io::Result<Box<dyn serialport::SerialPort>> {
-    serialport::new(path, BAUD)
+    let port = serialport::new(path, BAUD)
         .timeout(Duration::from_millis(10))
         .open()
-        .map_err(|e| io::Error::other(format!("cannot open serial port {path}: {e}")))
+        .map_err(|e| io::Error::other(format!("cannot open serial port {path}: {e}")))?;
+    port.clear(serialport::ClearBuffer::Input).map_err(|e| {
+        io::Error::other(format!(
+            "cannot discard the waiting input of serial port {path}: {e}"
+        ))
+    })?;
+    Ok(port)
 }
 
 #[cfg(test)]
@@ -511,6 +527,43 @@ mod tests {
             Err(LinkError::Timeout { attempts: 3, .. }) => {}
             other => panic!("{other:?}"),
         }
+    }
+
+    #[test]
+    fn each_link_starts_at_its_own_sequence_number() {
+        // Every link used to send #1 first: a late reply to an earlier link's #1 answered it.
+        let mut first = Vec::new();
+        for _ in 0..8 {
+            let mut seen = Vec::new();
+            let mut l = link(|_, h| {
+                seen.push(h.seq);
+                Some(frame(h.seq, &Ok(Response::Ack)))
+            });
+            l.heartbeat().unwrap();
+            l.heartbeat().unwrap();
+            drop(l);
+            assert_ne!(seen[0], SEQ_NONE);
+            assert_eq!(seen[1], if seen[0] == u16::MAX { 1 } else { seen[0] + 1 });
+            first.push(seen[0]);
+        }
+        first.sort_unstable();
+        first.dedup();
+        assert!(first.len() > 1, "8 links all started at #{}", first[0]);
+    }
+
+    #[test]
+    fn sequence_numbers_wrap_past_seq_none() {
+        let mut seen = Vec::new();
+        let mut l = link(|_, h| {
+            seen.push(h.seq);
+            Some(frame(h.seq, &Ok(Response::Ack)))
+        });
+        l.seq = u16::MAX - 2;
+        for _ in 0..4 {
+            l.heartbeat().unwrap();
+        }
+        drop(l);
+        assert_eq!(seen, [u16::MAX - 1, u16::MAX, 1, 2]);
     }
 
     #[test]
