@@ -37,9 +37,10 @@ use cta_core::wire::beacon::{
     Beacon, BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting, Limits, LED_COUNT,
     MAX_FREQS,
 };
+use cta_core::wire::Identity;
 use cta_firmware_beacon::sim::SimBoard;
 
-use crate::link::{open_serial, Link, LinkConfig};
+use crate::link::{on_board, open_serial, Link, LinkConfig};
 
 /// `cta beacon`: command the beacon board over its serial link.
 ///
@@ -353,7 +354,20 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
     let id = link
         .check_board()
         .with_context(|| format!("identifying the board on {path}"))?;
-    match &args.command {
+    board_command(&args.command, &conn, &id, &mut link, out)
+        .map_err(|e| on_board::<Beacon>(e, path))
+}
+
+/// What [`run`] does once the board on the port is identified as a beacon board. Errors
+/// of the link are named by the board and the port there ([`on_board`]).
+fn board_command<S: std::io::Read + std::io::Write>(
+    command: &BeaconCommand,
+    conn: &BeaconConn,
+    id: &Identity,
+    link: &mut Link<Beacon, S>,
+    out: &mut dyn Write,
+) -> Result<()> {
+    match command {
         BeaconCommand::Identify { .. } => writeln!(
             out,
             "{} board, firmware {}, protocol {}{}, max frame {} bytes",
@@ -405,7 +419,7 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
                 out,
                 "LED {led}: {}{}",
                 mode_text(setting.mode),
-                sim_note(&conn)
+                sim_note(conn)
             )?;
         }
         BeaconCommand::SetMany { settings, .. } => {
@@ -416,11 +430,11 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
             }
             let n = v.len();
             link.call(BeaconRequest::SetMany(v))?;
-            writeln!(out, "{n} LED(s) set{}", sim_note(&conn))?;
+            writeln!(out, "{n} LED(s) set{}", sim_note(conn))?;
         }
         BeaconCommand::AllOff { .. } => {
             link.call(BeaconRequest::AllOff)?;
-            writeln!(out, "all LEDs off{}", sim_note(&conn))?;
+            writeln!(out, "all LEDs off{}", sim_note(conn))?;
         }
         BeaconCommand::Table { set, default, .. } => {
             if *default {
@@ -430,7 +444,7 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
                 writeln!(
                     out,
                     "table replaced by the NorthStar table; all LEDs off{}",
-                    sim_note(&conn)
+                    sim_note(conn)
                 )?;
             }
             if let Some(hz) = set {
@@ -443,7 +457,7 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
                         .map_err(|_| anyhow::anyhow!("more than {MAX_FREQS} frequencies"))?;
                 }
                 link.call(BeaconRequest::SetTable(v))?;
-                writeln!(out, "table replaced; all LEDs off{}", sim_note(&conn))?;
+                writeln!(out, "table replaced; all LEDs off{}", sim_note(conn))?;
             }
             match link.call(BeaconRequest::GetTable)? {
                 Some(BeaconResponse::Table(t)) => {
@@ -503,7 +517,7 @@ pub fn run_to(args: &BeaconArgs, out: &mut dyn Write) -> Result<()> {
                 "cap {} LEDs, dead-man {} ms{}",
                 limits.max_lit,
                 limits.deadman_ms,
-                sim_note(&conn)
+                sim_note(conn)
             )?;
         }
         BeaconCommand::Heartbeat {

@@ -78,9 +78,11 @@ pub struct LinkStats {
 /// What went wrong with a request.
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError<E: fmt::Debug + fmt::Display> {
-    /// The port failed.
-    #[error("serial port error: {0}")]
-    Io(#[from] io::Error),
+    /// The port failed (unplugged, closed, a simulated board stopped). The message includes
+    /// the port's error, which is therefore not also given as its source: `{:#}` would print
+    /// it twice.
+    #[error("port lost: {0}")]
+    Io(io::Error),
     /// No reply.
     #[error("no reply from the board after {attempts} attempt(s) of {timeout:?} each (is it powered, on this port, at {BAUD} baud?)")]
     Timeout {
@@ -124,6 +126,12 @@ pub enum LinkError<E: fmt::Debug + fmt::Display> {
         /// Who answered.
         got: Identity,
     },
+}
+
+impl<E: fmt::Debug + fmt::Display> From<io::Error> for LinkError<E> {
+    fn from(e: io::Error) -> Self {
+        LinkError::Io(e)
+    }
 }
 
 /// Request/response client for the board of protocol `P` over port `S`.
@@ -339,6 +347,22 @@ impl<P: Protocol, S: Read + Write> Link<P, S> {
                 reply: format!("{other:?}"),
             }),
         }
+    }
+}
+
+/// `e`, the error of a one-shot command (`cta beacon`, `cta sensor`) talking to the board of
+/// protocol `P` on `path`, with the board and the port in front when it came from the link
+/// (a port lost, no reply, a refusal): `sensor board on /dev/ttyUSB1: port lost: Broken pipe`.
+/// The command's own errors (an argument out of range, a file it cannot read) are left as
+/// they are.
+pub fn on_board<P: Protocol>(e: anyhow::Error, path: &str) -> anyhow::Error
+where
+    P::Error: Send + Sync + 'static,
+{
+    if e.chain().any(|c| c.is::<LinkError<P::Error>>()) {
+        e.context(format!("{} board on {path}", P::BOARD))
+    } else {
+        e
     }
 }
 
@@ -564,6 +588,15 @@ mod tests {
         }
         drop(l);
         assert_eq!(seen, [u16::MAX - 1, u16::MAX, 1, 2]);
+    }
+
+    #[test]
+    fn a_port_error_is_said_once() {
+        // It was also the error's source: `{:#}` printed "serial port error: Broken pipe:
+        // Broken pipe".
+        let e: LinkError<BeaconError> = io::Error::other("Broken pipe").into();
+        let text = format!("{:#}", anyhow::Error::new(e));
+        assert_eq!(text, "port lost: Broken pipe");
     }
 
     #[test]

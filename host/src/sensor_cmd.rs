@@ -31,9 +31,10 @@ use cta_core::pose::{
 };
 use cta_core::real::rad;
 use cta_core::wire::sensor::{
-    Mode, PoseReport, SensorProtocol, SensorRequest, SensorResponse, SensorStatus, SpotReport,
+    Mode, PoseReport, SensorError, SensorProtocol, SensorRequest, SensorResponse, SensorStatus,
+    SpotReport,
 };
-use cta_core::wire::Response;
+use cta_core::wire::{Identity, Response};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
@@ -46,7 +47,7 @@ use cta_firmware_sensor::sim::{SimBoard, SimNorthStar};
 pub use nalgebra::Vector3;
 
 use crate::beacon_cmd::one_of;
-use crate::link::{open_serial, Link, LinkConfig};
+use crate::link::{on_board, open_serial, Link, LinkConfig, LinkError};
 use crate::plate::{built_in_constellation, Plate, SceneArgs};
 
 /// `cta sensor`: command the sensor board over its serial link.
@@ -622,12 +623,26 @@ pub fn run(args: &SensorArgs) -> Result<()> {
     let id = link
         .check_board()
         .with_context(|| format!("identifying the board on {path}"))?;
-    if sim.is_some() {
+    board_command(&args.command, &conn, &id, sim.is_some(), &mut link)
+        .map_err(|e| on_board::<SensorProtocol>(e, &path))
+}
+
+/// What [`run`] does once the board on the port is identified as a sensor board (`in_process`:
+/// the `--sim` board, loaded with the simulated CTA's calibration and constellation first).
+/// Errors of the link are named by the board and the port there ([`on_board`]).
+fn board_command<S: std::io::Read + std::io::Write>(
+    command: &SensorCommand,
+    conn: &SensorConn,
+    id: &Identity,
+    in_process: bool,
+    link: &mut Link<SensorProtocol, S>,
+) -> Result<()> {
+    if in_process {
         // The in-process board starts with empty flash: load the defaults.
         link.call(SensorRequest::LoadCalibration(sim_calibration()?))?;
         link.call(SensorRequest::LoadConstellation(cta_constellation()))?;
     }
-    match &args.command {
+    match command {
         SensorCommand::Identify { .. } => println!(
             "{} board, firmware {}, protocol {}{}, max frame {} bytes",
             id.board,
@@ -648,7 +663,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
             let cal: Calibration = read_json(file)?;
             link.call(SensorRequest::LoadCalibration(cal))
                 .with_context(|| format!("loading the calibration of {file}"))?;
-            println!("calibration from {file} stored in flash{}", sim_note(&conn));
+            println!("calibration from {file} stored in flash{}", sim_note(conn));
         }
         SensorCommand::LoadConstellation { file, .. } => {
             let (con, warnings) = crate::plate::read_constellation(file)?;
@@ -660,7 +675,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
                 .with_context(|| format!("loading the constellation of {file}"))?;
             println!(
                 "constellation of {n} beacons from {file} stored in flash{}",
-                sim_note(&conn)
+                sim_note(conn)
             );
         }
         SensorCommand::Config { .. } => match link.call(SensorRequest::GetConfig)? {
@@ -685,11 +700,11 @@ pub fn run(args: &SensorArgs) -> Result<()> {
         },
         SensorCommand::Sensitivity { level, .. } => {
             link.call(SensorRequest::SetSensitivity(*level))?;
-            println!("sensitivity {level}{}", set_note(&conn));
+            println!("sensitivity {level}{}", set_note(conn));
         }
         SensorCommand::Rate { hz, .. } => {
             link.call(SensorRequest::SetRate(*hz))?;
-            println!("rate {hz} Hz{}", set_note(&conn));
+            println!("rate {hz} Hz{}", set_note(conn));
         }
         SensorCommand::Idle { .. } => {
             link.call(SensorRequest::SetMode(Mode::Idle))?;
@@ -699,7 +714,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
             catch_stop();
             link.call(SensorRequest::SetMode(Mode::Stream))?;
             let mut out = Ok(());
-            let r = read_reports(&mut link, *count, |r| {
+            let r = read_reports(link, *count, |r| {
                 if let SensorResponse::Spots(s) = r {
                     if *json {
                         if out.is_ok() {
@@ -710,7 +725,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
                     }
                 }
             });
-            back_to_idle(&mut link, r)?;
+            back_to_idle(link, r)?;
             out?;
         }
         SensorCommand::Pose {
@@ -734,7 +749,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
                 println!("{}", pose_header());
             }
             let mut out = Ok(());
-            let r = read_reports(&mut link, *count, |r| {
+            let r = read_reports(link, *count, |r| {
                 if let SensorResponse::Pose(p) = r {
                     if *json {
                         if out.is_ok() {
@@ -745,7 +760,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
                     }
                 }
             });
-            back_to_idle(&mut link, r)?;
+            back_to_idle(link, r)?;
             out?;
         }
         SensorCommand::Sim(_)
@@ -973,7 +988,11 @@ pub fn read_reports<S: std::io::Read + std::io::Write>(
     let mut seen = 0u64;
     let mut last = Instant::now();
     while (count == 0 || seen < count) && !STOP.load(std::sync::atomic::Ordering::SeqCst) {
-        match link.next_unsolicited(Duration::from_millis(100))? {
+        // A port error is the link's (named by board and port in `run`), not the output's.
+        let next = link
+            .next_unsolicited(Duration::from_millis(100))
+            .map_err(LinkError::<SensorError>::Io)?;
+        match next {
             Some(Response::Board(r @ (SensorResponse::Spots(_) | SensorResponse::Pose(_)))) => {
                 seen += 1;
                 last = Instant::now();

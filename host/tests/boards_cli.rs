@@ -674,3 +674,62 @@ fn the_sim_boards_pinhole_pose_reads_the_range() {
         }
     }
 }
+
+/// The error of a command whose port went away while it ran: the board and the port named in
+/// front, the port's error once (it used to read `cta: error: Broken pipe` for `stream`, and
+/// `serial port error: Broken pipe: Broken pipe` for `heartbeat`).
+fn names_the_lost_port_once(o: &Output, board: &str, port: &str) {
+    fails_with(o, &[&format!("{board} board on {port}: port lost: ")]);
+    let err = stderr(o);
+    let line = err
+        .lines()
+        .find(|l| l.contains("port lost: "))
+        .unwrap_or_default();
+    let cause = line.rsplit("port lost: ").next().unwrap_or_default();
+    assert!(!cause.is_empty(), "{err}");
+    assert_eq!(err.matches(cause).count(), 1, "said twice: {err}");
+    assert_eq!(err.matches(port).count(), 1, "port named twice: {err}");
+}
+
+#[test]
+fn a_port_lost_mid_command_is_named_with_its_board() {
+    // Sensor: a stream until Ctrl-C, its board stopped after the first report.
+    let sim = Sim::start(&["sensor", "sim"]);
+    let mut stream = Command::new(env!("CARGO_BIN_EXE_cta"))
+        .args(["sensor", "--port", &sim.path, "stream", "--count", "0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = BufReader::new(stream.stdout.take().unwrap());
+    let mut line = String::new();
+    out.read_line(&mut line).unwrap();
+    assert!(line.contains("spots="), "{line}");
+    let port = sim.path.clone();
+    drop(sim);
+    // The stream goes on printing until it finds the port gone.
+    std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
+    let o = stream.wait_with_output().unwrap();
+    names_the_lost_port_once(&o, "sensor", &port);
+
+    // Beacon: heartbeats every 50 ms until stopped, its board stopped after 0.3 s.
+    let sim = Sim::start(&["beacon", "sim"]);
+    let heartbeat = Command::new(env!("CARGO_BIN_EXE_cta"))
+        .args([
+            "beacon",
+            "--port",
+            &sim.path,
+            "heartbeat",
+            "--every-ms",
+            "50",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let port = sim.path.clone();
+    drop(sim);
+    let o = heartbeat.wait_with_output().unwrap();
+    names_the_lost_port_once(&o, "beacon", &port);
+}
