@@ -118,8 +118,9 @@ pub enum LinkError<E: fmt::Debug + fmt::Display> {
         /// The reply.
         reply: String,
     },
-    /// Another board (or protocol version) answered.
-    #[error("expected a {expected} board speaking protocol {PROTOCOL_VERSION}, but a {} board speaking protocol {} answered", got.board, got.protocol)]
+    /// Another board (or protocol version) answered. When it is the other kind of board, the
+    /// message suggests the beacon and sensor ports may be swapped.
+    #[error("expected a {expected} board speaking protocol {PROTOCOL_VERSION}, but a {} board speaking protocol {} answered{}", got.board, got.protocol, swapped_hint(*expected, got.board))]
     WrongBoard {
         /// The board expected.
         expected: BoardKind,
@@ -132,6 +133,15 @@ impl<E: fmt::Debug + fmt::Display> From<io::Error> for LinkError<E> {
     fn from(e: io::Error) -> Self {
         LinkError::Io(e)
     }
+}
+
+/// After [`LinkError::WrongBoard`]'s message: when the `got` board answered where the
+/// `expected` one should be, the two boards' ports are probably the other way round.
+fn swapped_hint(expected: BoardKind, got: BoardKind) -> String {
+    if expected == got {
+        return String::new();
+    }
+    format!(" (is this the {got} board's port? the beacon and sensor ports may be swapped)")
 }
 
 /// Request/response client for the board of protocol `P` over port `S`.
@@ -597,6 +607,37 @@ mod tests {
         let e: LinkError<BeaconError> = io::Error::other("Broken pipe").into();
         let text = format!("{:#}", anyhow::Error::new(e));
         assert_eq!(text, "port lost: Broken pipe");
+    }
+
+    #[test]
+    fn the_other_board_answering_suggests_swapped_ports() {
+        let id = |board| Identity {
+            board,
+            protocol: PROTOCOL_VERSION,
+            firmware: heapless::String::try_from("0.1.0").unwrap(),
+            simulated: false,
+            max_frame: MAX_FRAME as u16,
+        };
+        let swapped = LinkError::<BeaconError>::WrongBoard {
+            expected: BoardKind::Beacon,
+            got: id(BoardKind::Sensor),
+        }
+        .to_string();
+        assert!(
+            swapped.contains("a sensor board speaking protocol")
+                && swapped.contains("is this the sensor board's port?")
+                && swapped.contains("ports may be swapped"),
+            "{swapped}"
+        );
+        let older = LinkError::<BeaconError>::WrongBoard {
+            expected: BoardKind::Beacon,
+            got: Identity {
+                protocol: PROTOCOL_VERSION + 1,
+                ..id(BoardKind::Beacon)
+            },
+        }
+        .to_string();
+        assert!(!older.contains("swapped"), "{older}");
     }
 
     #[test]

@@ -733,3 +733,18 @@ fn a_port_lost_mid_command_is_named_with_its_board() {
     let o = heartbeat.wait_with_output().unwrap();
     names_the_lost_port_once(&o, "beacon", &port);
 }
+
+/// A board of the other kind on the port: the message says the ports may be swapped.
+#[test]
+fn the_other_board_on_the_port_suggests_swapped_ports() {
+    let sim = Sim::start(&["sensor", "sim"]);
+    fails_with(
+        &cta(&["beacon", "--port", &sim.path, "status"]),
+        &[
+            &format!("identifying the board on {}", sim.path),
+            "expected a beacon board",
+            "a sensor board",
+            "is this the sensor board's port? the beacon and sensor ports may be swapped",
+        ],
+    );
+}
