@@ -265,6 +265,9 @@ fn print_summary(s: &Summary) {
 pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     INTERRUPTED.store(false, Ordering::SeqCst);
     SIGNAL.store(0, Ordering::SeqCst);
+    if let (Some(b), Some(s)) = (&args.beacon, &args.sensor) {
+        two_ports(b, s)?;
+    }
     let t0 = Instant::now();
     let sync = !args.no_sync;
     let command: Vec<String> = std::env::args().collect();
@@ -377,28 +380,16 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             .with_context(|| format!("{}: cannot read the plan", plan_path.display()))?;
         let plan = Plan::parse(&plan_path.display().to_string(), &src)?;
         let sim = sim_settings(args)?;
-        let header = vec![
-            format!(
-                "cta {} sweep: plan `{}` ({})",
-                env!("CARGO_PKG_VERSION"),
-                plan.name,
-                plan_path.display()
-            ),
-            format!(
-                "{} points x {} samples; {}",
-                plan.len(),
-                plan.samples,
-                if sim.is_some() {
-                    "simulated CTA"
-                } else {
-                    "CTA hardware"
-                }
-            ),
-            "no-signal and partial points are recorded as comment lines; see journal.jsonl".into(),
-        ];
+        // The data file's header, but for what the run is on (known once the boards answered).
+        let title = format!(
+            "cta {} sweep: plan `{}` ({})",
+            env!("CARGO_PKG_VERSION"),
+            plan.name,
+            plan_path.display()
+        );
         // Refuse an existing directory now; create it once both boards answered.
         RunDir::check_new(out, args.force)?;
-        (Err((out.clone(), src, header)), plan, sim)
+        (Err((out.clone(), src, title)), plan, sim)
     };
 
     // The boards.
@@ -419,13 +410,22 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     let mut engine = Engine::new(&plan, &beacon_path, &sensor_path);
     engine.skip_settle = sim_settings.as_ref().is_some_and(|s| !s.realtime);
     let (bid, sid) = engine.connect()?;
+    let on = apparatus(sim.is_some(), &bid, &sid);
     // A hardware run is resumed on its ports: the hints say them.
     let ports = sim
         .is_none()
         .then_some((beacon_path.as_str(), sensor_path.as_str()));
     let mut store = match store {
         Ok(s) => s,
-        Err((out, src, header)) => RunDir::create(&out, &src, &header, args.force, sync)?,
+        Err((out, src, title)) => {
+            let header = [
+                title,
+                format!("{} points x {} samples; {on}", plan.len(), plan.samples),
+                "no-signal and partial points are recorded as comment lines; see journal.jsonl"
+                    .into(),
+            ];
+            RunDir::create(&out, &src, &header, args.force, sync)?
+        }
     };
     for note in &store.notes {
         eprintln!("cta: note: {}: {note}", store.dir.display());
@@ -469,11 +469,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             } else {
                 format!("resuming at point {from}")
             },
-            if sim.is_some() {
-                "simulated CTA"
-            } else {
-                "CTA hardware"
-            },
+            on,
         ));
         engine.run(&mut store, operator.as_mut(), from, &bars)
     })();
@@ -522,6 +518,45 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         seconds: t0.elapsed().as_secs_f64(),
         resume: resume_command(&store.dir, ports),
     })
+}
+
+/// `--beacon` and `--sensor` must be two ports: the same path twice, or two names of one
+/// device (a `/dev/serial/by-id/` link and the `/dev/ttyUSB` it points to), is refused before
+/// anything is opened (the second open would only say the port is locked).
+fn two_ports(beacon: &str, sensor: &str) -> Result<()> {
+    if beacon == sensor {
+        bail!(
+            "--beacon and --sensor are the same port, {beacon}: each board has its own serial \
+             port (e.g. --beacon /dev/ttyUSB0 --sensor /dev/ttyUSB1)"
+        );
+    }
+    if let (Ok(b), Ok(s)) = (std::fs::canonicalize(beacon), std::fs::canonicalize(sensor)) {
+        if b == s {
+            bail!(
+                "--beacon {beacon} and --sensor {sensor} are the same port, {}: each board has \
+                 its own serial port",
+                b.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// What a session runs on, for the data file's header and the log: the simulated CTA of
+/// `cta sweep --sim`, or the boards on the ports given, which are hardware or simulated
+/// (`cta beacon sim`, `cta sensor sim`) as each board says of itself.
+fn apparatus(
+    sim: bool,
+    beacon: &cta_core::wire::Identity,
+    sensor: &cta_core::wire::Identity,
+) -> &'static str {
+    match (sim, beacon.simulated, sensor.simulated) {
+        (true, _, _) => "simulated CTA",
+        (false, true, true) => "simulated beacon and sensor boards",
+        (false, true, false) => "CTA hardware with a simulated beacon board",
+        (false, false, true) => "CTA hardware with a simulated sensor board",
+        (false, false, false) => "CTA hardware",
+    }
 }
 
 fn parse_faults(args: &SweepArgs) -> Result<Faults> {
