@@ -150,6 +150,14 @@ fn crystal_starts(rcc: &pac::RCC) -> bool {
     (0..HSE_POLLS).any(|_| rcc.cr().read().hserdy().bit_is_set())
 }
 
+/// Reset after a fatal start-up log line, ~150 ms later (`delay`: 3 cycles a count on the
+/// Cortex-M3, at the HSI's 8 MHz; at least 50 ms): the probe reads the RTT buffer by
+/// polling, and the reset starts it afresh, so a reset at once would lose the line.
+fn reset_after_log() -> ! {
+    cortex_m::asm::delay(400_000);
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
 #[entry]
 fn main() -> ! {
     let dp = pac::Peripherals::take().unwrap();
@@ -159,7 +167,7 @@ fn main() -> ! {
         // Retry from reset: a crystal that is slow to start (cold) gets another chance, and
         // a probe shows this line each time.
         defmt::error!("the 8 MHz crystal (HSE) did not start within ~0.2 s: check it and its load capacitors; resetting to retry");
-        cortex_m::peripheral::SCB::sys_reset();
+        reset_after_log();
     }
     let mut flash = dp.FLASH.constrain();
     let mut rcc = dp.RCC.freeze(
