@@ -1,6 +1,8 @@
 //! Wiring of the beacon board (STM32F103ZET6): clocks, GPIO, USART1, TIM2, IWDG and fault
 //! handlers around the library's [`Board`] and [`Modulator`]. Compiled for the chip only.
 //!
+//! * Boot: the 8 MHz crystal (HSE) must start and measure 8 MHz against the internal RC
+//!   oscillator ([`crystal_khz`]), or the board logs why and resets to try again (LEDs off).
 //! * Boot: every LED pin is driven low before it becomes an output (the MOSFET gates are
 //!   pulled down until then), so the LEDs are off from reset.
 //! * TIM2 update interrupt at [`TICK_HZ`] (72 MHz / 576), highest priority: one
@@ -228,6 +230,121 @@ fn crystal_starts(rcc: &pac::RCC) -> bool {
     (0..HSE_POLLS).any(|_| rcc.cr().read().hserdy().bit_is_set())
 }
 
+/// The crystal's frequency, measured against the internal 8 MHz RC oscillator (HSI), which
+/// clocks the core from reset until `freeze`: the RTC, clocked by HSE / 128, counts down its
+/// prescaler (`RTC_DIV`) while the DWT counts HSI cycles. The HSI is within -2 .. +2.5 % of
+/// 8 MHz over -40 .. 105 degC (datasheet), so an 8 MHz crystal reads 7.8-8.2 MHz; a 12 or
+/// 16 MHz one reads 12 or 16. Pure arithmetic on the two counters (no registers): it was
+/// checked on the host against a model of them (the HSI over its whole range, crystals of
+/// 4-25 MHz, misreads, debugger halts, stopped counters), but it is not a test of this crate,
+/// as this file builds for the chip only.
+mod crystal {
+    use core::ops::RangeInclusive;
+
+    /// Frequencies taken for an 8 MHz crystal, kHz: +/-5 %, twice the HSI's tolerance.
+    pub const ACCEPTED_KHZ: RangeInclusive<u32> = 7_600..=8_400;
+    /// Prescaler counts timed: 500 counts are 64,000 crystal cycles (8 ms at 8 MHz).
+    pub const COUNTS: u32 = 500;
+    /// `RTC_PRL` after a backup-domain reset: `RTC_DIV` counts 0x8000 down to 0, then reloads.
+    pub const PRL: u32 = 0x8000;
+    /// Largest change between two passes taken as counting: a pass takes a fraction of a
+    /// count, so a larger change is a misread, or a pause of the core (a debugger halt, which
+    /// stops the cycle counter, not the RTC), and starts the timing again.
+    pub const MAX_STEP: u32 = 8;
+    /// Passes of the loop before the measurement is given up on: the slowest crystal the
+    /// chip takes, 4 MHz, counts `COUNTS` in 128,000 HSI cycles, under 13,000 passes of 10
+    /// cycles or more; a pass as built is about 30 instructions, so 200,000 take under a
+    /// second. Counted in passes, not cycles: the cycle counter may not run (a debugger can
+    /// stop it).
+    pub const MAX_PASSES: u32 = 200_000;
+    /// HSI frequency, kHz.
+    const HSI_KHZ: u32 = 8_000;
+
+    /// Prescaler counts from the value `from` down to `to`, across a reload (0, then PRL).
+    pub fn counts_down(from: u32, to: u32) -> u32 {
+        if to <= from {
+            from - to
+        } else {
+            from + 1 + PRL.saturating_sub(to)
+        }
+    }
+
+    /// Crystal frequency, kHz, from `COUNTS` prescaler counts timed in HSI cycles: `div` reads
+    /// `RTC_DIV`, `cycles` the cycle counter. Timed from the first change of `RTC_DIV` seen,
+    /// so that both ends are changes; a value is used only when the next read repeats it, and
+    /// a change larger than `MAX_STEP` starts the timing again from there (a misread or a
+    /// pause can neither count nor stall the count). `None` if the prescaler did not count
+    /// `COUNTS` within `MAX_PASSES`, or the cycle counter did not run (the RTC or the DWT not
+    /// counting: no measurement, not a wrong crystal).
+    pub fn measure_khz(
+        mut div: impl FnMut() -> u32,
+        mut cycles: impl FnMut() -> u32,
+    ) -> Option<u32> {
+        let mut prev = None;
+        let mut start = None;
+        let mut counted = 0;
+        for _ in 0..MAX_PASSES {
+            let d = div();
+            let t = cycles();
+            if div() != d {
+                continue;
+            }
+            let Some(p) = prev else {
+                prev = Some(d);
+                continue;
+            };
+            let step = counts_down(p, d);
+            if step == 0 {
+                continue;
+            }
+            prev = Some(d);
+            let Some(t0) = start.filter(|_| step <= MAX_STEP) else {
+                (start, counted) = (Some(t), 0);
+                continue;
+            };
+            counted += step;
+            if counted >= COUNTS {
+                // 128 crystal cycles a count; HSI_KHZ * 128 * counted < 2^32 (counted < 508).
+                let elapsed: u32 = t.wrapping_sub(t0);
+                return (elapsed >= counted).then(|| HSI_KHZ * 128 * counted / elapsed);
+            }
+        }
+        None
+    }
+}
+
+/// Run [`crystal::measure_khz`] on the chip (before `freeze`: the core on the HSI, the DWT
+/// cycle counter on). The RTC is in the backup domain, which this firmware does not use
+/// otherwise: it is reset before (so that the RTC's clock can be chosen) and after (the RTC
+/// stopped again), and the backup-domain access and clocks are switched off again.
+fn crystal_khz(rcc: &pac::RCC, pwr: &pac::PWR, rtc: &pac::RTC) -> Option<u32> {
+    rcc.apb1enr()
+        .modify(|_, w| w.pwren().set_bit().bkpen().set_bit());
+    pwr.cr().modify(|_, w| w.dbp().set_bit());
+    let reset_backup_domain = || {
+        rcc.bdcr().modify(|_, w| w.bdrst().set_bit());
+        rcc.bdcr().modify(|_, w| w.bdrst().clear_bit());
+    };
+    reset_backup_domain();
+    rcc.bdcr().modify(|_, w| w.rtcsel().hse().rtcen().set_bit());
+    // Registers read through the RTC's APB interface are valid once it has resynchronised.
+    rtc.crl().modify(|_, w| w.rsf().clear_bit());
+    let synced = (0..crystal::MAX_PASSES).any(|_| rtc.crl().read().rsf().bit_is_set());
+    let khz = if synced {
+        crystal::measure_khz(
+            || rtc.divl().read().bits(),
+            cortex_m::peripheral::DWT::cycle_count,
+        )
+    } else {
+        None
+    };
+    reset_backup_domain();
+    pwr.cr().modify(|_, w| w.dbp().clear_bit());
+    rcc.apb1enr()
+        .modify(|_, w| w.pwren().clear_bit().bkpen().clear_bit());
+    khz
+}
+
 /// Reset after a fatal start-up log line, ~150 ms later (`delay`: 3 cycles a count on the
 /// Cortex-M3, at the HSI's 8 MHz; at least 50 ms): the probe reads the RTT buffer by
 /// polling, and the reset starts it afresh, so a reset at once would lose the line.
@@ -240,6 +357,8 @@ fn reset_after_log() -> ! {
 fn main() -> ! {
     let dp = pac::Peripherals::take().unwrap();
     let mut cp = cortex_m::Peripherals::take().unwrap();
+    cp.DCB.enable_trace();
+    cp.DWT.enable_cycle_counter();
 
     // Reset cause, then clear the flags.
     let watchdog_reset = dp.RCC.csr().read().iwdgrstf().bit_is_set();
@@ -250,6 +369,19 @@ fn main() -> ! {
         // a probe shows this line each time.
         defmt::error!("the 8 MHz crystal (HSE) did not start within ~0.2 s: check it and its load capacitors; resetting to retry");
         reset_after_log();
+    }
+    // The clock tree below multiplies the crystal by 9 for 72 MHz: refuse another crystal.
+    match crystal_khz(&dp.RCC, &dp.PWR, &dp.RTC) {
+        Some(khz) if crystal::ACCEPTED_KHZ.contains(&khz) => {
+            defmt::info!("crystal (HSE): {} kHz against the internal oscillator", khz);
+        }
+        Some(khz) => {
+            defmt::error!("the crystal (HSE) runs at ~{} kHz against the internal oscillator, not 8 MHz: this firmware needs an 8 MHz crystal (src/chip.rs); resetting", khz);
+            reset_after_log();
+        }
+        None => defmt::warn!(
+            "the crystal (HSE) could not be measured (the RTC did not count): taken for 8 MHz"
+        ),
     }
     let mut flash = dp.FLASH.constrain();
     let mut rcc = dp.RCC.freeze(
@@ -310,8 +442,6 @@ fn main() -> ! {
     // Kept running: this function never returns, so `_tick` is never dropped.
     let _tick = timer;
 
-    cp.DCB.enable_trace();
-    cp.DWT.enable_cycle_counter();
     let mut clock = Clock {
         last: cortex_m::peripheral::DWT::cycle_count(),
         cycles: 0,
