@@ -339,7 +339,7 @@ report gives every parameter with its 1-sigma, the residual RMS per separation o
 the near-field model gains on this sensor), and warns when the data hold structure the chip's \
 model cannot represent (then run `cta analyze` on the same file).\n\n\
 Example:\n  cta sweep --sim --out run && cta calibrate run/data.csv --out cal.json\n  \
-cta sensor --port /dev/ttyUSB0 load-calibration cal.json"
+cta sensor --port /dev/ttyUSB1 load-calibration cal.json"
 )]
 pub struct CalibrateArgs {
     /// Measurement file (CSV, host/MEASUREMENTS.md), e.g. a sweep's `data.csv`.

@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cta sensor sim --range 12              # simulated board on a pty, target 12 in away
-//! cta sensor --port /dev/ttyUSB0 identify
+//! cta sensor --port /dev/ttyUSB1 identify
 //! cta sensor template calibration > cal.json             # edit, then:
 //! cta sensor --port P load-calibration cal.json
 //! cta sensor --port P load-constellation con.json
@@ -71,7 +71,7 @@ pub const DEFAULT_TIMEOUT_MS: u64 = 500;
 /// The connection options of the subcommands that talk to the board.
 #[derive(Debug, Clone, Default, Args)]
 pub struct SensorConn {
-    /// Serial port of the board (e.g. /dev/ttyUSB0, or the pty printed by `cta sensor sim`).
+    /// Serial port of the board (e.g. /dev/ttyUSB1, or the pty printed by `cta sensor sim`).
     #[arg(long, value_name = "PATH", conflicts_with = "sim")]
     pub port: Option<String>,
     /// Talk to a simulated board started in this process (instead of --port).

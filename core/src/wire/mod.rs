@@ -26,8 +26,9 @@
 //! [`Header`] carries the protocol version ([`PROTOCOL_VERSION`]) and a sequence number.
 //! The version is the first field and the sequence number the second, in every version of
 //! this protocol, so a board can always answer a frame from a newer or older host with
-//! [`FrameFault::Version`] naming both versions. The host numbers its requests from 1,
-//! skipping [`SEQ_NONE`] (0) on wrap-around; a board echoes the request's sequence number
+//! [`FrameFault::Version`] naming both versions. The host numbers its requests on from a
+//! random start (a reply left on the line by an earlier connection cannot match), skipping
+//! [`SEQ_NONE`] (0) on wrap-around; a board echoes the request's sequence number
 //! in its reply, and uses [`SEQ_NONE`] when it answers a frame whose header it could not
 //! read (bad COBS, bad CRC, oversized...).
 //!

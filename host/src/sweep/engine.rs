@@ -1048,7 +1048,7 @@ impl<'a> Engine<'a> {
                 .sensor
                 .link()?
                 .next_unsolicited(Duration::from_millis(10))
-                .map_err(|e| Fault::Lost("sensor", format!("serial port error: {e}")))?;
+                .map_err(|e| Fault::Lost("sensor", format!("port lost: {e}")))?;
             if let Some(Response::Board(SensorResponse::Spots(r))) = next {
                 wrong_sensitivity = match absorb(r, m) {
                     Some(s) => (wrong_sensitivity.0 + 1, s),

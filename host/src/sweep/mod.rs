@@ -101,7 +101,9 @@ pub struct SweepArgs {
     pub sim_realtime: bool,
     /// Simulated CTA: inject faults (testing): `drop=P`, `corrupt=P` (per byte, both lines),
     /// `vanish=BOARD@N:MS` (unplugged), `silent=BOARD@N:MS`, `stall=sensor@N:MS`, triggered at
-    /// the N-th point attempt of the session, comma-separated.
+    /// the N-th point attempt of the session, and `reset=BOARD@N` (the board restarts, its
+    /// port staying up: the beacon as the N-th attempt starts, the sensor as it ends),
+    /// comma-separated.
     #[arg(long, value_name = "SPEC")]
     pub sim_fault: Option<String>,
     /// Do not ask: separations are the plan's nominal values (recorded as not measured),
