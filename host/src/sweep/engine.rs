@@ -110,7 +110,7 @@ impl<P: Protocol> Conn<P> {
             LinkError::WrongBoard { .. } => {
                 Fault::Fatal(anyhow!("{} port {}: {e}", self.name, self.path))
             }
-            e => Fault::Lost(self.name, format!("on {}: {e}", self.path)),
+            e => Fault::Lost(self.name, e.to_string()),
         })?;
         self.link = Some(link);
         Ok(id)
@@ -882,7 +882,7 @@ impl<'a> Engine<'a> {
                     }
                     Err(f) => {
                         ok = false;
-                        reconnect_error = Some(("beacon", fault_text(f)));
+                        reconnect_error = Some(("beacon", at_port(&self.beacon.path, f)));
                     }
                 }
             }
@@ -906,18 +906,18 @@ impl<'a> Engine<'a> {
                     }
                     Err(f) => {
                         ok = false;
-                        reconnect_error = Some(("sensor", fault_text(f)));
+                        reconnect_error = Some(("sensor", at_port(&self.sensor.path, f)));
                     }
                 }
             }
             if ok {
                 if let Err(f) = self.restore() {
                     ok = false;
-                    let board = match &f {
-                        Fault::Lost(b, _) => b,
-                        _ => "host",
+                    let (board, path) = match &f {
+                        Fault::Lost("beacon", _) => ("beacon", &self.beacon.path),
+                        _ => ("sensor", &self.sensor.path),
                     };
-                    reconnect_error = Some((board, fault_text(f)));
+                    reconnect_error = Some((board, at_port(path, f)));
                 }
             }
             if ok && matches!(fault, Fault::Lost(..)) {
@@ -1104,17 +1104,23 @@ pub fn table_mismatches(plan: &Plan, table: &[u32]) -> Vec<String> {
     wrong
 }
 
-/// A fault's words, without its board.
-fn fault_text(f: Fault) -> String {
-    match f {
+/// A fault's words, without its board, naming the port `path` (once).
+fn at_port(path: &str, f: Fault) -> String {
+    let w = match f {
         Fault::Lost(_, w) | Fault::Stalled(w) => w,
         Fault::Fatal(e) => format!("{e:#}"),
         Fault::Interrupted => "interrupted".into(),
+    };
+    if w.contains(path) {
+        w
+    } else {
+        format!("{path}: {w}")
     }
 }
 
 fn fault_error(path: &str, f: Fault) -> anyhow::Error {
     match f {
+        Fault::Lost(b, w) if w.contains(path) => anyhow!("{b} board: {w}"),
         Fault::Lost(b, w) => anyhow!("{b} board on {path}: {w}"),
         Fault::Stalled(w) => anyhow!("sensor board on {path}: {w}"),
         Fault::Fatal(e) => e,
