@@ -22,6 +22,7 @@ pub mod real;
 pub use real::Real;
 
 pub mod collinearity;
+pub mod crystal;
 pub mod emulator;
 pub mod glsdc;
 pub mod mrp;

@@ -18,6 +18,7 @@
 use core::cell::RefCell;
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
+use cta_core::crystal;
 
 use cortex_m::peripheral::NVIC;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
@@ -228,89 +229,6 @@ const HSE_POLLS: u32 = 200_000;
 fn crystal_starts(rcc: &pac::RCC) -> bool {
     rcc.cr().modify(|_, w| w.hseon().set_bit());
     (0..HSE_POLLS).any(|_| rcc.cr().read().hserdy().bit_is_set())
-}
-
-/// The crystal's frequency, measured against the internal 8 MHz RC oscillator (HSI), which
-/// clocks the core from reset until `freeze`: the RTC, clocked by HSE / 128, counts down its
-/// prescaler (`RTC_DIV`) while the DWT counts HSI cycles. The HSI is within -2 .. +2.5 % of
-/// 8 MHz over -40 .. 105 degC (datasheet), so an 8 MHz crystal reads 7.8-8.2 MHz; a 12 or
-/// 16 MHz one reads 12 or 16. Pure arithmetic on the two counters (no registers): it was
-/// checked on the host against a model of them (the HSI over its whole range, crystals of
-/// 4-25 MHz, misreads, debugger halts, stopped counters), but it is not a test of this crate,
-/// as this file builds for the chip only.
-mod crystal {
-    use core::ops::RangeInclusive;
-
-    /// Frequencies taken for an 8 MHz crystal, kHz: +/-5 %, twice the HSI's tolerance.
-    pub const ACCEPTED_KHZ: RangeInclusive<u32> = 7_600..=8_400;
-    /// Prescaler counts timed: 500 counts are 64,000 crystal cycles (8 ms at 8 MHz).
-    pub const COUNTS: u32 = 500;
-    /// `RTC_PRL` after a backup-domain reset: `RTC_DIV` counts 0x8000 down to 0, then reloads.
-    pub const PRL: u32 = 0x8000;
-    /// Largest change between two passes taken as counting: a pass takes a fraction of a
-    /// count, so a larger change is a misread, or a pause of the core (a debugger halt, which
-    /// stops the cycle counter, not the RTC), and starts the timing again.
-    pub const MAX_STEP: u32 = 8;
-    /// Passes of the loop before the measurement is given up on: the slowest crystal the
-    /// chip takes, 4 MHz, counts `COUNTS` in 128,000 HSI cycles, under 13,000 passes of 10
-    /// cycles or more; a pass as built is about 30 instructions, so 200,000 take under a
-    /// second. Counted in passes, not cycles: the cycle counter may not run (a debugger can
-    /// stop it).
-    pub const MAX_PASSES: u32 = 200_000;
-    /// HSI frequency, kHz.
-    const HSI_KHZ: u32 = 8_000;
-
-    /// Prescaler counts from the value `from` down to `to`, across a reload (0, then PRL).
-    pub fn counts_down(from: u32, to: u32) -> u32 {
-        if to <= from {
-            from - to
-        } else {
-            from + 1 + PRL.saturating_sub(to)
-        }
-    }
-
-    /// Crystal frequency, kHz, from `COUNTS` prescaler counts timed in HSI cycles: `div` reads
-    /// `RTC_DIV`, `cycles` the cycle counter. Timed from the first change of `RTC_DIV` seen,
-    /// so that both ends are changes; a value is used only when the next read repeats it, and
-    /// a change larger than `MAX_STEP` starts the timing again from there (a misread or a
-    /// pause can neither count nor stall the count). `None` if the prescaler did not count
-    /// `COUNTS` within `MAX_PASSES`, or the cycle counter did not run (the RTC or the DWT not
-    /// counting: no measurement, not a wrong crystal).
-    pub fn measure_khz(
-        mut div: impl FnMut() -> u32,
-        mut cycles: impl FnMut() -> u32,
-    ) -> Option<u32> {
-        let mut prev = None;
-        let mut start = None;
-        let mut counted = 0;
-        for _ in 0..MAX_PASSES {
-            let d = div();
-            let t = cycles();
-            if div() != d {
-                continue;
-            }
-            let Some(p) = prev else {
-                prev = Some(d);
-                continue;
-            };
-            let step = counts_down(p, d);
-            if step == 0 {
-                continue;
-            }
-            prev = Some(d);
-            let Some(t0) = start.filter(|_| step <= MAX_STEP) else {
-                (start, counted) = (Some(t), 0);
-                continue;
-            };
-            counted += step;
-            if counted >= COUNTS {
-                // 128 crystal cycles a count; HSI_KHZ * 128 * counted < 2^32 (counted < 508).
-                let elapsed: u32 = t.wrapping_sub(t0);
-                return (elapsed >= counted).then(|| HSI_KHZ * 128 * counted / elapsed);
-            }
-        }
-        None
-    }
 }
 
 /// Run [`crystal::measure_khz`] on the chip (before `freeze`: the core on the HSI, the DWT
