@@ -1288,8 +1288,8 @@ pub fn analyze(
     for st in &sel.steps {
         // The parameters as the final model (every named cause together) has them: the step
         // that added a cause fitted it without the causes named after it, which it may have
-        // stood in for (from `pinhole`, `proximity` alone reads S = 0.84 in on thesis data,
-        // 0.176 once `intensity` and `beacon_pattern` are in).
+        // stood in for (from `pinhole`, `proximity` alone reads S = 0.85 in on thesis data,
+        // near the truth, 0.175, once `intensity` and `beacon_pattern` are in).
         let (params, sigma, correlations, base_correlations) =
             cause_params(fm, st.cand, ff, &data.seps);
         let round = sel
@@ -2074,7 +2074,7 @@ mod tests {
     }
 
     /// A named cause's parameters are the final model's: from `pinhole` on thesis data,
-    /// `proximity` is named first and, fitted alone, stands in for `intensity` (S ~0.84 in);
+    /// `proximity` is named first and, fitted alone, stands in for `intensity` (S ~0.85 in);
     /// the cause reports the S of the final model, which holds `intensity` too, near the
     /// thesis's 0.175 in, and equal to the final parameter `proximity.S`. `beacon_pattern`,
     /// named too, lists its tie to d3 once.
