@@ -112,18 +112,17 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
         pattern: a.profile.pattern(a.half_angle),
     };
     let mut warnings = Vec::new();
-    if a.profile == Profile::Quartic {
-        let past = quartic_out_of_range(&model, &thetas, a.diameter_in);
-        if !past.is_empty() {
-            warnings.push(format!(
-                "the printed eq 17 quartic is evaluated past {QUARTIC_VALID_DEG} deg off the beacon's axis, where it is no \
-                 longer a radiation pattern (0 at 37.8 deg, -4.93 at 60 deg; README, thesis inconsistency 1): pattern and \
-                 combined errors there are not physical: {}",
-                past.join("; ")
-            ));
-        }
-    }
     let noise = rad(a.noise_deg);
+    // The nearest distance (D) evaluated for what is shown at each theta: the plot's, and
+    // how far in each crossing search went (the outermost crossing: a step inside it).
+    let mut nearest: Vec<f64> = vec![
+        if a.plot.is_some() {
+            PLOT_NEAREST_D
+        } else {
+            f64::INFINITY
+        };
+        thetas.len()
+    ];
     // `crossing_D` holds the distance or null; `crossing_kind` says what a null means.
     let mut crossing = serde_json::Map::new();
     let mut crossing_kind = serde_json::Map::new();
@@ -132,6 +131,13 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
             .iter()
             .map(|t| model.crossing(e, rad(*t), noise, NEAREST_D))
             .collect();
+        for (n, c) in nearest.iter_mut().zip(&c) {
+            *n = n.min(match c {
+                Crossing::At(r) => r / 1.1,
+                Crossing::BelowNoise => NEAREST_D,
+                Crossing::AboveNoise => CROSSING_MAX_D,
+            });
+        }
         let at = |c: &Crossing<f64>| match c {
             Crossing::At(r) => Some(*r),
             _ => None,
@@ -146,6 +152,17 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
             e.name().into(),
             json!(c.iter().map(kind).collect::<Vec<_>>()),
         );
+    }
+    if a.profile == Profile::Quartic {
+        let past = quartic_out_of_range(&model, &thetas, &nearest, a.diameter_in);
+        if !past.is_empty() {
+            warnings.push(format!(
+                "the printed eq 17 quartic is evaluated past {QUARTIC_VALID_DEG} deg off the beacon's axis, where it is no \
+                 longer a radiation pattern (0 at 37.8 deg, -4.93 at 60 deg; README, thesis inconsistency 1): pattern and \
+                 combined errors there are not physical: {}",
+                past.join("; ")
+            ));
+        }
     }
     let mut coeff = serde_json::Map::new();
     for e in [NfEffect::Proximity, NfEffect::Intensity, NfEffect::Pattern] {
@@ -230,7 +247,7 @@ pub fn nearfield(a: &NearfieldArgs) -> Result<()> {
                     .map(|&t| {
                         let pts = (0..=120)
                             .map(|k| {
-                                let r = 3.0 * 10f64.powf(k as f64 / 40.0);
+                                let r = PLOT_NEAREST_D * 10f64.powf(k as f64 / 40.0);
                                 (r, model.error(e, rad(t), r).abs().to_degrees())
                             })
                             .collect();
@@ -424,16 +441,22 @@ fn budget_items(owned: &[(String, [f64; 6])]) -> Vec<Item<'_>> {
         .collect()
 }
 
-/// Where the printed quartic is evaluated past its valid angle: for each `theta` (deg) whose
-/// pattern angle (the ray to the farther cell, eq 20) exceeds [`QUARTIC_VALID_DEG`] at the
-/// nearest distance the command evaluates ([`NEAREST_D`]), the distance inside which it
-/// does, in words.
-fn quartic_out_of_range(model: &Model2d<f64>, thetas: &[f64], diameter_in: f64) -> Vec<String> {
+/// Where the printed quartic is evaluated past its valid angle in what the command shows: for
+/// each `theta` (deg) whose pattern angle (the ray to the farther cell, eq 20) exceeds
+/// [`QUARTIC_VALID_DEG`] at the nearest distance evaluated for it (`nearest`, D: the plot's,
+/// or the crossing searches'), the distance inside which it does, in words.
+fn quartic_out_of_range(
+    model: &Model2d<f64>,
+    thetas: &[f64],
+    nearest: &[f64],
+    diameter_in: f64,
+) -> Vec<String> {
     let past = |th: f64, r: f64| model.pattern.out_of_range(model.pattern_angle(th, r));
     thetas
         .iter()
-        .filter(|&&t| past(rad(t), NEAREST_D))
-        .map(|&t| {
+        .zip(nearest)
+        .filter(|&(&t, &n)| past(rad(t), n))
+        .map(|(&t, _)| {
             let th = rad(t);
             if past(th, CROSSING_MAX_D) {
                 return format!("theta = {t} deg at every distance");
@@ -458,6 +481,8 @@ fn quartic_out_of_range(model: &Model2d<f64>, thetas: &[f64], diameter_in: f64) 
 
 /// The nearest distance (D) `cta nearfield` evaluates: the crossing search's inner end.
 const NEAREST_D: f64 = 0.6;
+/// The nearest distance (D) its plot draws.
+const PLOT_NEAREST_D: f64 = 3.0;
 
 /// Run `cta uncertainty`.
 pub fn uncertainty_cmd(a: &UncertaintyArgs) -> Result<()> {
@@ -1156,10 +1181,25 @@ fn print_evaluation(rep: &FitReport, ev: &fit::Evaluation) {
         } else {
             first.clone()
         };
+        // Where the thesis's claim holds on these data: a ratio of 10 or more.
+        let holds: Vec<String> = (0..ev.separation_in.len())
+            .filter(|&i| {
+                ev.reports[i] > 1
+                    && ev.cta_uncertainty_deg[i] > 0.0
+                    && ev.angle_std_deg[i] >= 10.0 * ev.cta_uncertainty_deg[i]
+            })
+            .map(|i| ev.separation_in[i].to_string())
+            .collect();
+        let holds = if holds.is_empty() {
+            "at none of these separations".to_string()
+        } else {
+            format!("at {} in", holds.join(", "))
+        };
         println!(
-            "note: std over the CTA uncertainty: {span} (the thesis's \"an order of magnitude \
-             below\" holds only near 1 in: README, thesis inconsistency 6); the uncertainty is eq 36 \
-             with the corrected sensitivities, about 1.4x the thesis's eqs 34/35 (inconsistency 4)"
+            "note: std over the CTA uncertainty: {span}; the thesis's \"an order of magnitude \
+             below\" (10x or more) holds {holds} (on its data only near 1 in: README, thesis \
+             inconsistency 6); the uncertainty is eq 36 with the corrected sensitivities, about \
+             1.4x the thesis's eqs 34/35 (inconsistency 4)"
         );
     }
     // The thesis plots the std; a bias shared by a separation's beacons comes on top.

@@ -226,3 +226,36 @@ fn a_dead_man_timeout_too_short_for_the_heartbeat_is_refused() {
         "no run directory for a run that never started"
     );
 }
+
+/// A beacon board reset long enough after the last reading is known by its uptime, which
+/// went back (at the plan's real 10 Hz rate the run is seconds old when the 4th point
+/// starts); the point is measured again.
+#[test]
+fn a_beacon_reset_is_known_by_its_uptime() {
+    let d = TestDir::new("sweep-faults-uptime");
+    write_plan(
+        &d,
+        r#"
+name = "uptime"
+separations_in = [15]
+beacons = [19, 45, 80, 54]
+frequencies_hz = [4050]
+power_levels = [2]
+sensitivities = [4]
+samples = 5
+settle_ms = 0
+rate_hz = 10
+"#,
+    );
+    let mut a = args(&d, "run", Some("reset=beacon@4"));
+    a.sim_realtime = true;
+    let s = sweep::sweep(&a).unwrap();
+    assert_eq!(s.ending, Ending::Complete);
+    points_once(&d.join("run"), 4);
+    let j = journal(&d.join("run"));
+    assert!(
+        j.contains("the board was reset behind the sweep (up "),
+        "{j}"
+    );
+    assert_eq!(s.stats.faults, 1, "{:?}", s.stats);
+}

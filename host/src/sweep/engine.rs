@@ -377,6 +377,9 @@ struct Measured {
 /// sensor board as reset behind its back (its own resends fix a detector that missed a
 /// setting within a frame or two, `firmware-sensor` `RESEND_EVERY`).
 pub const WRONG_SENSITIVITY_REPORTS: u32 = 3;
+/// The same, at a point that has just set the sensitivity: the detector may take a few
+/// frames to apply it, and the board resends a setting it missed after 10 frames.
+pub const WRONG_SENSITIVITY_AFTER_CHANGE: u32 = 25;
 
 /// The beacon board's status at the last reading: what a reset or a dead-man trip since
 /// then changes ([`Engine::check_beacon`]).
@@ -480,14 +483,20 @@ impl<'a> Engine<'a> {
                 ))
             }
         };
+        // Twice the heartbeat (the plan's own rule against the default timer), and room for
+        // a heartbeat plus one request to the sensor board with its retries, which may come
+        // between two heartbeats, and 0.5 s.
         let heartbeat = self.plan.heartbeat_ms;
-        if u64::from(s.limits.deadman_ms) < 2 * heartbeat {
+        let blocked = self.plan.request_timeout_ms * (u64::from(self.plan.retries) + 1);
+        let needed = (2 * heartbeat).max(heartbeat + blocked + 500);
+        if u64::from(s.limits.deadman_ms) < needed {
             let port = &self.beacon.path;
             return Err(Fault::Fatal(anyhow!(
-                "beacon board on {port}: its dead-man timeout is {} ms, shorter than twice the \
-                 plan's heartbeat ({heartbeat} ms): it would turn the LED off mid-point. Set it \
-                 back with `cta beacon --port {port} limits --deadman-ms {DEADMAN_DEFAULT_MS}` \
-                 (or lower [timing] heartbeat_ms), then resume",
+                "beacon board on {port}: its dead-man timeout is {} ms, shorter than the {needed} ms \
+                 the plan needs (twice its heartbeat, {heartbeat} ms, or a heartbeat and a request \
+                 to the sensor board with its retries, {blocked} ms, and 0.5 s): it would turn the \
+                 LED off mid-point. Set it back with `cta beacon --port {port} limits --deadman-ms \
+                 {DEADMAN_DEFAULT_MS}` (or lower [timing] heartbeat_ms), then resume",
                 s.limits.deadman_ms
             )));
         }
@@ -586,6 +595,10 @@ impl<'a> Engine<'a> {
             .link()?
             .call(BeaconRequest::AllOff)
             .map_err(|e| link_fault("beacon", e))?;
+        // A new reading to compare the next points with: whatever happened to the board
+        // during a pause (a dead-man trip while the sensor was away) is behind us.
+        self.beacon_seen = None;
+        self.check_beacon(false)?;
         let s = self.sensor.link()?;
         s.call(SensorRequest::SetMode(Mode::Idle))
             .map_err(|e| link_fault("sensor", e))?;
@@ -857,7 +870,10 @@ impl<'a> Engine<'a> {
             // Reconnect what was lost (or both when unsure) and restore the state.
             let reconnect = |c: &mut dyn FnMut() -> Result<Identity, Fault>| c();
             let mut ok = true;
+            // Which boards were reopened (for the log line).
+            let mut reopened = (false, false);
             if matches!(fault, Fault::Lost(b, _) if b != "sensor") || self.beacon.link.is_none() {
+                reopened.0 = true;
                 // A beacon board that comes back must still hold the plan's frequencies (it
                 // may have been reset, or its table changed while it was away).
                 self.beacon_seen = None;
@@ -890,6 +906,7 @@ impl<'a> Engine<'a> {
                 && (matches!(fault, Fault::Lost(b, _) if b != "beacon")
                     || self.sensor.link.is_none())
             {
+                reopened.1 = true;
                 match reconnect(&mut || self.sensor.connect()) {
                     Ok(_) => {}
                     Err(Fault::Fatal(e)) => {
@@ -911,21 +928,42 @@ impl<'a> Engine<'a> {
                 }
             }
             if ok {
-                if let Err(f) = self.restore() {
-                    ok = false;
-                    let (board, path) = match &f {
-                        Fault::Lost("beacon", _) => ("beacon", &self.beacon.path),
-                        _ => ("sensor", &self.sensor.path),
-                    };
-                    reconnect_error = Some((board, at_port(path, f)));
+                match self.restore() {
+                    Ok(()) => {}
+                    // A refusal (a dead-man timeout too short, a request the board refuses).
+                    Err(Fault::Fatal(e)) => {
+                        bars.log(&format!("fault at point {}: {e:#}; stop", p.index));
+                        store.log(Event::Fault {
+                            at: now(),
+                            point: p.index,
+                            board: "host".into(),
+                            what: format!("{e:#}"),
+                            action: "stop".into(),
+                        })?;
+                        self.quiet_off();
+                        return Err(e);
+                    }
+                    Err(f) => {
+                        ok = false;
+                        let (board, path) = match &f {
+                            Fault::Lost("beacon", _) => ("beacon", &self.beacon.path),
+                            _ => ("sensor", &self.sensor.path),
+                        };
+                        reconnect_error = Some((board, at_port(path, f)));
+                    }
                 }
             }
             if ok && matches!(fault, Fault::Lost(..)) {
                 self.stats.reconnects += 1;
-                let which = match board {
-                    "host" => "both boards",
-                    "beacon" => "beacon board",
-                    _ => "sensor board",
+                let which = match reopened {
+                    (true, true) => "both boards",
+                    (true, false) => "beacon board",
+                    (false, true) => "sensor board",
+                    // A fault that needed no new connection (a stall): the state restored.
+                    (false, false) => match board {
+                        "beacon" => "beacon board",
+                        _ => "sensor board",
+                    },
                 };
                 bars.log(&format!(
                     "reconnected ({which}); measuring point {} again",
@@ -962,7 +1000,8 @@ impl<'a> Engine<'a> {
 
     fn measure(&mut self, p: &Point) -> Result<Measured, Fault> {
         self.set_led(p, LedMode::Modulated(FreqSet::single(p.channel)))?;
-        if self.sensitivity != Some(p.sensitivity) {
+        let changed = self.sensitivity != Some(p.sensitivity);
+        if changed {
             self.sensor
                 .link()?
                 .call(SensorRequest::SetSensitivity(p.sensitivity))
@@ -985,7 +1024,12 @@ impl<'a> Engine<'a> {
             reports: 0,
             lost: 0,
         };
-        let collected = self.collect(p, &mut m);
+        let wrong_limit = if changed {
+            WRONG_SENSITIVITY_AFTER_CHANGE
+        } else {
+            WRONG_SENSITIVITY_REPORTS
+        };
+        let collected = self.collect(p, &mut m, wrong_limit);
         // Stop streaming even after a stall (best effort; a lost board is reconnected).
         let stopped = self.sensor_mode(Mode::Idle);
         collected?;
@@ -1011,7 +1055,9 @@ impl<'a> Engine<'a> {
         Ok(())
     }
 
-    fn collect(&mut self, p: &Point, m: &mut Measured) -> Result<(), Fault> {
+    /// Read spot reports into `m` until the point is done; `wrong_limit` reports in a row at
+    /// another sensitivity than the point's are a fault.
+    fn collect(&mut self, p: &Point, m: &mut Measured, wrong_limit: u32) -> Result<(), Fault> {
         let plan = self.plan;
         let mut last_seq: Option<u32> = None;
         let mut last_report = Instant::now();
@@ -1055,7 +1101,7 @@ impl<'a> Engine<'a> {
                     None => (0, 0),
                 };
                 last_report = Instant::now();
-                if wrong_sensitivity.0 >= WRONG_SENSITIVITY_REPORTS {
+                if wrong_sensitivity.0 >= wrong_limit {
                     return Err(Fault::Lost(
                         "sensor",
                         format!(
