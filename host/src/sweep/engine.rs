@@ -761,6 +761,29 @@ impl<'a> Engine<'a> {
         Ok(Ending::Complete)
     }
 
+    /// Stop the run on a fatal fault at point `p`: logged and journalled (`board` names who),
+    /// LEDs off and sensor idle. Returns the error to end the session with (or the journal's
+    /// own write error).
+    fn stop(
+        &mut self,
+        store: &mut RunDir,
+        bars: &Bars,
+        p: &Point,
+        board: &str,
+        e: anyhow::Error,
+    ) -> Result<anyhow::Error> {
+        bars.log(&format!("fault at point {}: {e:#}; stop", p.index));
+        store.log(Event::Fault {
+            at: now(),
+            point: p.index,
+            board: board.into(),
+            what: format!("{e:#}"),
+            action: "stop".into(),
+        })?;
+        self.quiet_off();
+        Ok(e)
+    }
+
     /// Best effort: LEDs off, sensor idle (at the end of a session).
     fn quiet_off(&mut self) {
         if let Ok(l) = self.beacon.link() {
@@ -807,18 +830,7 @@ impl<'a> Engine<'a> {
                     return Ok(Some((m, attempts)));
                 }
                 Err(Fault::Interrupted) => return Ok(None),
-                Err(Fault::Fatal(e)) => {
-                    bars.log(&format!("fault at point {}: {e:#}; stop", p.index));
-                    store.log(Event::Fault {
-                        at: now(),
-                        point: p.index,
-                        board: "host".into(),
-                        what: format!("{e:#}"),
-                        action: "stop".into(),
-                    })?;
-                    self.quiet_off();
-                    return Err(e);
-                }
+                Err(Fault::Fatal(e)) => return Err(self.stop(store, bars, p, "host", e)?),
                 Err(f) => f,
             };
             let (board, what) = match &fault {
@@ -884,18 +896,7 @@ impl<'a> Engine<'a> {
                     .and_then(|()| self.check_beacon(false))
                 {
                     Ok(()) => {}
-                    Err(Fault::Fatal(e)) => {
-                        bars.log(&format!("fault at point {}: {e:#}; stop", p.index));
-                        store.log(Event::Fault {
-                            at: now(),
-                            point: p.index,
-                            board: "beacon".into(),
-                            what: format!("{e:#}"),
-                            action: "stop".into(),
-                        })?;
-                        self.quiet_off();
-                        return Err(e);
-                    }
+                    Err(Fault::Fatal(e)) => return Err(self.stop(store, bars, p, "beacon", e)?),
                     Err(f) => {
                         ok = false;
                         reconnect_error = Some(("beacon", at_port(&self.beacon.path, f)));
@@ -909,18 +910,7 @@ impl<'a> Engine<'a> {
                 reopened.1 = true;
                 match reconnect(&mut || self.sensor.connect()) {
                     Ok(_) => {}
-                    Err(Fault::Fatal(e)) => {
-                        bars.log(&format!("fault at point {}: {e:#}; stop", p.index));
-                        store.log(Event::Fault {
-                            at: now(),
-                            point: p.index,
-                            board: "sensor".into(),
-                            what: format!("{e:#}"),
-                            action: "stop".into(),
-                        })?;
-                        self.quiet_off();
-                        return Err(e);
-                    }
+                    Err(Fault::Fatal(e)) => return Err(self.stop(store, bars, p, "sensor", e)?),
                     Err(f) => {
                         ok = false;
                         reconnect_error = Some(("sensor", at_port(&self.sensor.path, f)));
@@ -931,18 +921,7 @@ impl<'a> Engine<'a> {
                 match self.restore() {
                     Ok(()) => {}
                     // A refusal (a dead-man timeout too short, a request the board refuses).
-                    Err(Fault::Fatal(e)) => {
-                        bars.log(&format!("fault at point {}: {e:#}; stop", p.index));
-                        store.log(Event::Fault {
-                            at: now(),
-                            point: p.index,
-                            board: "host".into(),
-                            what: format!("{e:#}"),
-                            action: "stop".into(),
-                        })?;
-                        self.quiet_off();
-                        return Err(e);
-                    }
+                    Err(Fault::Fatal(e)) => return Err(self.stop(store, bars, p, "host", e)?),
                     Err(f) => {
                         ok = false;
                         let (board, path) = match &f {
