@@ -916,6 +916,9 @@ pub struct Glitches {
     pub samples_checked: usize,
     /// Samples that are glitches on either axis.
     pub samples: usize,
+    /// Their indices in [`Dataset::samples`] (not in JSON: `axes` has their lines).
+    #[serde(skip)]
+    pub rows: Vec<usize>,
     /// X, then Y.
     pub axes: Vec<AxisGlitches>,
 }
@@ -1111,6 +1114,7 @@ fn glitch_check(ds: &Dataset) -> Glitches {
         points_checked: points.len(),
         samples_checked: points.iter().map(|p| p.rows.len()).sum(),
         samples: glitched.iter().filter(|g| **g).count(),
+        rows: (0..glitched.len()).filter(|&r| glitched[r]).collect(),
         axes,
     }
 }

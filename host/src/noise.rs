@@ -416,6 +416,23 @@ fn variance_dispersion(rep: &[&Pt], pooled: impl Fn(&Pt) -> Option<[f64; 2]>) ->
     }
 }
 
+/// The settings (modulation frequency, power level, sensitivity) whose noise differs
+/// significantly within a separation: `cta analyze --weights setting` is then the weighting.
+pub fn settings_that_differ(r: &NoiseReport) -> Vec<&Factor> {
+    settings_among(&r.factors)
+}
+
+fn settings_among(factors: &[Factor]) -> Vec<&Factor> {
+    factors
+        .iter()
+        .filter(|f| {
+            f.significant
+                && ["modulation frequency", "power level", "sensitivity setting"]
+                    .contains(&f.factor.as_str())
+        })
+        .collect()
+}
+
 /// Analyze the noise of a dataset.
 pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
     let groups = ds.points();
@@ -599,14 +616,7 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
     let mut ns: Vec<usize> = rep.iter().map(|p| p.n).collect();
     ns.sort_unstable();
     let n_typ = ns[ns.len() / 2];
-    let settings_differ: Vec<&Factor> = factors
-        .iter()
-        .filter(|f| {
-            f.significant
-                && ["modulation frequency", "power level", "sensitivity setting"]
-                    .contains(&f.factor.as_str())
-        })
-        .collect();
+    let settings_differ = settings_among(&factors);
     // Angle or magnitude: the noise depends on the beacon's place or signal, point by point.
     let signal_differs = factors[1..3].iter().any(|f| f.significant);
     let point_advice = |what: String, keep: &str| {

@@ -76,7 +76,8 @@ fn warned_x_lines(stderr: &str) -> Vec<usize> {
 
 /// The reviewer's repro: 1 % of X samples jump by +/-3000 counts. `noise` and `analyze` warn,
 /// naming lines that really were edited; `noise` reports the heavy tail (robust sigma against
-/// std, the glitch count) in text and JSON; nothing is dropped from the figures.
+/// std, the glitch count) in text and JSON; nothing is dropped from the figures unless
+/// `cta analyze --drop-glitches` is asked to.
 #[test]
 fn injected_glitches_are_named_by_noise_and_analyze() {
     let d = tmpdir("inject");
@@ -150,12 +151,34 @@ fn injected_glitches_are_named_by_noise_and_analyze() {
             "{out}"
         );
 
-        // analyze warns the same way.
+        // analyze warns the same way, and its output notes the inflation of the noise the
+        // fits weight by; --drop-glitches leaves them out and says how many.
         let o = cta(&["analyze", s(&bad)]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let err = String::from_utf8_lossy(&o.stderr);
         let named = warned_x_lines(&err);
         assert!(named.iter().all(|l| edited.contains(l)), "{err}");
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            out.contains("  note: the glitches (lines ")
+                && out.contains("inflate the noise the fits weight by, most at ")
+                && out.contains("--drop-glitches leaves them out"),
+            "{out}"
+        );
+        let o = cta(&["analyze", s(&bad), "--drop-glitches", "--json"]);
+        let a = json(&o);
+        let notes = a["data_notes"].to_string();
+        assert!(
+            notes.contains(&format!(
+                "{} glitched samples left out (--drop-glitches; lines ",
+                lines.len()
+            )),
+            "{notes}"
+        );
+        assert_eq!(
+            a["samples"].as_u64().unwrap() as usize,
+            r["samples"].as_u64().unwrap() as usize - lines.len()
+        );
 
         // The clean original: no warning, no heavy tail.
         let o = cta(&["noise", s(&base)]);

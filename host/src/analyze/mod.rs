@@ -44,6 +44,10 @@ pub const UNEXPLAINED_CHI2_DOF: f64 = 1.2;
 /// (`plate_offset`, `separation_error`) to be tried.
 pub const MIN_POINTS_PER_SEPARATION: usize = 8;
 
+/// A starting-model chi2/dof below this says the noise the fits weight by is far larger than
+/// the residuals (with hundreds of degrees of freedom chi2/dof scatters by ~0.05 around 1).
+pub const NOISE_TOO_LARGE_CHI2_DOF: f64 = 0.5;
+
 /// `cta analyze`: find what the model misses in measured data, name the physical cause,
 /// and measure how much better the extended model predicts data it was not fitted on.
 #[derive(Debug, Clone, clap::Args)]
@@ -117,6 +121,11 @@ pub struct AnalyzeArgs {
     /// Stop after naming this many causes.
     #[arg(long, default_value_t = 5)]
     pub max_effects: usize,
+    /// Leave out the samples the glitch check flags (more than 8 robust sigma from their
+    /// point's median; the warning names their lines). The file is not changed; the output
+    /// says how many were left out.
+    #[arg(long)]
+    pub drop_glitches: bool,
     /// Write a self-contained HTML report (index.html, inline SVG plots) into this folder.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
@@ -145,6 +154,8 @@ pub struct Options {
     pub candidates: Vec<Cand>,
     /// Cap on named causes.
     pub max_effects: usize,
+    /// Leave out the samples the glitch check flags ([`Dataset::glitches`]).
+    pub drop_glitches: bool,
 }
 
 impl Default for Options {
@@ -157,6 +168,7 @@ impl Default for Options {
             noise: None,
             candidates: model::ALL.to_vec(),
             max_effects: 5,
+            drop_glitches: false,
         }
     }
 }
@@ -668,6 +680,10 @@ pub struct Analysis {
     pub params_after: Vec<Param>,
     /// Noise model in words.
     pub noise: String,
+    /// What the results rest on that needs saying: glitches that inflate the noise the fits
+    /// weight by (or were left out), settings whose noise differs under weights that pool
+    /// them, a noise far larger than the residuals.
+    pub data_notes: Vec<String>,
     /// One-sample noise per separation (X, Y), counts.
     pub noise_by_sep: Vec<[f64; 2]>,
     /// Samples read, points fitted, points left out.
@@ -756,6 +772,7 @@ impl AnalyzeArgs {
             noise: self.noise,
             candidates,
             max_effects: self.max_effects,
+            drop_glitches: self.drop_glitches,
         })
     }
 }
@@ -1170,6 +1187,8 @@ pub fn analyze(
     opts: &Options,
     progress: select::Progress,
 ) -> Result<Analysis, String> {
+    let (ds, mut data_notes) = data_notes(ds, opts)?;
+    let ds = ds.as_ref();
     let data = Data::from_dataset(ds, opts.weights, opts.noise)?;
     let nsep = data.seps.len();
     let file = ds.path.display().to_string();
@@ -1360,6 +1379,9 @@ pub fn analyze(
     } else {
         Vec::new()
     };
+    if let Some(n) = noise_too_large(&data, opts, base_chi2, sel.base_cv.rms) {
+        data_notes.push(n);
+    }
     let verdict = if unexplained {
         let part = if tentative.is_empty() {
             String::new()
@@ -1483,6 +1505,7 @@ pub fn analyze(
         params_before: params_of(&sel.base_model, &sel.base_fit, &data.seps, true),
         params_after: params_of(fm, ff, &data.seps, true),
         noise: data.noise_note.clone(),
+        data_notes,
         noise_by_sep: data.noise_by_sep.clone(),
         samples: data.samples,
         points: data.points.len(),
@@ -1507,6 +1530,150 @@ pub fn analyze(
     })
 }
 
+/// The dataset the analysis uses (without the flagged glitches with `--drop-glitches`) and
+/// the notes on it: glitches and how much they inflate the noise the fits weight by, and
+/// settings whose noise differs while the weights pool them.
+fn data_notes<'d>(
+    ds: &'d Dataset,
+    opts: &Options,
+) -> Result<(std::borrow::Cow<'d, Dataset>, Vec<String>), String> {
+    let mut notes = Vec::new();
+    let mut used = std::borrow::Cow::Borrowed(ds);
+    let g = ds.glitches();
+    if g.samples > 0 {
+        let flagged: std::collections::BTreeSet<usize> = g.rows.iter().copied().collect();
+        let clean = Dataset {
+            path: ds.path.clone(),
+            samples: (ds.samples.iter().enumerate())
+                .filter(|(i, _)| !flagged.contains(i))
+                .map(|(_, s)| *s)
+                .collect(),
+        };
+        let mut lines: Vec<usize> = g.rows.iter().map(|&r| ds.samples[r].line).collect();
+        lines.sort_unstable();
+        let shown: Vec<String> = lines.iter().take(5).map(|l| l.to_string()).collect();
+        let one = g.samples == 1;
+        let where_ = format!(
+            "line{} {}{}",
+            if one { "" } else { "s" },
+            shown.join(", "),
+            if lines.len() > 5 { ", ..." } else { "" }
+        );
+        if opts.drop_glitches {
+            notes.push(format!(
+                "{} glitched sample{} left out (--drop-glitches; {where_}); the file is unchanged",
+                g.samples,
+                if one { "" } else { "s" }
+            ));
+            used = std::borrow::Cow::Owned(clean);
+        } else if opts.noise.is_none() {
+            // The noise per separation and axis the fits weight by, with and without them.
+            let with = Data::from_dataset(ds, opts.weights, None)?;
+            let without = Data::from_dataset(&clean, opts.weights, None)?;
+            if with.noise_measured {
+                let (mut worst, mut at, mut axis) = (1.0, f64::NAN, 0);
+                for (k, sep) in with.seps.iter().enumerate() {
+                    let Some(j) = without.seps.iter().position(|v| v == sep) else {
+                        continue;
+                    };
+                    for a in 0..2 {
+                        let r = with.noise_by_sep[k][a] / without.noise_by_sep[j][a];
+                        if r > worst {
+                            (worst, at, axis) = (r, *sep, a);
+                        }
+                    }
+                }
+                let them = if one { "it" } else { "them" };
+                if opts.weights == Weights::Point {
+                    notes.push(format!(
+                        "the glitch{} ({where_}) inflate{} the variance of {} point{}, which \
+                         weight{} by it: --drop-glitches leaves {them} out (the file is not changed)",
+                        if one { "" } else { "es" },
+                        if one { "s" } else { "" },
+                        if one { "its" } else { "their" },
+                        if one { "" } else { "s" },
+                        if one { "s" } else { "" },
+                    ));
+                } else if worst > 1.2 {
+                    notes.push(format!(
+                        "the glitch{} ({where_}) inflate{} the noise the fits weight by, most at \
+                         {at} in on {}: {worst:.1}-fold. There the weights and the noise-alone \
+                         figures are off. --drop-glitches leaves {them} out (the file is not \
+                         changed)",
+                        if one { "" } else { "es" },
+                        if one { "s" } else { "" },
+                        ["X", "Y"][axis],
+                    ));
+                }
+            }
+        }
+    }
+    // Settings (frequency, power, sensitivity) whose noise differs within a separation, while
+    // the default weights pool them: `cta noise`'s test, run only when a separation has more
+    // than one setting.
+    if opts.weights == Weights::Separation && opts.noise.is_none() {
+        let mut pairs: Vec<(u64, [u64; 3])> = (used.samples.iter())
+            .map(|s| {
+                let setting = [s.frequency_hz, s.power, s.sensitivity]
+                    .map(|v| v.unwrap_or(f64::NAN).to_bits());
+                (s.separation_in.to_bits(), setting)
+            })
+            .collect();
+        pairs.sort_unstable();
+        pairs.dedup();
+        if pairs.len() > used.separations().len() {
+            if let Ok(r) = crate::noise::analyze_noise(&used) {
+                let differ = crate::noise::settings_that_differ(&r);
+                if !differ.is_empty() {
+                    notes.push(format!(
+                        "the noise differs between settings within a separation: {}; these \
+                         weights pool them per separation: `--weights setting` weights each \
+                         setting by its own noise (`cta noise {}` shows it)",
+                        differ
+                            .iter()
+                            .map(|f| format!("{} (max/min std {:.2})", f.factor, f.spread_ratio))
+                            .collect::<Vec<_>>()
+                            .join(", "),
+                        ds.path.display()
+                    ));
+                }
+            }
+        }
+    }
+    Ok((used, notes))
+}
+
+/// A chi-square far below its expectation: the noise the fits weight by is far larger than
+/// the scatter of the point means, so no effect could be significant against it.
+fn noise_too_large(data: &Data, opts: &Options, chi2_dof: f64, rms: f64) -> Option<String> {
+    if !(chi2_dof < NOISE_TOO_LARGE_CHI2_DOF) {
+        return None;
+    }
+    Some(if data.noise_measured {
+        format!(
+            "chi2/dof {chi2_dof:.2}: the point means scatter far less than their repeated \
+             samples say (held-out RMS {rms:.1} counts): the noise the fits weight by looks \
+             overestimated (glitches? samples that are not independent?), and an effect can \
+             hide under it"
+        )
+    } else {
+        let (what, n) = match opts.noise {
+            Some(n) => ("set by --noise", n),
+            None => (
+                "assumed for one sample per point",
+                data::DEFAULT_NOISE_COUNTS,
+            ),
+        };
+        format!(
+            "chi2/dof {chi2_dof:.2}: the residuals (held-out RMS {rms:.1} counts) are far \
+             smaller than the noise {what} ({n:.1} counts): no effect can be significant \
+             against it. If the sensor is that quiet, rerun with --noise {:.1} (better: \
+             repeated samples, which measure it)",
+            rms.max(0.1)
+        )
+    })
+}
+
 /// Text summary.
 pub fn render_text(a: &Analysis) -> String {
     use std::fmt::Write;
@@ -1521,6 +1688,9 @@ pub fn render_text(a: &Analysis) -> String {
         crate::measurement::fmt_list(&a.separations)
     );
     let _ = writeln!(s, "  {}", a.noise);
+    for n in &a.data_notes {
+        let _ = writeln!(s, "  note: {n}");
+    }
     let _ = writeln!(s, "\n{}\n", a.verdict);
     for (k, c) in a.causes.iter().chain(&a.tentative).enumerate() {
         let tag = if k < a.causes.len() {
@@ -1809,7 +1979,7 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::model::{Base, Cand, FitResult, Model};
-    use super::{analyze, delta_method, render_text, Analysis, Options};
+    use super::{analyze, delta_method, render_text, Analysis, Options, Weights};
     use crate::effects::Effect;
     use crate::simulate::SimConfig;
     use nalgebra::DMatrix;
@@ -1863,6 +2033,134 @@ mod tests {
             trial(1, Cand::Proximity, 8.0),
         ];
         assert!(super::rivals(&trials, 1, Cand::CellGain, 14.0).is_empty());
+    }
+
+    /// A glitch is named with how much it inflates the noise the fits weight by, where, and
+    /// how to leave it out; `--drop-glitches` leaves it out and says so. Clean data: no note.
+    #[test]
+    fn a_glitch_is_named_with_its_inflation_and_can_be_left_out() {
+        let cfg = SimConfig {
+            effects: Vec::new(),
+            separations: vec![3.0, 6.0, 12.0, 20.0, 30.0],
+            ..sim("cell_gain=0", 5)
+        };
+        let (mut ds, _) = cfg.run();
+        let clean = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
+        assert!(clean.data_notes.is_empty(), "{:?}", clean.data_notes);
+        // One sample at 12 in, X off by 7,000 counts (an ID mix-up).
+        let row = (ds.samples.iter())
+            .position(|s| s.separation_in == 12.0 && s.x.abs() < 20_000.0)
+            .unwrap();
+        ds.samples[row].x += 7000.0;
+        ds.samples[row].line = 4242;
+        let a = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
+        let note = a.data_notes.join(" | ");
+        assert!(
+            note.contains(
+                "the glitch (line 4242) inflates the noise the fits weight by, most at 12 in on X"
+            ) && note.contains("--drop-glitches leaves it out"),
+            "{note}"
+        );
+        let fold: f64 = note
+            .split(" on X: ")
+            .nth(1)
+            .unwrap()
+            .split('-')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(fold > 10.0, "{note}");
+        assert!(render_text(&a).contains("  note: the glitch (line 4242)"));
+        let opts = Options {
+            drop_glitches: true,
+            ..Options::default()
+        };
+        let d = analyze(&ds, &opts, &|_: &str| {}).unwrap();
+        assert_eq!(
+            d.data_notes,
+            ["1 glitched sample left out (--drop-glitches; line 4242); the file is unchanged"]
+        );
+        assert_eq!(d.samples, ds.samples.len() - 1);
+        // Without it the 12 in noise is the clean run's again.
+        let k = d.separations.iter().position(|&s| s == 12.0).unwrap();
+        let r = d.noise_by_sep[k][0] / clean.noise_by_sep[k][0];
+        assert!((0.9..1.1).contains(&r), "{r}");
+    }
+
+    /// Settings whose noise differs within a separation, pooled by the default weights: the
+    /// note names the setting and `--weights setting`; with those weights, no note.
+    #[test]
+    fn settings_whose_noise_differs_are_pointed_out() {
+        let cfg = SimConfig {
+            effects: Vec::new(),
+            separations: vec![4.0, 8.0, 15.0, 30.0],
+            ..sim("cell_gain=0", 6)
+        };
+        let (mut ds, _) = cfg.run();
+        // Power 2 on every other point, with 40 counts more noise (alternating signs, so the
+        // means stay put).
+        let groups = ds.points();
+        for (k, g) in groups.iter().enumerate() {
+            let loud = k % 2 == 0;
+            for (j, &i) in g.rows.iter().enumerate() {
+                let s = &mut ds.samples[i];
+                s.power = Some(if loud { 2.0 } else { 1.0 });
+                if loud && s.x.abs() < 30_000.0 && s.y.abs() < 30_000.0 {
+                    let d = if j % 2 == 0 { 40.0 } else { -40.0 };
+                    s.x += d;
+                    s.y += d;
+                }
+            }
+        }
+        let a = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
+        let note = a.data_notes.join(" | ");
+        assert!(
+            note.contains("the noise differs between settings within a separation: power level")
+                && note.contains("`--weights setting`"),
+            "{note}"
+        );
+        let opts = Options {
+            weights: Weights::Setting,
+            ..Options::default()
+        };
+        let b = analyze(&ds, &opts, &|_: &str| {}).unwrap();
+        assert!(b.data_notes.is_empty(), "{:?}", b.data_notes);
+    }
+
+    /// One sample per point, 10 counts of noise, 32.8 assumed: chi2/dof ~0.1, and the note
+    /// says the assumed noise is far too large and what to rerun with.
+    #[test]
+    fn a_noise_far_larger_than_the_residuals_is_pointed_out() {
+        let cfg = SimConfig {
+            effects: Vec::new(),
+            noise: 10.0,
+            samples: 1,
+            separations: vec![3.0, 6.0, 12.0, 20.0, 30.0],
+            ..sim("cell_gain=0", 7)
+        };
+        let (ds, _) = cfg.run();
+        let a = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
+        assert!(a.chi2_dof_before < 0.2, "{}", a.chi2_dof_before);
+        let note = a.data_notes.join(" | ");
+        assert!(
+            note.contains(
+                "far smaller than the noise assumed for one sample per point (32.8 counts)"
+            ),
+            "{note}"
+        );
+        let rerun: f64 = (note.split("rerun with --noise ").nth(1))
+            .and_then(|t| t.split(' ').next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("{note}"));
+        assert!((8.0..12.0).contains(&rerun), "{note}");
+        // At the true noise, no note.
+        let opts = Options {
+            noise: Some(10.0),
+            ..Options::default()
+        };
+        let b = analyze(&ds, &opts, &|_: &str| {}).unwrap();
+        assert!(b.data_notes.is_empty(), "{:?}", b.data_notes);
     }
 
     /// One sample per point with 3x the assumed noise: the excess chi-square is no structure

@@ -173,6 +173,9 @@ pub fn render(a: &Analysis) -> Result<String, String> {
         html_escape(&a.noise),
         html_escape(&a.verdict)
     );
+    for n in &a.data_notes {
+        let _ = write!(s, "<p><b>note:</b> {}</p>", html_escape(n));
+    }
     let _ = write!(
         s,
         "<p>chi2/dof {:.3} &rarr; {:.3}; held-out RMS {:.2} &rarr; {:.2} counts, against \
