@@ -238,6 +238,8 @@ struct World {
     stream_starts: AtomicU64,
     /// Beacon-board resets ordered so far ([`FaultKind::Reset`]).
     beacon_resets: AtomicU64,
+    /// What each board says of itself when identified ([`SimCta::spawn_posing_as`]).
+    posing: Posing,
     stop: AtomicBool,
 }
 
@@ -490,7 +492,7 @@ impl Outputs for LedOutputs<'_> {
 }
 
 fn beacon_loop(world: Arc<World>, mut ep: Endpoint) {
-    let mut board = BeaconBoard::new(true, false);
+    let mut board = BeaconBoard::new(!world.posing.beacon_hardware, false);
     board.start(&mut LedOutputs(&world));
     let mut t0 = Instant::now();
     let mut resets = 0;
@@ -518,7 +520,7 @@ fn beacon_loop(world: Arc<World>, mut ep: Endpoint) {
         let due = world.beacon_resets.load(Ordering::Relaxed);
         if resets < due {
             resets = due;
-            board = BeaconBoard::new(true, false);
+            board = BeaconBoard::new(!world.posing.beacon_hardware, false);
             board.start(&mut LedOutputs(&world));
             t0 = Instant::now();
         }
@@ -571,7 +573,7 @@ impl Detector {
 }
 
 fn sensor_loop(world: Arc<World>, mut ep: Endpoint) {
-    let mut board = SensorBoard::new(RamFlash::default(), true);
+    let mut board = SensorBoard::new(RamFlash::default(), !world.posing.sensor_hardware);
     let mut t0 = Instant::now();
     let mut det = Detector {
         sensitivity: 4,
@@ -643,7 +645,7 @@ fn sensor_loop(world: Arc<World>, mut ep: Endpoint) {
                 if world.resets_due(Which::Sensor, ends) {
                     // A new board (a new flash too: the sweep stores nothing) that sends the
                     // detector its start-up settings, as on power-up.
-                    board = SensorBoard::new(RamFlash::default(), true);
+                    board = SensorBoard::new(RamFlash::default(), !world.posing.sensor_hardware);
                     t0 = Instant::now();
                     io.t0 = t0;
                     board.start(&mut io);
@@ -704,6 +706,19 @@ fn sensor_loop(world: Arc<World>, mut ep: Endpoint) {
     }
 }
 
+/// Which simulated boards identify themselves as hardware (`simulated: false` in the
+/// identity they answer with), standing in for real boards in tests of what a sweep does on
+/// the real CTA: what it records of the apparatus, and a resume onto another kind of board
+/// ([`SimCta::spawn_posing_as`]). The default: both say they are simulated, as the
+/// simulated CTA and `cta beacon sim`, `cta sensor sim` do.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Posing {
+    /// The beacon board says it is hardware.
+    pub beacon_hardware: bool,
+    /// The sensor board says it is hardware.
+    pub sensor_hardware: bool,
+}
+
 /// The running simulated CTA.
 pub struct SimCta {
     world: Arc<World>,
@@ -715,6 +730,12 @@ pub struct SimCta {
 impl SimCta {
     /// Start both simulated boards for `plan`.
     pub fn spawn(plan: &Plan, settings: &SimSettings) -> Result<SimCta> {
+        SimCta::spawn_posing_as(plan, settings, Posing::default())
+    }
+
+    /// [`SimCta::spawn`], with the boards `posing` names identifying themselves as hardware
+    /// (for tests; the sweep's own simulated CTA never does).
+    pub fn spawn_posing_as(plan: &Plan, settings: &SimSettings, posing: Posing) -> Result<SimCta> {
         let effects = settings
             .effects
             .iter()
@@ -758,6 +779,7 @@ impl SimCta {
             }),
             stream_starts: AtomicU64::new(0),
             beacon_resets: AtomicU64::new(0),
+            posing,
             stop: AtomicBool::new(false),
         });
         static COUNTER: AtomicU64 = AtomicU64::new(0);
