@@ -1,7 +1,8 @@
 //! `cta sweep --resume` refuses a run directory whose files no longer agree with each other
 //! (edited, emptied, replaced) instead of silently cutting or re-measuring data, and says
 //! what it discards when it cuts a crashed session's uncommitted leftovers. Of the plan, only
-//! the timing keys that govern waiting and retrying may change: said, and journalled.
+//! the timing keys that govern waiting and retrying may change: said, and journalled. Nothing
+//! is cut or written before the boards answered.
 //!
 //! The resume whose terminal output is checked is this test binary re-executed with
 //! `CTA_SWEEP_CHECKS_CHILD` set, running only `child_resume`.
@@ -9,6 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use cta_host::sweep::plan::Plan;
+use cta_host::sweep::sim::{Posing, SimCta, SimSettings};
 use cta_host::sweep::store::{Event, RunDir};
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{
@@ -590,4 +592,83 @@ fn half_a_run_is_named_not_taken_for_no_run() {
         );
         assert_eq!(read(&run.join(left)), kept, "{left} touched");
     }
+}
+
+/// One separation: the test puts the boards' simulated plate there (`--yes` moves nothing).
+const PORTS_PLAN: &str = r#"
+name = "apparatus check"
+separations_in = [20]
+beacons = [0, 19, 45, 80, 99]
+sensitivities = [3, 4]
+samples = 3
+settle_ms = 0
+"#;
+
+/// Simulated boards on ports, standing in for the run's boards; those `posing` names say they
+/// are hardware.
+fn boards(posing: Posing) -> SimCta {
+    let plan = Plan::parse("plan.toml", PORTS_PLAN).unwrap();
+    let sim = SimCta::spawn_posing_as(&plan, &SimSettings::default(), posing).unwrap();
+    sim.move_plate(0, 20.0, 0);
+    sim
+}
+
+/// `cta sweep ... --beacon B --sensor S --yes --quiet --no-sync` on `boards`' ports.
+fn on_ports(boards: &SimCta) -> SweepArgs {
+    SweepArgs {
+        beacon: Some(boards.beacon_path().display().to_string()),
+        sensor: Some(boards.sensor_path().display().to_string()),
+        yes: true,
+        quiet: true,
+        no_sync: true,
+        ..SweepArgs::default()
+    }
+}
+
+/// `cta sweep --resume RUN` on `boards`' ports.
+fn resume_on(run: &Path, boards: &SimCta) -> Result<sweep::Summary, String> {
+    sweep::sweep(&SweepArgs {
+        resume: Some(run.to_path_buf()),
+        ..on_ports(boards)
+    })
+    .map_err(|e| format!("{e:#}"))
+}
+
+/// A resume decides what to cut before the boards are opened, but cuts it only once they
+/// answered: one that stops at its boards (a port that does not open) leaves the run as it was,
+/// the uncommitted rows included, for the resume that does go ahead to say what it discards.
+#[test]
+fn a_resume_whose_boards_do_not_answer_changes_nothing() {
+    let d = TestDir::new("sweep-checks-no-boards");
+    let plan = write_plan(&d, PORTS_PLAN);
+    let run = d.join("run");
+    let first = boards(Posing::default());
+    let s = sweep::sweep(&SweepArgs {
+        plan: Some(plan),
+        out: Some(run.clone()),
+        ..on_ports(&first)
+    })
+    .unwrap();
+    assert_eq!(s.ending, Ending::Complete);
+    let full = read(&run.join("data.csv"));
+    crash_after(&run, 4);
+    let journal = read(&run.join("journal.jsonl"));
+    let gone = d.join("no-such-port");
+    let e = sweep::sweep(&SweepArgs {
+        resume: Some(run.clone()),
+        beacon: Some(gone.display().to_string()),
+        ..on_ports(&first)
+    })
+    .map(|_| ())
+    .unwrap_err();
+    assert!(
+        format!("{e:#}").contains(&gone.display().to_string()),
+        "{e:#}"
+    );
+    assert_eq!(read(&run.join("data.csv")), full, "data.csv cut");
+    assert_eq!(read(&run.join("journal.jsonl")), journal, "journal touched");
+    // The resume that goes ahead cuts the leftovers, says so, and completes the run.
+    assert_eq!(resume_on(&run, &first).unwrap().ending, Ending::Complete);
+    assert!(last_session(&run).contains("data.csv: discarded"));
+    assert_eq!(read(&run.join("data.csv")), full);
 }

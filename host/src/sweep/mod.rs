@@ -418,7 +418,11 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         .is_none()
         .then_some((beacon_path.as_str(), sensor_path.as_str()));
     let mut store = match store {
-        Ok(s) => s,
+        Ok(mut s) => {
+            // Only now, with the boards known, does the resume change the run directory.
+            s.begin()?;
+            s
+        }
         Err((out, src, title)) => {
             let header = [
                 title,

@@ -350,7 +350,16 @@ pub struct RunDir {
     /// Number of events in `pending` (the last ones of `events`).
     pending_events: usize,
     last_sync: std::time::Instant,
+    /// A resume's changes not made yet ([`RunDir::begin`]).
+    unapplied: Option<Unapplied>,
     _lock: Lock,
+}
+
+/// The changes to the run directory a resume decided and [`RunDir::begin`] makes (the cuts'
+/// lengths are the run's `journal_len` and `csv_len`).
+struct Unapplied {
+    /// The text to write as plan.toml (`--plan FILE` with another text).
+    plan_text: Option<String>,
 }
 
 /// Longest time between two syncs while points complete.
@@ -459,6 +468,7 @@ impl RunDir {
             pending: Vec::new(),
             pending_events: 0,
             last_sync: std::time::Instant::now(),
+            unapplied: None,
             _lock: lock,
         })
     }
@@ -472,13 +482,16 @@ impl RunDir {
     /// Reopen `dir` to continue it with `plan`: reads the journal (dropping a torn last line),
     /// checks the plan is the one the run started with (only the timing keys of
     /// [`RESUME_MAY_CHANGE`] may differ from the last session's plan, each change said in a
-    /// note) and the committed data are intact, cuts `data.csv` back to the last committed
-    /// point, and positions both files for appending. Nothing is modified when a check fails.
+    /// note) and the committed data are intact, and decides what to cut: `data.csv` back to
+    /// the last committed point (said in a note), the journal to its last whole line.
+    /// [`RunDir::begin`] makes those changes and positions both files for appending, once the
+    /// session goes ahead; nothing is modified before (a check that fails here, or the
+    /// caller's own refusal after it, leaves the run directory as it was).
     ///
     /// `plan` is read from the run's `plan.toml`, or from `given` (`--resume RUN --plan FILE`):
     /// the same checks and notes, naming that file; then, when its text differs from the run's
-    /// `plan.toml`, it replaces it, so the run directory holds the plan the run continues with,
-    /// as it does after `plan.toml` was edited in place.
+    /// `plan.toml`, it replaces it ([`RunDir::begin`]), so the run directory holds the plan the
+    /// run continues with, as it does after `plan.toml` was edited in place.
     pub fn resume(
         dir: &Path,
         sync: bool,
@@ -635,7 +648,7 @@ impl RunDir {
             _ => None,
         });
         let end = last_point.map_or(header_len, |(_, e)| e);
-        let mut csv = OpenOptions::new()
+        let csv = OpenOptions::new()
             .write(true)
             .open(&dp)
             .with_context(|| format!("{}: cannot open for writing", dp.display()))?;
@@ -705,30 +718,24 @@ impl RunDir {
                 last_point.map_or(0, |(i, _)| i + 1)
             ));
         }
-        // Every check passed: from here on the run directory is changed. A plan given as
-        // another file becomes the run's plan.toml (as an edit in place would have), so the
-        // next resume reads the plan this session continues with.
-        if let Some(g) = given {
-            if std::fs::read_to_string(&pp).ok().as_deref() != Some(g.text) {
-                write_atomically(&pp, g.text.as_bytes(), sync)?;
+        // Every check passed. What the resume changes in the run directory is done by
+        // [`RunDir::begin`], once the session goes ahead (the boards answered as the run's
+        // did): a plan given as another file becomes the run's plan.toml (as an edit in place
+        // would have), so the next resume reads the plan this session continues with; the
+        // journal and data.csv are cut back to what was committed.
+        let plan_text = given
+            .filter(|g| std::fs::read_to_string(&pp).ok().as_deref() != Some(g.text))
+            .map(|g| {
                 notes.push(format!(
                     "{PLAN}: replaced by {} (--plan), the plan this session continues with",
                     g.path.display()
                 ));
-            }
-        }
-        let mut journal = OpenOptions::new()
+                g.text.to_string()
+            });
+        let journal = OpenOptions::new()
             .write(true)
             .open(&jp)
             .with_context(|| format!("{}: cannot open for writing", jp.display()))?;
-        journal
-            .set_len(good_len)
-            .and_then(|_| journal.seek(SeekFrom::End(0)))
-            .with_context(|| format!("{}: cannot cut back to {good_len} bytes", jp.display()))?;
-        csv.set_len(end)
-            .and_then(|_| csv.seek(SeekFrom::End(0)))
-            .and_then(|_| csv.sync_all())
-            .with_context(|| format!("{}: cannot cut back to {end} bytes", dp.display()))?;
         Ok(RunDir {
             dir: dir.to_path_buf(),
             notes,
@@ -742,8 +749,39 @@ impl RunDir {
             pending: Vec::new(),
             pending_events: 0,
             last_sync: std::time::Instant::now(),
+            unapplied: Some(Unapplied { plan_text }),
             _lock: lock,
         })
+    }
+
+    /// Make the changes a resume decided ([`RunDir::resume`]): the given plan written as the
+    /// run's plan.toml, the journal cut back to its last whole line and data.csv to the end
+    /// of the last committed point, both positioned for appending. Until then the run
+    /// directory is as the resume found it, so a session refused after the checks (the boards
+    /// answering are not the run's kind, a port that does not open) changes nothing. Done
+    /// once; a no-op for a new run. Anything written to the run calls it first.
+    pub fn begin(&mut self) -> Result<()> {
+        let Some(u) = &self.unapplied else {
+            return Ok(());
+        };
+        if let Some(text) = &u.plan_text {
+            write_atomically(&self.dir.join(PLAN), text.as_bytes(), self.sync)?;
+        }
+        let (jp, dp) = (self.dir.join(JOURNAL), self.dir.join(DATA));
+        let (good_len, end) = (self.journal_len, self.csv_len);
+        let journal = &mut self.journal;
+        journal
+            .set_len(good_len)
+            .and_then(|_| journal.seek(SeekFrom::End(0)))
+            .with_context(|| format!("{}: cannot cut back to {good_len} bytes", jp.display()))?;
+        let csv = self.csv.get_mut();
+        csv.set_len(end)
+            .and_then(|_| csv.seek(SeekFrom::End(0)))
+            .and_then(|_| csv.sync_all())
+            .with_context(|| format!("{}: cannot cut back to {end} bytes", dp.display()))?;
+        // Only now: until both files are positioned, nothing may be written to them.
+        self.unapplied = None;
+        Ok(())
     }
 
     /// Index of the next point to measure (one past the last committed).
@@ -778,6 +816,7 @@ impl RunDir {
 
     /// Sync `data.csv`, then write and sync the pending journal lines.
     pub fn sync_now(&mut self) -> Result<()> {
+        self.begin()?;
         let dp = self.dir.join(DATA);
         self.csv
             .flush()
@@ -800,6 +839,7 @@ impl RunDir {
     /// Write whole lines to the journal (synced when configured); on failure the journal is
     /// cut back to its last complete line, so a later line cannot follow a torn one.
     fn append_journal(&mut self, bytes: &[u8]) -> Result<()> {
+        self.begin()?;
         let r = self.journal.write_all(bytes).and_then(|_| {
             if self.sync {
                 self.journal.sync_data()
@@ -862,6 +902,7 @@ impl RunDir {
         lost: u32,
         attempts: u32,
     ) -> Result<()> {
+        self.begin()?;
         let mut buf = Vec::with_capacity(64 * rows.len() + 64);
         if let Some(c) = comment {
             writeln!(buf, "# {c}")?;
@@ -942,7 +983,10 @@ fn write_atomically(path: &Path, bytes: &[u8], sync: bool) -> Result<()> {
 
 impl Drop for RunDir {
     fn drop(&mut self) {
-        let _ = self.sync_now();
+        // A resume that never began leaves the run directory as it found it.
+        if self.unapplied.is_none() {
+            let _ = self.sync_now();
+        }
     }
 }
 
