@@ -2,7 +2,8 @@
 //! (edited, emptied, replaced) instead of silently cutting or re-measuring data, and says
 //! what it discards when it cuts a crashed session's uncommitted leftovers. Of the plan, only
 //! the timing keys that govern waiting and retrying may change: said, and journalled. Nothing
-//! is cut or written before the boards answered.
+//! is cut or written before the boards answered, and a run continues only on the kind of
+//! boards it was recorded on (hardware or simulated, as each board says of itself).
 //!
 //! The resume whose terminal output is checked is this test binary re-executed with
 //! `CTA_SWEEP_CHECKS_CHILD` set, running only `child_resume`.
@@ -632,6 +633,116 @@ fn resume_on(run: &Path, boards: &SimCta) -> Result<sweep::Summary, String> {
         ..on_ports(boards)
     })
     .map_err(|e| format!("{e:#}"))
+}
+
+const HARDWARE: Posing = Posing {
+    beacon_hardware: true,
+    sensor_hardware: true,
+};
+
+/// The data file's header says what the data come from (the first session's boards): a
+/// resume on boards of another kind would put their points under it. It is refused, naming
+/// both kinds and every port, before anything is cut or written.
+#[test]
+fn a_resume_on_another_kind_of_board_is_refused_naming_both() {
+    let d = TestDir::new("sweep-checks-apparatus");
+    let plan = write_plan(&d, PORTS_PLAN);
+    for (first, label, kind) in [
+        (
+            Posing::default(),
+            "simulated beacon and sensor boards",
+            "simulated",
+        ),
+        (HARDWARE, "CTA hardware", "hardware"),
+    ] {
+        let run = d.join(kind);
+        let started = boards(first);
+        let s = sweep::sweep(&SweepArgs {
+            plan: Some(plan.clone()),
+            out: Some(run.clone()),
+            ..on_ports(&started)
+        })
+        .unwrap();
+        assert_eq!(s.ending, Ending::Complete);
+        let full = read(&run.join("data.csv"));
+        let header: Vec<&str> = full.lines().take_while(|l| l.starts_with('#')).collect();
+        assert!(header[1].ends_with(&format!("; {label}")), "{header:?}");
+        // Stopped after point 3, the rows of the next points written but not committed.
+        crash_after(&run, 4);
+        let (data, journal, plan_toml) = (
+            read(&run.join("data.csv")),
+            read(&run.join("journal.jsonl")),
+            read(&run.join("plan.toml")),
+        );
+        let port = |b: &SimCta| (b.beacon_path(), b.sensor_path());
+        let (b0, s0) = port(&started);
+        drop(started);
+        for (posing, now, beacon_kind, sensor_kind) in [
+            (
+                Posing::default(),
+                "simulated beacon and sensor boards",
+                "simulated",
+                "simulated",
+            ),
+            (HARDWARE, "CTA hardware", "hardware", "hardware"),
+            (
+                Posing {
+                    beacon_hardware: true,
+                    sensor_hardware: false,
+                },
+                "CTA hardware with a simulated sensor board",
+                "hardware",
+                "simulated",
+            ),
+            (
+                Posing {
+                    beacon_hardware: false,
+                    sensor_hardware: true,
+                },
+                "CTA hardware with a simulated beacon board",
+                "simulated",
+                "hardware",
+            ),
+        ] {
+            if now == label {
+                continue;
+            }
+            let other = boards(posing);
+            let (b, s) = port(&other);
+            let e = resume_on(&run, &other).unwrap_err();
+            let said = format!(
+                "{}: the run was recorded on {label} (its first session in journal.jsonl: \
+                 beacon board on {}: {kind}, sensor board on {}: {kind}), but the boards \
+                 answering now are {now} (beacon board on {}: {beacon_kind}, sensor board on \
+                 {}: {sensor_kind}): data.csv would hold points of both under one header. Not \
+                 resuming, nothing was changed: resume the run on {label} again, or start a \
+                 new run with --out for these boards",
+                run.display(),
+                b0.display(),
+                s0.display(),
+                b.display(),
+                s.display()
+            );
+            assert_eq!(e, said);
+            // Nothing cut, nothing journalled: the uncommitted rows are still there.
+            assert_eq!(read(&run.join("data.csv")), data, "{now}: data touched");
+            assert_eq!(
+                read(&run.join("journal.jsonl")),
+                journal,
+                "{now}: journal touched"
+            );
+            assert_eq!(read(&run.join("plan.toml")), plan_toml);
+        }
+        // On the run's kind of boards it resumes: the leftovers cut and measured again.
+        let same = boards(first);
+        assert_eq!(resume_on(&run, &same).unwrap().ending, Ending::Complete);
+        assert_eq!(read(&run.join("data.csv")), full);
+        assert!(
+            last_session(&run).contains("data.csv: discarded"),
+            "{}",
+            last_session(&run)
+        );
+    }
 }
 
 /// A resume decides what to cut before the boards are opened, but cuts it only once they

@@ -412,7 +412,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     let mut engine = Engine::new(&plan, &beacon_path, &sensor_path);
     engine.skip_settle = sim_settings.as_ref().is_some_and(|s| !s.realtime);
     let (bid, sid) = engine.connect()?;
-    let on = apparatus(sim.is_some(), &bid, &sid);
+    let on = apparatus(sim.is_some(), bid.simulated, sid.simulated);
     // A hardware run is resumed on its ports: the hints say them.
     let ports = sim
         .is_none()
@@ -420,6 +420,12 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     let mut store = match store {
         Ok(mut s) => {
             // Only now, with the boards known, does the resume change the run directory.
+            same_apparatus(
+                &s,
+                sim.is_some(),
+                (&bid, &beacon_path),
+                (&sid, &sensor_path),
+            )?;
             s.begin()?;
             s
         }
@@ -550,19 +556,64 @@ fn two_ports(beacon: &str, sensor: &str) -> Result<()> {
 
 /// What a session runs on, for the data file's header and the log: the simulated CTA of
 /// `cta sweep --sim`, or the boards on the ports given, which are hardware or simulated
-/// (`cta beacon sim`, `cta sensor sim`) as each board says of itself.
-fn apparatus(
-    sim: bool,
-    beacon: &cta_core::wire::Identity,
-    sensor: &cta_core::wire::Identity,
-) -> &'static str {
-    match (sim, beacon.simulated, sensor.simulated) {
+/// (`cta beacon sim`, `cta sensor sim`) as each board says of itself (`beacon_simulated`,
+/// `sensor_simulated`).
+fn apparatus(sim: bool, beacon_simulated: bool, sensor_simulated: bool) -> &'static str {
+    match (sim, beacon_simulated, sensor_simulated) {
         (true, _, _) => "simulated CTA",
         (false, true, true) => "simulated beacon and sensor boards",
         (false, true, false) => "CTA hardware with a simulated beacon board",
         (false, false, true) => "CTA hardware with a simulated sensor board",
         (false, false, false) => "CTA hardware",
     }
+}
+
+/// A resumed run continues on the kind of apparatus it was recorded on ([`apparatus`]): the
+/// data file's header, written by the first session, says what the data come from, and every
+/// later session's points go under it. Boards that answer as another kind (a run started on
+/// `cta beacon sim` / `cta sensor sim` resumed on the real boards, hardware resumed with a
+/// simulated board standing in, another mix) are refused, naming both, before the resume
+/// changes anything. The first session's boards are read from the journal (`simulated` of
+/// each board); a journal without them is not checked.
+fn same_apparatus(
+    store: &RunDir,
+    sim: bool,
+    (beacon, beacon_port): (&cta_core::wire::Identity, &str),
+    (sensor, sensor_port): (&cta_core::wire::Identity, &str),
+) -> Result<()> {
+    let Some((first_sim, boards)) = store.events.iter().find_map(|e| match e {
+        Event::Session { sim, boards, .. } => Some((sim.is_some(), boards)),
+        _ => None,
+    }) else {
+        return Ok(());
+    };
+    let simulated = |b: &str| boards[b]["simulated"].as_bool();
+    let (Some(was_beacon), Some(was_sensor)) = (simulated("beacon"), simulated("sensor")) else {
+        return Ok(());
+    };
+    let was = apparatus(first_sim, was_beacon, was_sensor);
+    let now = apparatus(sim, beacon.simulated, sensor.simulated);
+    if was == now {
+        return Ok(());
+    }
+    let kind = |simulated: bool| if simulated { "simulated" } else { "hardware" };
+    let port = |b: &str| boards[b]["port"].as_str().unwrap_or("?").to_string();
+    bail!(
+        "{}: the run was recorded on {was} (its first session in {}: beacon board on {}: {}, \
+         sensor board on {}: {}), but the boards answering now are {now} (beacon board on \
+         {beacon_port}: {}, sensor board on {sensor_port}: {}): {} would hold points of both \
+         under one header. Not resuming, nothing was changed: resume the run on {was} again, \
+         or start a new run with --out for these boards",
+        store.dir.display(),
+        store::JOURNAL,
+        port("beacon"),
+        kind(was_beacon),
+        port("sensor"),
+        kind(was_sensor),
+        kind(beacon.simulated),
+        kind(sensor.simulated),
+        store::DATA,
+    );
 }
 
 fn parse_faults(args: &SweepArgs) -> Result<Faults> {
