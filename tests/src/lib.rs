@@ -9,7 +9,8 @@
 //!   killed, interrupted or run under a file size limit): [`child`], [`child_in_shell`],
 //!   [`child_paths`];
 //! * readers of what a run leaves on disk: [`journal`], [`journal_points`],
-//!   [`journal_field`], [`data_lines`], [`data_rows`], [`assert_same_data`].
+//!   [`journal_field`], [`data_lines`], [`data_rows`], [`assert_same_data`], [`snapshot`];
+//! * a run made to look killed mid-way: [`crash_after`].
 
 use std::ops::Deref;
 use std::path::{Path, PathBuf};
@@ -185,6 +186,51 @@ pub fn journal_field(line: &str, key: &str) -> u64 {
         .unwrap()
         .parse()
         .unwrap_or_else(|e| panic!("`{key}` in {line}: {e}"))
+}
+
+/// The journal of `run` cut back to its first `points` point lines, as if the session had been
+/// killed with the data of the later points written but their journal lines not (`data.csv`
+/// keeps them: a resume discards them and measures those points again). Returns the length
+/// of `data.csv` the last point kept committed.
+pub fn crash_after(run: &Path, points: usize) -> u64 {
+    let j = journal(run);
+    let mut kept = String::new();
+    let mut n = 0;
+    let mut end = 0;
+    for l in j.lines() {
+        if l.contains("\"event\":\"point\"") {
+            if n == points {
+                break;
+            }
+            n += 1;
+            end = journal_field(l, "csv_end");
+        }
+        kept.push_str(l);
+        kept.push('\n');
+    }
+    std::fs::write(run.join("journal.jsonl"), kept).unwrap();
+    end
+}
+
+/// Every file in `dir` (not in its subfolders) with its bytes and permission bits, by name:
+/// two snapshots compare equal when nothing in the folder was written, cut, added or removed.
+pub fn snapshot(dir: &Path) -> Vec<(String, u32, Vec<u8>)> {
+    use std::os::unix::fs::PermissionsExt;
+    let mut files: Vec<(String, u32, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            let mode = e.metadata().unwrap().permissions().mode();
+            let bytes = if e.file_type().unwrap().is_file() {
+                std::fs::read(e.path()).unwrap()
+            } else {
+                Vec::new()
+            };
+            (e.file_name().to_string_lossy().into_owned(), mode, bytes)
+        })
+        .collect();
+    files.sort();
+    files
 }
 
 /// The lines of `RUN/data.csv` after its first, which names the plan file the run was

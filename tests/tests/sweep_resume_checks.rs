@@ -15,7 +15,7 @@ use cta_host::sweep::sim::{Posing, SimCta, SimSettings};
 use cta_host::sweep::store::{Event, RunDir};
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{
-    child, child_paths, journal, journal_field, resume_args, sweep_args, write_plan, TestDir,
+    child, child_paths, crash_after, journal, resume_args, sweep_args, write_plan, TestDir,
 };
 
 const PLAN: &str = r#"
@@ -104,28 +104,6 @@ fn an_emptied_journal_is_refused_not_a_restart_that_wipes_the_data() {
         e.contains("manifest.json") && e.contains("30 were done"),
         "{e}"
     );
-}
-
-/// The journal cut back to its first `points` point lines, as if the session had been killed
-/// with the data of the later points written but their journal lines not.
-fn crash_after(run: &Path, points: usize) -> u64 {
-    let j = read(&run.join("journal.jsonl"));
-    let mut kept = String::new();
-    let mut n = 0;
-    let mut end = 0;
-    for l in j.lines() {
-        if l.contains("\"event\":\"point\"") {
-            if n == points {
-                break;
-            }
-            n += 1;
-            end = journal_field(l, "csv_end");
-        }
-        kept.push_str(l);
-        kept.push('\n');
-    }
-    std::fs::write(run.join("journal.jsonl"), kept).unwrap();
-    end
 }
 
 #[test]

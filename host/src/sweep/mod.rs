@@ -460,7 +460,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     let bars = Bars::new(args.quiet);
     let result = (|| -> Result<Ending> {
         if let Some(s) = &sim {
-            let path = store.dir.join("data.truth.json");
+            let path = store.dir.join(store::TRUTH);
             std::fs::write(&path, serde_json::to_string_pretty(&s.truth())?)
                 .with_context(|| format!("{}: cannot write", path.display()))?;
         }

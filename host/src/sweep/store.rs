@@ -375,6 +375,8 @@ pub const JOURNAL: &str = "journal.jsonl";
 pub const MANIFEST: &str = "manifest.json";
 /// The lock file: the pid of the process using the run, `flock`ed while it runs.
 pub const LOCK: &str = "sweep.lock";
+/// The truth behind a simulated run's data (written at every session of one).
+pub const TRUTH: &str = "data.truth.json";
 
 fn took_over(pid: String) -> String {
     format!(
@@ -399,7 +401,7 @@ impl RunDir {
         // Locked before anything is removed: --force must not pull a run from under a live
         // session.
         let (lock, stale) = Lock::acquire(dir)?;
-        for f in [PLAN, DATA, JOURNAL, MANIFEST, "data.truth.json"] {
+        for f in [PLAN, DATA, JOURNAL, MANIFEST, TRUTH] {
             let p = dir.join(f);
             if p.exists() {
                 std::fs::remove_file(&p)
@@ -424,6 +426,40 @@ impl RunDir {
                      or start over with --force (deletes its {DATA}, {JOURNAL}, {MANIFEST})",
                     dir.display(),
                     dir.display()
+                );
+            }
+        }
+        // The run directory is created, or emptied, once both boards answered: a place it
+        // cannot be written in is refused now, before any port is opened.
+        let existing = dir
+            .ancestors()
+            .map(|a| {
+                if a.as_os_str().is_empty() {
+                    Path::new(".")
+                } else {
+                    a
+                }
+            })
+            .find(|a| a.exists());
+        if let Some(at) = existing.filter(|a| a.is_dir()) {
+            if let Err(e) = writable(at) {
+                let itself = at == dir;
+                // `.` by its name.
+                let at = if at == Path::new(".") {
+                    std::env::current_dir().unwrap_or_else(|_| at.to_path_buf())
+                } else {
+                    at.to_path_buf()
+                };
+                bail!(
+                    "{}: cannot write: {e}. {}: nothing was started; choose another --out, or \
+                     make {} writable",
+                    at.display(),
+                    if itself {
+                        "A new run writes its files in it".to_string()
+                    } else {
+                        format!("A new run would create {} in it", dir.display())
+                    },
+                    at.display()
                 );
             }
         }
@@ -520,6 +556,7 @@ impl RunDir {
                 )
             }
         }
+        check_writable_run(dir)?;
         let (lock, stale) = Lock::acquire(dir)?;
         let mut notes: Vec<String> = stale.map(took_over).into_iter().collect();
         let mut events = Vec::new();
@@ -957,6 +994,44 @@ pub struct GivenPlan<'a> {
     pub path: &'a Path,
     /// Its text, as parsed into the plan.
     pub text: &'a str,
+}
+
+/// `Err` with the operating system's reason when this process may not write `path`: the
+/// permission bits, a file system mounted read-only, an immutable file (`access(2)`, `W_OK`;
+/// nothing is opened or changed).
+fn writable(path: &Path) -> std::io::Result<()> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = std::ffi::CString::new(path.as_os_str().as_bytes()).map_err(std::io::Error::other)?;
+    // SAFETY: a read-only query on a NUL-terminated path we own.
+    if unsafe { libc::access(c.as_ptr(), libc::W_OK) } == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
+/// A resumed session appends to `data.csv` and the journal, rewrites the lock and (simulated
+/// runs) the truth in place, and adds files to the run directory (the manifest through a
+/// temporary file, plan.toml likewise): the first of them it may not write is refused before
+/// anything is locked, cut or written, naming it and the reason. Without this, a read-only
+/// directory with writable files failed only at the manifest, after the resume had cut the
+/// uncommitted rows and journalled a session.
+fn check_writable_run(dir: &Path) -> Result<()> {
+    let files = [DATA, JOURNAL, LOCK, TRUTH].map(|f| dir.join(f));
+    let must = std::iter::once(dir.to_path_buf()).chain(files.into_iter().filter(|p| p.exists()));
+    for p in must {
+        if let Err(e) = writable(&p) {
+            bail!(
+                "{}: cannot write: {e}. A resumed session writes in the run directory {} ({DATA}, \
+                 {JOURNAL}, {MANIFEST} through a temporary file): not resuming, nothing was \
+                 changed; make it and its files writable again (e.g. chmod -R u+w), or copy the \
+                 run to a writable place and resume the copy",
+                p.display(),
+                dir.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Write `path` whole or not at all: through `.NAME.tmp` in the same directory, synced when
