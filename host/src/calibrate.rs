@@ -267,7 +267,32 @@ pub fn fit_near_field(
                      at the start or a step of the fit"
                     .to_string()
             }
-            e => format!("{e:?}"),
+            glsdc::Error::Model(glsdc::ModelError::NoData) => {
+                "the model has no output for any beacon (every pair in shadow) at the start"
+                    .to_string()
+            }
+            glsdc::Error::NotConverged {
+                cost, iterations, ..
+            } => format!("it did not converge in {iterations} iterations (chi-square {cost:.1})"),
+            glsdc::Error::RankDeficient { null, .. } => {
+                // The parameters along the unobservable direction, largest first.
+                let mut along: Vec<(usize, f64)> =
+                    null.iter().map(|v| v.abs()).enumerate().collect();
+                along.sort_by(|a, b| b.1.total_cmp(&a.1));
+                let names: Vec<&str> = along
+                    .iter()
+                    .enumerate()
+                    .filter(|(rank, (_, v))| *rank == 0 || *v >= 0.3)
+                    .map(|(_, (k, _))| NF_NAMES.get(*k).copied().unwrap_or("?"))
+                    .collect();
+                format!(
+                    "these data cannot tell {} apart (the normal matrix is singular)",
+                    names.join(", ")
+                )
+            }
+            glsdc::Error::TooFewRows { m, n } => {
+                format!("{m} residuals for {n} parameters")
+            }
         };
         anyhow!("near-field calibration fit failed: {why}")
     })?;
@@ -651,6 +676,28 @@ pub fn calibrate(
         pinhole: Some(PinholeHead { d, p }),
     };
 
+    // What to say when the near-field fit fails, or ends outside what the board takes, on
+    // separations that start far out: the face angles and the cell offset show only close in.
+    let closest = seps.iter().copied().fold(f64::INFINITY, f64::min);
+    let far_only = (closest >= FAR_ONLY_IN).then(|| {
+        // Closer separations left out by --separations, or never measured.
+        let have = all.separations();
+        let remedy = match have.iter().find(|s| **s < closest) {
+            Some(first) => format!(
+                "the file also has closer ones, from {first} in: include them (leave out \
+                 --separations, or e.g. --separations {first}..{})",
+                have.last().copied().unwrap_or(closest)
+            ),
+            None => "measure separations down to a few inches (a sweep of 2..30 in, as \
+                     host/plans/chvi.toml), and calibrate from that file"
+                .into(),
+        };
+        format!(
+            "The face angles and the cell offset show only close in, and these separations \
+             start at {closest} in: {remedy}; or check the file's columns and units"
+        )
+    });
+
     // 2. Near field, from the pinhole fit (REFERENCE.md). When that start fails or leaves
     // chi2/dof above the warning line, the fit is tried again from the nominal head pose
     // (Table 3's d, p) and the better one kept: far-range structure the pinhole model
@@ -687,11 +734,18 @@ pub fn calibrate(
                 }
                 (Ok(a), Err(_)) => a,
                 (Err(e), Err(e2)) => Err(anyhow!(
-                    "{e}; from the nominal head pose (d = {} in) too: {e2}. The data do not \
-                     look like a NorthStar on the CTA (check the file's columns, units and \
-                     --pattern-m; `cta analyze {}` shows what the models miss)",
+                    "{}: {e}; from the nominal head pose (d = {} in) too: {e2}. {}",
+                    ds.path.display(),
                     d(&nominal),
-                    ds.path.display()
+                    match &far_only {
+                        Some(cause) => cause.clone(),
+                        None => format!(
+                            "The data do not look like a NorthStar on the CTA (check the \
+                             file's columns, units and --pattern-m; `cta analyze {}` shows \
+                             what the models miss)",
+                            ds.path.display()
+                        ),
+                    }
                 ))
                 .map_err(|e| anyhow!("{}", wiring::explain(all, e.to_string())))?,
             }
@@ -729,20 +783,15 @@ pub fn calibrate(
             }
             _ => String::new(),
         };
-        let closest = seps.iter().copied().fold(f64::INFINITY, f64::min);
-        let cause = if closest >= FAR_ONLY_IN {
-            format!(
-                "the near-field parameters show close in, and these separations start at \
-                 {closest} in: measure or select separations down to a few inches (e.g. \
-                 --separations 2..30), or check the file's columns and units"
-            )
-        } else {
-            "the data do not look like a NorthStar on the CTA (check the file's columns and \
+        let cause = far_only.clone().unwrap_or_else(|| {
+            "The data do not look like a NorthStar on the CTA (check the file's columns and \
              units)"
                 .into()
-        };
+        });
         anyhow!(
-            "the fitted calibration is outside what the board accepts: {e}{value}; {cause}{unit}"
+            "{}: the fitted calibration is outside what the board accepts: {e}{value}. \
+             {cause}{unit}",
+            ds.path.display()
         )
     })?;
 

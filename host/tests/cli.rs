@@ -1176,6 +1176,85 @@ fn outputs_create_missing_folders() {
     assert_eq!(std::fs::read_to_string(&blocker).unwrap(), "not a folder");
 }
 
+/// The face angles and the cell offset show only in how the outputs change close in: fitted
+/// to far separations alone, the near-field calibration ends outside what the board takes (a
+/// negative cell offset `s` here) or does not converge. Either way the error names the file,
+/// the problem (where the separations start) and what to do: measure closer separations, or
+/// include the closer ones the file has; nothing is written.
+#[test]
+fn calibrate_from_far_separations_only_says_to_measure_closer() {
+    let d = tmpdir("far-only");
+    let fails = |args: &[&str], needles: &[String]| {
+        let o = cta(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && !err.contains("panicked"), "{err}");
+        assert_eq!(err.trim().lines().count(), 1, "not one line: {err}");
+        for n in needles {
+            assert!(err.contains(n.as_str()), "stderr lacks `{n}`: {err}");
+        }
+        // No Rust debug output (the optimizer's state) in the message.
+        assert!(!err.contains("VecStorage") && !err.contains(" { "), "{err}");
+    };
+    let noisy = |csv: &Path, seps: &str, seed: &str| {
+        // 1 % of beta, 2 samples per point: noisy enough that the far data leave s free.
+        let args = ["--separations", seps, "--noise", "300", "--samples", "2"];
+        simulate(csv, &[&args[..], &["--seed", seed]].concat());
+    };
+    let cal = d.join("cal.json");
+    // Only 25 and 30 in were measured.
+    let far = d.join("far.csv");
+    noisy(&far, "25,30", "2");
+    fails(
+        &["calibrate", s(&far), "--out", s(&cal)],
+        &[
+            format!(
+                "cta: error: {}: the fitted calibration is outside what the board accepts: \
+                 calibration out of range: near-field cell offset s (0 ..= 2 in) (fitted s = -",
+                far.display()
+            ),
+            "The face angles and the cell offset show only close in, and these separations \
+             start at 25 in: measure separations down to a few inches (a sweep of 2..30 in, as \
+             host/plans/chvi.toml), and calibrate from that file"
+                .into(),
+        ],
+    );
+    assert!(!cal.exists());
+    // Closer separations measured, but left out with --separations: the fit ends out of range
+    // or does not converge, and the message says to include them.
+    for (seed, problem) in [
+        (
+            "2",
+            "the fitted calibration is outside what the board accepts: calibration out of \
+             range: d (each component finite, within +/-12 in).",
+        ),
+        (
+            "5",
+            "near-field calibration fit failed: it did not converge in 100 iterations \
+             (chi-square ",
+        ),
+    ] {
+        let mix = d.join(format!("mix{seed}.csv"));
+        noisy(&mix, "2,10,25,30", seed);
+        fails(
+            &[
+                "calibrate",
+                s(&mix),
+                "--separations",
+                "25,30",
+                "--out",
+                s(&cal),
+            ],
+            &[
+                format!("cta: error: {}: {problem}", mix.display()),
+                "these separations start at 25 in: the file also has closer ones, from 2 in: \
+                 include them (leave out --separations, or e.g. --separations 2..30)"
+                    .into(),
+            ],
+        );
+        assert!(!cal.exists());
+    }
+}
+
 /// On very noisy data the pinhole fit's eye point can land outside what the board takes
 /// (d3 = -20 +/- 27 in here) while the near-field fit is fine: `cta calibrate` still writes
 /// the calibration, without `pinhole`, and says so.
