@@ -253,6 +253,81 @@ fn a_changed_plan_is_refused_naming_the_keys() {
     }
 }
 
+/// A `[timing] max_reports` written in the plan (40; its default would be 16, 4 x `samples`)
+/// is journalled with its value, which is what a resume compares: taking the line out, or a
+/// changed `samples` that its default would follow, cannot slip through; the same value,
+/// written or left to the default, is no change.
+#[test]
+fn an_explicit_max_reports_is_journalled_and_held_on_resume() {
+    let d = TestDir::new("sweep-checks-max-reports");
+    let explicit = with_timing("max_reports = 40");
+    let plan = write_plan(&d, &explicit);
+    let run = d.join("run");
+    let s = sweep::sweep(&SweepArgs {
+        no_sync: true,
+        sim_seed: Some(5),
+        ..sweep_args(&plan, &run)
+    })
+    .unwrap();
+    assert_eq!(s.ending, Ending::Complete);
+    assert!(last_session(&run).contains("\"max_reports\":40"));
+    crash_after(&run, 20);
+    let pp = run.join("plan.toml");
+    let given = d.join("given.toml");
+    for (text, said) in [
+        // The line taken out: its default, 16, is not the run's 40.
+        (PLAN.to_string(), "`timing.max_reports`: 40 -> 16. A resume"),
+        // `samples` changed, `max_reports` kept: only `samples` is named.
+        (
+            explicit.replace("samples = 4", "samples = 6"),
+            "): `samples`: 4 -> 6. A resume",
+        ),
+        // ... or taken out too: its default follows `samples`, 24, still not the run's 40.
+        (
+            PLAN.replace("samples = 4", "samples = 6"),
+            "): `samples`: 4 -> 6; `timing.max_reports`: 40 -> 24. A resume",
+        ),
+    ] {
+        let journal = read(&run.join("journal.jsonl"));
+        std::fs::write(&given, &text).unwrap();
+        for (e, file) in [
+            (resume_with(&run, &given).unwrap_err(), &given),
+            (
+                {
+                    std::fs::write(&pp, &text).unwrap();
+                    resume(&run).unwrap_err()
+                },
+                &pp,
+            ),
+        ] {
+            assert!(
+                e.starts_with(&format!("{}: the plan was changed", file.display()))
+                    && e.contains(said)
+                    && e.contains("not resuming"),
+                "{e}"
+            );
+        }
+        assert_eq!(read(&run.join("journal.jsonl")), journal, "not touched");
+        std::fs::write(&pp, &explicit).unwrap();
+    }
+    // The run's value with a timing change: resumes, the session journalling 40 again.
+    std::fs::write(&pp, with_timing("max_reports = 40\nretries = 4")).unwrap();
+    assert_eq!(resume(&run).unwrap().ending, Ending::Complete);
+    let session = last_session(&run);
+    assert!(
+        session.contains("\"max_reports\":40")
+            && session.contains("`timing.retries`: 2 -> 4")
+            && !session.contains("max_reports`:"),
+        "{session}"
+    );
+    // 16 written out is the default: no change from a run that left it out.
+    let (_dir, other) = complete_run("max-reports-default");
+    crash_after(&other, 20);
+    std::fs::write(other.join("plan.toml"), with_timing("max_reports = 16")).unwrap();
+    assert_eq!(resume(&other).unwrap().ending, Ending::Complete);
+    assert!(!last_session(&other).contains("changed"));
+}
+
 /// [`PLAN`] with its `[timing]` table extended by `lines`.
 fn with_timing(lines: &str) -> String {
     format!("{PLAN}{lines}\n")
