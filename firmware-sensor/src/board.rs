@@ -819,7 +819,7 @@ mod tests {
         let page = &mut flash.pages[0];
         page[4..6].copy_from_slice(&3u16.to_le_bytes());
         let n = usize::from(u16::from_le_bytes([page[6], page[7]]));
-        let crc = cta_core::wire::CRC.checksum(&page[..12 + n]);
+        let crc = cta_core::wire::crc32c(&page[..12 + n]);
         page[12 + n..16 + n].copy_from_slice(&crc.to_le_bytes());
         // Refused by its version, even to a reader of its own layout.
         assert!(storage::load::<StoredV3, _>(&flash).is_none());

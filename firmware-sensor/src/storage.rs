@@ -28,8 +28,6 @@ pub const FORMAT_VERSION: u16 = 4;
 pub const MAX_RECORD: usize = 512;
 const HEADER: usize = 12;
 const MAGIC: [u8; 4] = *b"CTAS";
-/// The wire protocol's CRC-32C (one lookup table in flash for both).
-const CRC32: crc::Crc<u32> = cta_core::wire::CRC;
 
 /// Flash failure (from the device), or a value too large to store.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,7 +62,7 @@ fn decode<T: DeserializeOwned>(bytes: &[u8]) -> Option<(u32, T)> {
     }
     let generation = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
     let crc = &bytes[HEADER + n..HEADER + n + 4];
-    if CRC32.checksum(&bytes[..HEADER + n]).to_le_bytes() != crc {
+    if cta_core::wire::crc32c(&bytes[..HEADER + n]).to_le_bytes() != crc {
         return None;
     }
     let value = postcard::from_bytes(&bytes[HEADER..HEADER + n]).ok()?;
@@ -100,7 +98,7 @@ pub fn save<T: Serialize, F: FlashPages>(flash: &mut F, value: &T) -> Result<u32
     rec[4..6].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
     rec[6..8].copy_from_slice(&(n as u16).to_le_bytes());
     rec[8..12].copy_from_slice(&generation.to_le_bytes());
-    let crc = CRC32.checksum(&rec[..HEADER + n]);
+    let crc = cta_core::wire::crc32c(&rec[..HEADER + n]);
     rec[HEADER + n..HEADER + n + 4].copy_from_slice(&crc.to_le_bytes());
     let len = (HEADER + n + 4 + 1) & !1;
     flash.erase(page)?;

@@ -10,7 +10,8 @@
 //!
 //! * The payload `postcard(Header) ++ postcard(body) ++ crc` is byte-for-byte what
 //!   [`postcard::to_slice_crc32`] produces for the pair `(Header, body)` with the digest of
-//!   [`CRC`] (CRC-32/ISCSI, "Castagnoli"): the CRC is postcard's own `use-crc` flavor.
+//!   [`CRC`] (CRC-32/ISCSI, "Castagnoli"): the CRC is postcard's own `use-crc` flavor's
+//!   (computed here by [`crc32c`], without the `crc` crate's 1 KiB table; tested equal).
 //! * COBS (consistent overhead byte stuffing, postcard's `Cobs` flavor) removes every zero
 //!   byte from the payload, so `0x00` only ever appears as a frame delimiter.
 //! * The sender writes a delimiter *before* and after each frame. A receiver that saw
@@ -72,7 +73,69 @@ pub const SEQ_NONE: u16 = 0;
 pub const MAX_FRAME: usize = 1024;
 
 /// The CRC of every frame: CRC-32/ISCSI (Castagnoli), as used by postcard's CRC flavors.
+/// The crate's own framing computes it with [`crc32c`] (the same checksum; this object's
+/// 1 KiB table would cost the sensor board's flash); this is for hosts that want the `crc`
+/// crate's API.
 pub const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
+
+/// Reflected CRC-32C polynomial (0x1EDC6F41 bit-reversed).
+const CRC32C_POLY: u32 = 0x82F6_3B78;
+
+/// CRC-32C of every 4-bit value: two look-ups per byte from a 64-byte table.
+const CRC32C_NIBBLES: [u32; 16] = {
+    let mut t = [0u32; 16];
+    let mut i = 0;
+    while i < 16 {
+        let mut c = i as u32;
+        let mut k = 0;
+        while k < 4 {
+            c = (c >> 1) ^ (CRC32C_POLY & (c & 1).wrapping_neg());
+            k += 1;
+        }
+        t[i] = c;
+        i += 1;
+    }
+    t
+};
+
+/// The running CRC-32C register after `bytes` (no initial or final XOR: start from
+/// `!0`, finish with `!`).
+fn crc32c_update(mut crc: u32, bytes: &[u8]) -> u32 {
+    for &b in bytes {
+        crc ^= u32::from(b);
+        crc = (crc >> 4) ^ CRC32C_NIBBLES[(crc & 15) as usize];
+        crc = (crc >> 4) ^ CRC32C_NIBBLES[(crc & 15) as usize];
+    }
+    crc
+}
+
+/// CRC-32C (CRC-32/ISCSI) of `bytes`: `CRC.checksum(bytes)` without its 1 KiB table.
+pub fn crc32c(bytes: &[u8]) -> u32 {
+    !crc32c_update(!0, bytes)
+}
+
+/// postcard flavor appending the CRC-32C of everything serialized (little-endian), as
+/// postcard's own `CrcModifier` with [`CRC`]'s digest does, byte for byte.
+struct Crc32cFlavor<B> {
+    flav: B,
+    crc: u32,
+}
+
+impl<B: postcard::ser_flavors::Flavor> postcard::ser_flavors::Flavor for Crc32cFlavor<B> {
+    type Output = B::Output;
+
+    fn try_push(&mut self, data: u8) -> postcard::Result<()> {
+        self.crc = crc32c_update(self.crc, &[data]);
+        self.flav.try_push(data)
+    }
+
+    fn finalize(mut self) -> postcard::Result<Self::Output> {
+        for byte in (!self.crc).to_le_bytes() {
+            self.flav.try_push(byte)?;
+        }
+        self.flav.finalize()
+    }
+}
 
 /// Length in bytes of the CRC trailer.
 const CRC_LEN: usize = 4;
@@ -304,7 +367,7 @@ pub fn encode_frame<'a, M: Serialize + ?Sized>(
     body: &M,
     buf: &'a mut [u8],
 ) -> Result<&'a [u8], EncodeError> {
-    use postcard::ser_flavors::{crc::CrcModifier, Cobs, Slice};
+    use postcard::ser_flavors::{Cobs, Slice};
     let (first, rest) = buf.split_first_mut().ok_or(EncodeError::BufferFull)?;
     *first = 0;
     let map = |e| match e {
@@ -314,7 +377,11 @@ pub fn encode_frame<'a, M: Serialize + ?Sized>(
     // CRC over the raw payload, then COBS over payload + CRC (the Cobs flavor appends the
     // trailing delimiter).
     let cobs = Cobs::try_new(Slice::new(rest)).map_err(map)?;
-    let n = postcard::serialize_with_flavor(&(header, body), CrcModifier::new(cobs, CRC.digest()))
+    let flavor = Crc32cFlavor {
+        flav: cobs,
+        crc: !0,
+    };
+    let n = postcard::serialize_with_flavor(&(header, body), flavor)
         .map_err(map)?
         .len();
     Ok(&buf[..n + 1])
@@ -419,7 +486,7 @@ impl<const N: usize> FrameDecoder<N> {
             return Err(err(FrameFault::Truncated, SEQ_NONE));
         }
         let (payload, crc) = data.split_at(n - CRC_LEN);
-        if CRC.checksum(payload).to_le_bytes() != crc {
+        if crc32c(payload).to_le_bytes() != crc {
             return Err(err(FrameFault::Crc, SEQ_NONE));
         }
         let (header, body) = postcard::take_from_bytes::<Header>(payload)
@@ -492,6 +559,38 @@ mod tests {
     #[test]
     fn crc_is_crc32c() {
         assert_eq!(CRC.checksum(b"123456789"), 0xE306_9283);
+        assert_eq!(crc32c(b"123456789"), 0xE306_9283);
+    }
+
+    /// [`crc32c`] (what the framing and the sensor board's storage use) is [`CRC`]'s
+    /// checksum on every length and byte value, and [`encode_frame`] is postcard's CRC flavor
+    /// byte for byte on longer messages too.
+    #[test]
+    fn nibble_crc_equals_the_crc_crate() {
+        let mut x = 0x1234_5678_u32;
+        let mut data = [0u8; 600];
+        for b in data.iter_mut() {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            *b = x as u8;
+        }
+        for n in 0..data.len() {
+            assert_eq!(crc32c(&data[..n]), CRC.checksum(&data[..n]), "length {n}");
+        }
+        for v in 0..=255u8 {
+            assert_eq!(crc32c(&[v]), CRC.checksum(&[v]));
+            assert_eq!(crc32c(&[v; 3]), CRC.checksum(&[v; 3]));
+        }
+        let m: Request<[u32; 20]> = Request::Board(core::array::from_fn(|k| (k as u32) << (k + 7)));
+        let mut buf = [0u8; 256];
+        let f = encode_frame(Header::new(300), &m, &mut buf).unwrap();
+        let mut raw = [0u8; 256];
+        let raw =
+            postcard::to_slice_crc32(&(Header::new(300), &m), &mut raw, CRC.digest()).unwrap();
+        let mut enc = [0u8; 256];
+        let k = cobs::encode(raw, &mut enc);
+        assert_eq!(&f[1..f.len() - 1], &enc[..k]);
     }
 
     /// Golden frames: the exact bytes on the wire, so any change of the format (header,
