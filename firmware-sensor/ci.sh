@@ -11,6 +11,8 @@
 #     accuracy claim, is it without channel 19, whose frequency is channel 2's);
 #  3. compare the on-target f32 answer with the host's f64 answer (example pose_reference),
 #     for both models and for the 20-beacon run;
+#  3b. run the QEMU trig program (untraced, a few seconds): the chip's face-angle sine and
+#     cosine (cta_core::trig, fixed point) against libm's sinf/cosf on the target;
 #  4. run the QEMU board program: the board's own code (Board::init and Board::poll, as
 #     the chip's main calls them) through a session that reaches every deep path (requests,
 #     flash writes, the 20-beacon near-field pose), and measure its peak stack by painting;
@@ -95,6 +97,15 @@ for run in pinhole nearfield nearfield20; do
       exit !(dt <= 1e-3 && dq <= 1e-4)
     }' || { echo "ci.sh: f32 answer ($run) does not match the host f64 answer" >&2; exit 1; }
 done
+
+echo "== face-angle sine and cosine on the target vs libm (QEMU)"
+(cd "$root/tests/qemu" && cargo build --release --quiet --bin trig --config 'profile.release.package.cta-qemu.opt-level="z"')
+trig_elf="${CARGO_TARGET_DIR:-$root/tests/qemu/target}/thumbv7m-none-eabi/release/trig"
+out=$(qemu-system-arm -machine lm3s6965evb -cpu cortex-m3 -nographic \
+  -semihosting-config enable=on,target=native -kernel "$trig_elf" 2>/dev/null) || true
+echo "$out"
+echo "$out" | grep -q '^TRIG checked=[1-9][0-9]* mismatches=0$' \
+  || { echo "ci.sh: the target's face-angle sine/cosine differ from libm's" >&2; exit 1; }
 
 echo "== QEMU board session (the board's code below main: init, requests, 20-beacon poses)"
 out=$(bash "$root/tests/qemu/run.sh" board)

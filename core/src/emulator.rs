@@ -60,8 +60,8 @@ impl<T: Real> Head<T> {
 
     /// Cell normals in O (eq 60).
     pub fn normals(&self) -> [Vector3<T>; 4] {
-        let (sx, cx) = (self.alpha_x.sin(), self.alpha_x.cos());
-        let (sy, cy) = (self.alpha_y.sin(), self.alpha_y.cos());
+        let (sx, cx) = self.alpha_x.sin_cos_small();
+        let (sy, cy) = self.alpha_y.sin_cos_small();
         let z = T::zero();
         [
             Vector3::new(sx, z, cx),

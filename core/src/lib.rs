@@ -28,6 +28,7 @@ pub mod glsdc;
 pub mod mrp;
 pub mod nearfield2d;
 pub mod pattern;
+pub mod trig;
 pub mod uncertainty;
 
 // On-chip 6-dof pose solution (issue: firmware-sensor). Plain comments here: an outer doc
