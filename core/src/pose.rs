@@ -586,6 +586,11 @@ pub struct PoseSolver<T: Real> {
     max_range2: T,
     /// The square of [`SolverSettings::max_sigma_fraction`].
     max_sigma_fraction2: T,
+    /// [`SolverSettings::max_condition`] and [`SolverSettings::max_rms`] in `T`, converted
+    /// once by [`Self::configure`]: no double-precision conversion (a soft-float routine of
+    /// its own on the chip) in the solve.
+    max_condition: T,
+    max_rms: T,
     warm: Option<SVector<T, 6>>,
     /// The last solve's linearisation, carried to the next frame's first step
     /// ([`glsdc::solve_with`]): its weighted Jacobian rows (2 per beacon) with the model
@@ -634,6 +639,8 @@ impl<T: Real> PoseSolver<T> {
             centroid_offset: T::zero(),
             max_range2: T::zero(),
             max_sigma_fraction2: T::zero(),
+            max_condition: T::lit(SolverSettings::default().max_condition),
+            max_rms: T::lit(SolverSettings::default().max_rms),
             warm: None,
             rows: [T::zero(); 2 * MAX_BEACONS * 7],
             carry: None,
@@ -722,6 +729,8 @@ impl<T: Real> PoseSolver<T> {
         self.max_range2 = far * far;
         let fraction = T::lit(settings.max_sigma_fraction);
         self.max_sigma_fraction2 = fraction * fraction;
+        self.max_condition = T::lit(settings.max_condition);
+        self.max_rms = T::lit(settings.max_rms);
         self.settings = settings;
         self.cal = params;
         self.lin = Linearisation::new(&params);
@@ -861,8 +870,7 @@ impl<T: Real> PoseSolver<T> {
         let eps = T::default_epsilon();
         // The limits in T: no double-precision arithmetic (a soft-float library of its own)
         // on the chip.
-        let max_condition = T::lit(self.settings.max_condition);
-        let max_rms = T::lit(self.settings.max_rms);
+        let (max_condition, max_rms) = (self.max_condition, self.max_rms);
         let settings = Settings {
             max_iter: self.settings.max_iter,
             step_tol: eps.sqrt() * T::lit(0.1),
