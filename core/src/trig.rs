@@ -4,15 +4,16 @@
 //! near-field calibration (validated to 5-85 deg), once per configuration. libm's `sinf`
 //! and `cosf` (what `f32::sin`/`cos` are without `std`) work in double precision and carry a
 //! general argument reduction for arguments up to 2^127 (`rem_pio2f`): with the
-//! double-precision soft-float routines nothing else on the board needs, about 5.6 KiB of
-//! its 48 KiB of flash. [`sin_cos_f32`] evaluates the same polynomials (libm's `k_sinf`
-//! and `k_cosf`, from FreeBSD's k_sinf.c and k_cosf.c: Copyright (C) 1993 by Sun
-//! Microsystems, Inc.) after the same reduction (at most one `pi / 2` away, as libm's `sinf`
-//! and `cosf` do for `|x| <= 3 pi / 4`) in 64-bit fixed point, whose error (about 2^-62) is
-//! far below the double-precision rounding of libm's own evaluation, and rounds the result
-//! to `f32` once. Its results are libm's bit for bit on every `f32` of `|x| <= 3 pi / 4`
-//! (all 2,150,471,624 of them: `every_f32_up_to_three_quarters_pi`, an ignored test; the
-//! regular tests compare the validated face-angle range and a sample of the rest).
+//! double-precision soft-float routines nothing else on the board needs, 5,596 B of its
+//! 48 KiB of flash (measured: firmware-sensor/README.md, "Budgets"). [`sin_cos_f32`]
+//! evaluates the same polynomials (libm's `k_sinf` and `k_cosf`, from FreeBSD's k_sinf.c and
+//! k_cosf.c: Copyright (C) 1993 by Sun Microsystems, Inc.) after the same reduction (at most
+//! one `pi / 2` away, as libm's `sinf` and `cosf` do for `|x| <= 3 pi / 4`) in 64-bit fixed
+//! point, whose error (about 2^-62) is far below the double-precision rounding of libm's own
+//! evaluation, and rounds the result to `f32` once. Its results are libm's bit for bit on
+//! every `f32` of `|x| <= 3 pi / 4` (all 2,150,471,624 of them:
+//! `every_f32_up_to_three_quarters_pi`, an ignored test; the regular tests compare the
+//! validated face-angle range and a sample of the rest).
 
 /// libm's `k_sinf` coefficients `S1..S4`, magnitudes (`S1 < 0`, `S2 > 0`, `S3 < 0`,
 /// `S4 > 0`), from the exact values its source gives in hexadecimal.
