@@ -19,14 +19,18 @@ cd "$here"
 rustup target add thumbv7m-none-eabi >/dev/null 2>&1 || true
 rustup component add llvm-tools >/dev/null 2>&1 || true
 command -v qemu-system-arm >/dev/null || { echo "run.sh: qemu-system-arm not found" >&2; exit 1; }
-# Each program at the opt-level of the firmware whose code it measures (with fat LTO the
-# final crate's level governs everything inlined into it): the sensor firmware is built
-# for size ("z", firmware-sensor/.cargo/config.toml), the beacon firmware at "s".
+# Each program built as the firmware whose code it measures (with fat LTO the final
+# crate's level governs everything inlined into it, but not the dependencies' own code:
+# libm, nalgebra, postcard, heapless): the sensor firmware is built for size, "z" with its
+# dependencies at "z" and cta-core at 3 (firmware-sensor/.cargo/config.toml); the beacon
+# firmware at "s" with its dependencies at the release default (root Cargo.toml).
 case $bin in
-  pose|board) level='"z"' ;;
-  *) level='"s"' ;;
+  pose|board|trig) profile=(--config 'profile.release.package.cta-qemu.opt-level="z"'
+                       --config 'profile.release.package."*".opt-level="z"'
+                       --config 'profile.release.package.cta-core.opt-level=3') ;;
+  *) profile=(--config 'profile.release.package.cta-qemu.opt-level="s"') ;;
 esac
-cargo build --release --quiet --bin "$bin" --config "profile.release.package.cta-qemu.opt-level=$level"
+cargo build --release --quiet --bin "$bin" "${profile[@]}"
 target_dir=${CARGO_TARGET_DIR:-$here/target}
 elf="$target_dir/thumbv7m-none-eabi/release/$bin"
 nm="$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin/llvm-nm"
