@@ -222,7 +222,33 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         a.out.display(),
         report.join("index.html").display()
     );
+    print!("{}", rehearsal(&run_dir, &cal, &a.effect)?);
     Ok(())
+}
+
+/// The demo's closing instructions: rehearse the sensor board with its calibration on `cta
+/// sensor sim`, whose head must be the sweep's (its truth sidecar: the hidden effect included),
+/// with the calibration's spot noise. Each command line is indented by two spaces, starts with
+/// `cta ` and holds `PTY` where the pseudo-terminal goes.
+fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> Result<String> {
+    let text = std::fs::read_to_string(cal).with_context(|| format!("{}", cal.display()))?;
+    let noise = serde_json::from_str::<cta_core::pose::Calibration>(&text)
+        .with_context(|| format!("{}", cal.display()))?
+        .noise;
+    let truth = crate::simulate::Truth::path_for(&run_dir.join("data.csv"));
+    Ok(format!(
+        "\nRehearse the sensor board with cal.json, no hardware: a simulated board with this sweep's \
+         head (its hidden `{effect}` included: the plain `cta sensor sim` head has none, and its \
+         poses would be off by what the calibration corrects), at the calibration's spot noise. \
+         Run the first command in another terminal; it prints the pseudo-terminal to use as PTY:\n\
+         \x20 cta sensor sim --truth {} --noise {noise:.1} --configured\n\
+         \x20 cta sensor --port PTY load-calibration {}\n\
+         \x20 cta sensor --port PTY pose --count 5\n\
+         The target sits at x 0.2, y -0.1, z 12 in (the simulated board's --offset and --range): \
+         the poses read that within their 1-sigma (sx, sy, sz).\n",
+        truth.display(),
+        cal.display(),
+    ))
 }
 
 #[cfg(test)]

@@ -358,8 +358,27 @@ pub struct SimArgs {
     pub seconds: Option<f64>,
     /// Load the simulated CTA's calibration (the Table 3 truth head, nominal near-field
     /// parameters, the pinhole model's own eye point) and the CTA constellation at start.
+    /// (With --truth or --effect that calibration is not the simulated head's: load your own
+    /// over it with `load-calibration`.)
     #[arg(long)]
     pub configured: bool,
+    /// Simulate the head of a simulated measurement file: the truth sidecar `cta simulate`
+    /// writes next to its file (FILE.truth.json) and a sweep of the simulated CTA (`cta demo`'s
+    /// among them) into its run folder (data.truth.json). Its head offset d, attitude p, base physics,
+    /// beacon pattern and effects (e.g. the demo's hidden cell gains) make the simulated
+    /// NorthStar; `plate_offset`, `separation_error` and `beacon_tilt` describe the CTA's
+    /// plate, not the head, and are left out (said on stderr). Default: the Table 3 head with
+    /// the nominal near-field physics.
+    #[arg(long, value_name = "FILE.truth.json")]
+    pub truth: Option<std::path::PathBuf>,
+    /// Give the simulated head an effect of the vocabulary, NAME=VALUE (repeatable), as `cta
+    /// simulate --effect` does: proximity=S, intensity, beacon_pattern=H, cell_gain=GX[,GY],
+    /// cell_bias=BX[,BY], face_angle=DX[,DY], saturation=S, crosstalk=K. (beacon_tilt,
+    /// plate_offset and separation_error describe the CTA's plate, not the head: refused.)
+    // The brackets are --help text (optional parts), not doc links.
+    #[allow(rustdoc::broken_intra_doc_links)]
+    #[arg(long = "effect", value_name = "NAME=VALUE", conflicts_with = "truth")]
+    pub effects: Vec<String>,
 }
 
 impl Default for SimArgs {
@@ -372,6 +391,8 @@ impl Default for SimArgs {
             garbage: 0.0,
             seconds: None,
             configured: true,
+            truth: None,
+            effects: Vec::new(),
         }
     }
 }
@@ -397,11 +418,65 @@ impl SimArgs {
                 bail!("--seconds {t}: expected a time above 0, seconds");
             }
         }
+        self.head()?;
         Ok(())
     }
 
-    /// The simulated NorthStar of this scene (Table 3 head, CTA constellation).
-    pub fn northstar(&self) -> SimNorthStar {
+    /// The simulated head when --truth or --effect changes it (`None`: the Table 3 head with
+    /// the nominal near-field physics), with what it is, for the output, and the effects of
+    /// the truth file that were left out (the CTA plate's, not the head's).
+    pub fn head(&self) -> Result<Option<SimHead>> {
+        let (config, from, left_out) = if let Some(path) = &self.truth {
+            let (config, left_out) = truth_head(path)?;
+            (config, format!("the head of {}", path.display()), left_out)
+        } else if !self.effects.is_empty() {
+            let effects = crate::effects::parse_all(&self.effects)
+                .map_err(|e| anyhow::anyhow!("--effect: {e}"))?;
+            if let Some(e) = effects.iter().find(|e| !acts_on_the_head(e)) {
+                bail!(
+                    "--effect {e}: `{}` describes the CTA's beacon plate, not the sensor head \
+                     (the simulated target's LEDs face along its constellation's boresight, \
+                     turned by --yaw-deg); the head takes proximity, intensity, beacon_pattern, \
+                     cell_gain, cell_bias, face_angle, saturation and crosstalk",
+                    e.name()
+                );
+            }
+            let config = crate::simulate::SimConfig {
+                separations: Vec::new(),
+                effects,
+                ..Default::default()
+            };
+            (config, "the Table 3 head".to_string(), Vec::new())
+        } else {
+            return Ok(None);
+        };
+        let names: Vec<String> = config.effects.iter().map(|e| e.to_string()).collect();
+        let emulator = config.physics().emulator;
+        Ok(Some(SimHead {
+            describe: format!(
+                "{from}: d = {}, {}, {} in, p = {}, {}, {}, {} physics, beacon {}, effects [{}]",
+                config.pose.d.x,
+                config.pose.d.y,
+                config.pose.d.z,
+                config.pose.p.x,
+                config.pose.p.y,
+                config.pose.p.z,
+                if config.far_field {
+                    "far-field"
+                } else {
+                    "thesis"
+                },
+                crate::simulate::describe_pattern(&emulator.effects.pattern),
+                names.join(" ")
+            ),
+            emulator,
+            left_out,
+        }))
+    }
+
+    /// The simulated NorthStar of this scene (the CTA constellation; the Table 3 head, or the
+    /// one --truth or --effect give), or the error of a bad --truth or --effect.
+    pub fn try_northstar(&self) -> Result<SimNorthStar> {
         let t = Vector3::new(self.offset[0], self.offset[1], self.range);
         let q = mrp::from_axis_angle(&Vector3::z(), rad(self.yaw_deg));
         let mut ns = SimNorthStar::new(
@@ -412,9 +487,115 @@ impl SimArgs {
             self.noise,
             1,
         );
+        if let Some(head) = self.head()? {
+            ns.physics = head.emulator;
+        }
         ns.garbage = self.garbage;
-        ns
+        Ok(ns)
     }
+
+    /// [`SimArgs::try_northstar`] for a scene that passed [`SimArgs::check`] (the default
+    /// head always does). Panics on a bad --truth or --effect.
+    pub fn northstar(&self) -> SimNorthStar {
+        self.try_northstar()
+            .expect("the scene's head passed SimArgs::check")
+    }
+}
+
+/// The head `cta sensor sim` simulates when --truth or --effect changes it.
+#[derive(Debug, Clone)]
+pub struct SimHead {
+    /// Its physics.
+    pub emulator: Emulator<f64>,
+    /// What it is (for the output).
+    pub describe: String,
+    /// Effects of the truth file left out: the CTA plate's, not the head's.
+    pub left_out: Vec<String>,
+}
+
+/// Whether an effect acts on the sensor head (and so on `cta sensor sim`'s NorthStar), not on
+/// the CTA's beacon plate (its tilt, lateral offsets and separation errors).
+fn acts_on_the_head(e: &crate::effects::Effect) -> bool {
+    use crate::effects::Effect;
+    !matches!(
+        e,
+        Effect::BeaconTilt(..) | Effect::PlateOffset(_) | Effect::SeparationError(_)
+    )
+}
+
+/// The head of a truth sidecar ([`crate::simulate::Truth`]) as the simulation that wrote it
+/// had it: `d`, `p`, base physics, pattern and the effects that act on the head; and the
+/// effects left out (the plate's).
+fn truth_head(path: &std::path::Path) -> Result<(crate::simulate::SimConfig, Vec<String>)> {
+    use crate::effects::Effect;
+    use cta_core::pattern::Pattern;
+    let shown = path.display();
+    let text = std::fs::read_to_string(path).with_context(|| format!("--truth {shown}"))?;
+    let t: crate::simulate::Truth = serde_json::from_str(&text).map_err(|e| {
+        anyhow::anyhow!(
+            "--truth {shown}: not a truth sidecar ({e}); give the FILE.truth.json `cta simulate \
+             --out FILE.csv` writes, or the RUN/data.truth.json of a sweep of the simulated CTA \
+             (`cta sweep --sim`, `cta demo`)"
+        )
+    })?;
+    let bad = |what: &str| anyhow::anyhow!("--truth {shown}: {what}");
+    let far_field = match t.physics.as_str() {
+        "thesis" => false,
+        "far-field" => true,
+        other => {
+            return Err(bad(&format!(
+                "unknown physics `{other}` (thesis, far-field)"
+            )))
+        }
+    };
+    // As `describe_pattern` writes it.
+    let pattern = if t.pattern == "uniform" {
+        Pattern::Uniform
+    } else if t.pattern.starts_with("quartic") {
+        Pattern::Quartic
+    } else if let Some(h) = t
+        .pattern
+        .strip_prefix("lambertian H=")
+        .and_then(|r| r.split_whitespace().next())
+        .and_then(|h| h.parse::<f64>().ok())
+        .filter(|h| *h > 0.0 && *h < 90.0)
+    {
+        Pattern::lambertian_half_angle(h)
+    } else {
+        return Err(bad(&format!(
+            "unknown beacon pattern `{}` (lambertian H=..., uniform, quartic)",
+            t.pattern
+        )));
+    };
+    let all: Vec<Effect> = t
+        .effects
+        .iter()
+        .map(|e| Effect::parse(e).map_err(|m| bad(&format!("effect `{e}`: {m}"))))
+        .collect::<Result<_>>()?;
+    let (effects, plate): (Vec<Effect>, Vec<Effect>) = all.into_iter().partition(acts_on_the_head);
+    let v = |a: [f64; 3], what: &str| -> Result<Vector3<f64>> {
+        if a.iter().all(|x| x.is_finite() && x.abs() <= 12.0) {
+            Ok(Vector3::from(a))
+        } else {
+            Err(bad(&format!(
+                "`{what}` {a:?} is not a head offset or attitude within +/-12"
+            )))
+        }
+    };
+    Ok((
+        crate::simulate::SimConfig {
+            separations: Vec::new(),
+            pattern,
+            far_field,
+            pose: cta_core::emulator::Pose {
+                d: v(t.d, "d")?,
+                p: v(t.p, "p")?,
+            },
+            effects,
+            ..Default::default()
+        },
+        plate.iter().map(|e| e.to_string()).collect(),
+    ))
 }
 
 /// Options of the accuracy table.
@@ -1060,7 +1241,9 @@ fn print_status(s: &SensorStatus) {
 
 fn run_sim(args: &SimArgs) -> Result<()> {
     args.check()?;
-    let sim = SimBoard::spawn(args.northstar()).context("starting the simulated sensor board")?;
+    let head = args.head()?;
+    let sim =
+        SimBoard::spawn(args.try_northstar()?).context("starting the simulated sensor board")?;
     if args.configured {
         let port = open_serial(sim.path())?;
         let mut link = Link::<SensorProtocol, _>::new(port, LinkConfig::default());
@@ -1068,6 +1251,15 @@ fn run_sim(args: &SimArgs) -> Result<()> {
         link.call(SensorRequest::LoadConstellation(cta_constellation()))?;
     }
     println!("simulated sensor board on {}", sim.path());
+    if let Some(h) = &head {
+        println!("simulated head: {}", h.describe);
+        if !h.left_out.is_empty() {
+            eprintln!(
+                "note: effects of the file left out: {} (the CTA plate's, not the head's)",
+                h.left_out.join(" ")
+            );
+        }
+    }
     if args.configured {
         println!(
             "try: cta sensor --port {} pose --count 5   (Ctrl-C stops the board)",
@@ -1818,6 +2010,75 @@ mod tests {
             .find(|c| c.name.starts_with("position, systematic"))
             .unwrap();
         assert!(!c.holds && c.detail.starts_with("not measured"), "{c:?}");
+    }
+
+    /// `cta sensor sim --effect` gives the head the effect as `cta simulate --effect` does,
+    /// `--truth` the head of a simulation's sidecar (the same physics), and effects of the CTA
+    /// plate are refused from the command line and left out of a truth file.
+    #[test]
+    fn the_sim_head_takes_effects_and_truth_files() {
+        let with = |effects: &[&str], truth: Option<std::path::PathBuf>| SimArgs {
+            effects: effects.iter().map(|e| e.to_string()).collect(),
+            truth,
+            ..SimArgs::default()
+        };
+        assert!(with(&[], None).head().unwrap().is_none());
+        let h = with(&["cell_gain=0.02,-0.01"], None)
+            .head()
+            .unwrap()
+            .unwrap();
+        assert_eq!(h.emulator.effects.gain, [1.02, 1.0, 0.99, 1.0]);
+        assert!(
+            h.describe.contains("effects [cell_gain=0.02,-0.01]"),
+            "{}",
+            h.describe
+        );
+        let ns = with(&["face_angle=1,0.5"], None).northstar();
+        assert!((ns.physics.head.alpha_x.to_degrees() - 31.0).abs() < 1e-9);
+        for e in [
+            "beacon_tilt=3,45",
+            "plate_offset=0.05",
+            "separation_error=0.05",
+        ] {
+            let err = with(&[e], None).check().unwrap_err().to_string();
+            assert!(
+                err.contains("describes the CTA's beacon plate"),
+                "{e}: {err}"
+            );
+        }
+        assert!(with(&["glare=1"], None).check().is_err());
+        // A truth sidecar written by a simulation: the same head, the plate's effects left out.
+        let d = std::env::temp_dir().join(format!("cta-sim-head-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let cfg = crate::simulate::SimConfig {
+            separations: vec![20.0],
+            grid: (2, 2),
+            effects: crate::effects::parse_all(&[
+                "cell_gain=0.02,-0.01",
+                "plate_offset=0.05",
+                "beacon_pattern=45",
+            ])
+            .unwrap(),
+            ..Default::default()
+        };
+        let (ds, truth) = cfg.try_run().unwrap();
+        let csv = d.join("t.csv");
+        let tp = crate::simulate::write_files(&csv, &ds, &truth, false).unwrap();
+        let h = with(&[], Some(tp.clone())).head().unwrap().unwrap();
+        let want = crate::simulate::SimConfig {
+            effects: crate::effects::parse_all(&["cell_gain=0.02,-0.01", "beacon_pattern=45"])
+                .unwrap(),
+            ..cfg.clone()
+        }
+        .physics()
+        .emulator;
+        let r = Vector3::new(1.5, -2.0, 10.0);
+        assert_eq!(h.emulator.output(&r), want.output(&r));
+        assert_eq!(h.left_out, ["plate_offset=0.05"]);
+        std::fs::write(&tp, "{}").unwrap();
+        let err = with(&[], Some(tp)).check().unwrap_err().to_string();
+        assert!(err.contains("not a truth sidecar"), "{err}");
+        let _ = std::fs::remove_dir_all(&d);
     }
 
     #[test]

@@ -466,6 +466,21 @@ fn documented_command_lines_parse() {
     let port = "/nonexistent/cta-doc-port";
     let tmp = std::env::temp_dir().join(format!("cta-boards-cli-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
+    // The demo's rehearsal (firmware-sensor/README.md) reads the truth sidecar of the demo's
+    // sweep: a small simulation writes one in its place (tests/rehearsal.rs runs the demo).
+    let truth = tmp.join("cta-demo/run/data.csv");
+    let o = cta(&[
+        "simulate",
+        "--out",
+        truth.to_str().unwrap(),
+        "--separations",
+        "20",
+        "--grid",
+        "2x2",
+        "--effect",
+        "cell_gain=0.02,-0.01",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
     for (at, line) in lines {
         let mut words: Vec<String> = line
             .split_whitespace()
