@@ -352,6 +352,30 @@ impl fmt::Display for ReadError {
 
 impl std::error::Error for ReadError {}
 
+/// Whether `text` reads as a measurement file: its first line that is neither blank nor a `#`
+/// comment names the required columns (so a command given one where a JSON file belongs can
+/// say what it got).
+pub fn looks_like_measurements(text: &str) -> bool {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    text.lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))
+        .is_some_and(|h| {
+            let names: Vec<&str> = h.split(',').map(|f| f.trim().trim_matches('"')).collect();
+            REQUIRED.iter().all(|r| names.contains(r))
+        })
+}
+
+/// [`looks_like_measurements`] of the start of the file at `path` (its first 64 KiB; false when
+/// it cannot be read).
+pub fn file_looks_like_measurements(path: &Path) -> bool {
+    let mut start = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(64 * 1024).read_to_end(&mut start))
+        .is_ok()
+        && looks_like_measurements(&String::from_utf8_lossy(&start))
+}
+
 /// A header for messages: the fields joined by commas, cut to a readable length.
 fn show_header(h: &[String]) -> String {
     let s = h.join(",");

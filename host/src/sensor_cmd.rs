@@ -1055,15 +1055,21 @@ fn small_angles_deg(q: &Vector3<f64>) -> [f64; 3] {
 /// would otherwise be dropped, and the board would store the nominal value in its place.
 /// `fitted` (what `cta calibrate` records of the fit, which the board ignores) is allowed at
 /// the top.
-pub(crate) fn read_json<T: serde::de::DeserializeOwned + serde::Serialize>(
+pub(crate) fn read_json<T: serde::de::DeserializeOwned + serde::Serialize + BoardFile>(
     file: &str,
 ) -> Result<T> {
     let text = std::fs::read_to_string(file).with_context(|| format!("reading {file}"))?;
-    let t: T = serde_json::from_str(&text).with_context(|| {
-        format!(
-            "{file}: not a valid JSON document of the expected shape (see `cta sensor template`)"
-        )
-    })?;
+    let t: T = match serde_json::from_str(&text) {
+        Ok(t) => t,
+        Err(e) => {
+            if let Some(why) = other_kind::<T>(file, &text) {
+                bail!("{why}");
+            }
+            return Err(anyhow::Error::new(e).context(format!(
+                "{file}: not a valid JSON document of the expected shape (see `cta sensor template`)"
+            )));
+        }
+    };
     let given: serde_json::Value = serde_json::from_str(&text)?;
     let known = serde_json::to_value(&t)?;
     if let Some((key, keys)) = unknown_key(&given, &known, "", &["fitted"]) {
@@ -1073,6 +1079,105 @@ pub(crate) fn read_json<T: serde::de::DeserializeOwned + serde::Serialize>(
         );
     }
     Ok(t)
+}
+
+/// A file the board stores: a calibration or a constellation (what [`read_json`] expects).
+pub(crate) trait BoardFile {
+    /// What it is, for messages: `calibration`, `constellation`.
+    const WHAT: &'static str;
+    /// Where one comes from.
+    const MADE_BY: &'static str;
+    /// The `cta sensor` subcommand that loads one.
+    const LOAD: &'static str;
+}
+
+impl BoardFile for Calibration {
+    const WHAT: &'static str = "calibration";
+    const MADE_BY: &'static str = "a calibration comes from `cta calibrate DATA.csv --out \
+         cal.json` (a sweep's data) or `cta sensor template calibration` (to edit)";
+    const LOAD: &'static str = "load-calibration";
+}
+
+impl BoardFile for cta_core::pose::Constellation {
+    const WHAT: &'static str = "constellation";
+    const MADE_BY: &'static str =
+        "a constellation comes from `cta sensor template constellation > con.json` (to edit)";
+    const LOAD: &'static str = "load-constellation";
+}
+
+/// When `text` (the file `file`, which did not parse as a `T`) is another kind of `cta` file
+/// (a saved fit, a calibration where a constellation belongs or the reverse, a truth sidecar,
+/// a measurement file), the error saying which and what to do.
+fn other_kind<T: BoardFile>(file: &str, text: &str) -> Option<String> {
+    let want = format!("a sensor board {} (`cta sensor {}`)", T::WHAT, T::LOAD);
+    let Ok(v) = serde_json::from_str::<serde_json::Value>(text) else {
+        return crate::measurement::looks_like_measurements(text).then(|| {
+            format!(
+                "{file}: this is a measurement file (CSV), not {want}: {}",
+                if T::WHAT == "calibration" {
+                    format!("`cta calibrate {file} --out cal.json` makes the calibration from it")
+                } else {
+                    T::MADE_BY.to_string()
+                }
+            )
+        });
+    };
+    let has = |k: &str| v.get(k).is_some();
+    let (what, instead) = if has("params") && has("covariance") {
+        let source = v["source"].as_str().unwrap_or("DATA.csv");
+        (
+            "a saved fit (`cta fit --save`: the 7-parameter pinhole model of eq 65, read by `cta \
+             evaluate`)",
+            if T::WHAT == "calibration" {
+                format!(
+                    "the board's calibration is made from the measurement file the fit came from: \
+                     `cta calibrate {source} --out cal.json`, then load that"
+                )
+            } else {
+                T::MADE_BY.to_string()
+            },
+        )
+    } else if has("beacons") && T::WHAT != "constellation" {
+        (
+            "a constellation (its `beacons`)",
+            format!(
+                "load it with `cta sensor --port PORT load-constellation {file}`; {}",
+                T::MADE_BY
+            ),
+        )
+    } else if has("h") && has("noise") && has("d") && T::WHAT != "calibration" {
+        (
+            "a sensor calibration (`cta calibrate --out`)",
+            format!(
+                "load it with `cta sensor --port PORT load-calibration {file}`; {}",
+                T::MADE_BY
+            ),
+        )
+    } else if has("generator") && has("effects") {
+        (
+            "a simulation's truth sidecar (the head and effects a simulation used)",
+            format!(
+                "`cta sensor sim --truth {file}` simulates that head; {}",
+                T::MADE_BY
+            ),
+        )
+    } else if has("plan") && has("sessions") {
+        (
+            "a sweep's manifest (manifest.json)",
+            if T::WHAT == "calibration" {
+                let data = std::path::Path::new(file).with_file_name("data.csv");
+                format!(
+                    "`cta calibrate {} --out cal.json` makes the calibration from the sweep's data",
+                    data.display()
+                )
+            } else {
+                T::MADE_BY.to_string()
+            },
+        )
+    } else {
+        return None;
+    };
+    Some(format!("{file}: this is {what}, not {want}: {instead}"))
 }
 
 /// The first key of `given` (by path, `near_field.gains`, `beacons[3].pos`) that `known`

@@ -1,0 +1,102 @@
+//! `cta sensor` with the wrong kind of file, its status in words, and its `--retries`.
+
+use std::process::Output;
+
+mod common;
+use common::{cta, s, simulate};
+
+fn tmpdir(name: &str) -> common::TmpDir {
+    common::tmpdir_of("board-files", name)
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// `o` succeeded; its stdout.
+fn ok(o: &Output) -> String {
+    assert!(o.status.success(), "failed: {}", stderr(o));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// `o` failed, without a panic, with one line holding every needle.
+fn fails_with(o: &Output, needles: &[&str]) {
+    let err = stderr(o);
+    assert!(!o.status.success(), "expected failure: {err}");
+    assert!(!err.contains("panicked"), "panic: {err}");
+    assert_eq!(err.trim().lines().count(), 1, "not one line: {err}");
+    for n in needles {
+        assert!(err.contains(n), "stderr lacks `{n}`: {err}");
+    }
+}
+
+/// The audit's case: `load-calibration fit.json` said "missing field `d` at line 88 column 1"
+/// (the fit has `d` under `params`). Each kind of file `cta` writes, loaded where another
+/// belongs, is named, with the command or file that is wanted.
+#[test]
+fn a_file_of_another_kind_is_named_with_what_to_do() {
+    let d = tmpdir("kinds");
+    let csv = d.join("sim.csv");
+    simulate(&csv, &["--separations", "25,30"]);
+    let fit = d.join("fit.json");
+    ok(&cta(&["fit", s(&csv), "--save", s(&fit)]));
+    let con = d.join("con.json");
+    std::fs::write(&con, ok(&cta(&["sensor", "template", "constellation"]))).unwrap();
+    let cal = d.join("cal.json");
+    std::fs::write(&cal, ok(&cta(&["sensor", "template", "calibration"]))).unwrap();
+    let load = |what: &str, file: &std::path::Path| cta(&["sensor", "--sim", what, s(file)]);
+    fails_with(
+        &load("load-calibration", &fit),
+        &[
+            "this is a saved fit (`cta fit --save`",
+            "not a sensor board calibration",
+            &format!("`cta calibrate {} --out cal.json`", s(&csv)),
+        ],
+    );
+    fails_with(
+        &load("load-calibration", &con),
+        &[
+            "this is a constellation",
+            &format!("load-constellation {}", s(&con)),
+        ],
+    );
+    fails_with(
+        &load("load-constellation", &cal),
+        &[
+            "this is a sensor calibration",
+            "not a sensor board constellation",
+            &format!("load-calibration {}", s(&cal)),
+        ],
+    );
+    fails_with(
+        &load("load-constellation", &fit),
+        &["this is a saved fit", "`cta sensor template constellation"],
+    );
+    fails_with(
+        &load("load-calibration", &csv),
+        &[
+            "this is a measurement file (CSV)",
+            &format!("`cta calibrate {} --out cal.json`", s(&csv)),
+        ],
+    );
+    fails_with(
+        &load("load-calibration", &d.join("sim.truth.json")),
+        &["truth sidecar", "`cta sensor sim --truth"],
+    );
+    // A file of the right kind with a bad value keeps its own message.
+    let bad = d.join("bad.json");
+    std::fs::write(
+        &bad,
+        std::fs::read_to_string(&cal)
+            .unwrap()
+            .replacen("\"d\": [", "\"d\": [[", 1),
+    )
+    .unwrap();
+    fails_with(
+        &load("load-calibration", &bad),
+        &["not a valid JSON document of the expected shape"],
+    );
+    // And the right files load.
+    ok(&load("load-calibration", &cal));
+    ok(&load("load-constellation", &con));
+}
