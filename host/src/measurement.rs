@@ -155,6 +155,14 @@ pub enum Reason {
 pub enum ReadError {
     /// The file could not be opened or read.
     Io(PathBuf, std::io::Error),
+    /// The path is a folder; `data`: the `data.csv` inside it, when there is one (a sweep's
+    /// run folder).
+    Folder {
+        /// The folder.
+        path: PathBuf,
+        /// Its `data.csv`, when it has one.
+        data: Option<PathBuf>,
+    },
     /// No header / no data rows.
     Empty(PathBuf),
     /// A required column is missing from the header.
@@ -245,6 +253,20 @@ impl fmt::Display for ReadError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             ReadError::Io(p, e) => write!(f, "{}: {e}", p.display()),
+            ReadError::Folder { path, data } => match data {
+                Some(d) => write!(
+                    f,
+                    "{}: is a folder, not a measurement file: give the sweep's data file in it, {}",
+                    path.display(),
+                    d.display()
+                ),
+                None => write!(
+                    f,
+                    "{}: is a folder, not a measurement file: give a CSV file (a sweep's run \
+                     folder holds its data in data.csv)",
+                    path.display()
+                ),
+            },
             ReadError::Empty(p) => write!(
                 f,
                 "{}: no measurements (empty file or header only)",
@@ -475,6 +497,13 @@ const BOM: &[u8] = b"\xEF\xBB\xBF";
 impl Dataset {
     /// Read a measurement file.
     pub fn read(path: &Path) -> Result<Dataset, ReadError> {
+        if path.is_dir() {
+            let data = crate::sweep::data_path(path);
+            return Err(ReadError::Folder {
+                path: path.to_path_buf(),
+                data: data.is_file().then_some(data),
+            });
+        }
         let f = std::fs::File::open(path).map_err(|e| ReadError::Io(path.to_path_buf(), e))?;
         Self::from_reader(path, f)
     }
