@@ -212,6 +212,8 @@ pub enum ReadError {
         found: usize,
         /// Fields in the header.
         expected: usize,
+        /// It is the file's last line and has no newline at its end: the file looks cut off.
+        cut_off: bool,
     },
     /// A row has more fields than the header (a decimal comma, an unquoted comma).
     LongRow {
@@ -335,11 +337,23 @@ impl fmt::Display for ReadError {
                 line,
                 found,
                 expected,
-            } => write!(
-                f,
-                "{}:{line}: {found} fields, the header has {expected}",
-                path.display()
-            ),
+                cut_off,
+            } => {
+                write!(
+                    f,
+                    "{}:{line}: {found} fields, the header has {expected}",
+                    path.display()
+                )?;
+                if *cut_off {
+                    write!(
+                        f,
+                        ": the file's last line, with no end of line: the file looks cut off (a \
+                         copy not finished, a sweep still writing?); copy it again once complete, \
+                         or delete that line"
+                    )?;
+                }
+                Ok(())
+            }
             ReadError::LongRow {
                 path,
                 line,
@@ -516,40 +530,43 @@ impl Dataset {
         let mut buf: Vec<u8> = Vec::new();
         let mut ends: Vec<usize> = Vec::new();
         let mut line = 0usize;
-        // The next line that is neither blank nor a comment, split into `buf`/`ends`.
-        let mut next =
-            |buf: &mut Vec<u8>, ends: &mut Vec<usize>| -> Result<Option<usize>, ReadError> {
-                loop {
-                    raw.clear();
-                    let n = br
-                        .read_until(b'\n', &mut raw)
-                        .map_err(|e| ReadError::Io(p.clone(), e))?;
-                    if n == 0 {
-                        return Ok(None);
-                    }
-                    line += 1;
-                    let mut t: &[u8] = &raw;
-                    // A UTF-8 byte-order mark (as Excel writes) is not part of the first column.
-                    if line == 1 && t.starts_with(BOM) {
-                        t = &t[BOM.len()..];
-                    }
-                    let t = t.trim_ascii();
-                    if t.is_empty() || t.starts_with(b"#") {
-                        continue;
-                    }
-                    split_line(t, buf, ends).map_err(|m| ReadError::Syntax {
-                        path: p.clone(),
-                        line,
-                        message: m,
-                    })?;
-                    return Ok(Some(line));
+        // The next line that is neither blank nor a comment, split into `buf`/`ends`: its
+        // number, and whether it ended with a newline (the last line of a file cut off
+        // mid-write has none).
+        let mut next = |buf: &mut Vec<u8>,
+                        ends: &mut Vec<usize>|
+         -> Result<Option<(usize, bool)>, ReadError> {
+            loop {
+                raw.clear();
+                let n = br
+                    .read_until(b'\n', &mut raw)
+                    .map_err(|e| ReadError::Io(p.clone(), e))?;
+                if n == 0 {
+                    return Ok(None);
                 }
-            };
+                line += 1;
+                let mut t: &[u8] = &raw;
+                // A UTF-8 byte-order mark (as Excel writes) is not part of the first column.
+                if line == 1 && t.starts_with(BOM) {
+                    t = &t[BOM.len()..];
+                }
+                let t = t.trim_ascii();
+                if t.is_empty() || t.starts_with(b"#") {
+                    continue;
+                }
+                split_line(t, buf, ends).map_err(|m| ReadError::Syntax {
+                    path: p.clone(),
+                    line,
+                    message: m,
+                })?;
+                return Ok(Some((line, raw.last() == Some(&b'\n'))));
+            }
+        };
         let field = |ends: &[usize], k: usize| -> std::ops::Range<usize> {
             (if k == 0 { 0 } else { ends[k - 1] })..ends[k]
         };
         // Header: the first line that is neither blank nor a comment.
-        let Some(header_line) = next(&mut buf, &mut ends)? else {
+        let Some((header_line, _)) = next(&mut buf, &mut ends)? else {
             return Err(ReadError::Empty(p.clone()));
         };
         let header: Vec<String> = (0..ends.len())
@@ -581,7 +598,7 @@ impl Dataset {
         let mut samples = Vec::new();
         // First line of each (separation, position, beacon, settings, sample index).
         let mut seen: HashMap<[u64; 9], usize> = HashMap::new();
-        while let Some(line) = next(&mut buf, &mut ends)? {
+        while let Some((line, ended)) = next(&mut buf, &mut ends)? {
             let nf = ends.len();
             if nf < header.len() {
                 return Err(ReadError::ShortRow {
@@ -589,6 +606,7 @@ impl Dataset {
                     line,
                     found: nf,
                     expected: header.len(),
+                    cut_off: !ended,
                 });
             }
             if nf > header.len() {

@@ -79,3 +79,39 @@ fn a_run_folder_suggests_its_data_csv() {
         &["is a folder, not a measurement file: give a CSV file"],
     );
 }
+
+/// The audit's case: a CSV cut off mid-row said only "trunc.csv:5603: 4 fields, the header has
+/// 12". Its last line, without an end of line, is now said to look cut off; a short row
+/// elsewhere keeps the plain message, and a complete last row without a newline reads.
+#[test]
+fn a_file_cut_off_mid_row_is_said_to_be() {
+    let d = tmpdir("cut");
+    let full = d.join("full.csv");
+    simulate(&full, &["--separations", "25,30"]);
+    let text = std::fs::read_to_string(&full).unwrap();
+    let lines = text.lines().count();
+    // Cut in the middle of the last row's fifth field (x).
+    let last = text.trim_end().rsplit('\n').next().unwrap();
+    let keep = text.trim_end().len() - last.len() + last.match_indices(',').nth(3).unwrap().0 + 3;
+    let cut = d.join("trunc.csv");
+    std::fs::write(&cut, &text[..keep]).unwrap();
+    for args in readers(&cut, &d.join("cal.json")) {
+        fails_with(
+            &run(&args),
+            &[
+                &format!("trunc.csv:{lines}: 5 fields, the header has 12"),
+                "the file looks cut off (a copy not finished, a sweep still writing?)",
+            ],
+        );
+    }
+    // A short row with an end of line: not a cut.
+    let short = d.join("short.csv");
+    std::fs::write(&short, format!("{}\n", &text[..keep])).unwrap();
+    let o = cta(&["fit", s(&short)]);
+    fails_with(&o, &["5 fields, the header has 12"]);
+    assert!(!stderr(&o).contains("cut off"), "{}", stderr(&o));
+    // A whole last row without a newline is fine.
+    let whole = d.join("whole.csv");
+    std::fs::write(&whole, text.trim_end()).unwrap();
+    assert!(cta(&["fit", s(&whole)]).status.success());
+}
