@@ -723,18 +723,90 @@ pub fn simulate(a: &SimulateArgs) -> Result<()> {
     let (ds, truth) = cfg.try_run().map_err(|e| anyhow!("{e}"))?;
     let tp = crate::simulate::write_files(&a.out, &ds, &truth, a.force)
         .map_err(|e| anyhow!("{e}; the simulation was not saved"))?;
+    let plural =
+        |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
     eprintln!(
-        "wrote {} reports ({} separations x {} beacons x {} sample{}, {} points outside the field of view) to {} (truth: {})",
-        ds.samples.len(),
-        cfg.separations.len(),
-        cfg.grid.0 * cfg.grid.1,
-        cfg.samples,
-        if cfg.samples == 1 { "" } else { "s" },
-        truth.skipped_points,
+        "wrote {} ({} x {} x {}, {} outside the field of view) to {} (truth: {})",
+        plural(ds.samples.len(), "report", "reports"),
+        plural(cfg.separations.len(), "separation", "separations"),
+        plural(cfg.grid.0 * cfg.grid.1, "beacon", "beacons"),
+        plural(cfg.samples, "sample", "samples"),
+        plural(truth.skipped_points, "point", "points"),
         a.out.display(),
         tp.display()
     );
+    if let Some(w) = rail_note(&cfg, &ds) {
+        eprintln!("{w}");
+    }
     Ok(())
+}
+
+/// The note (or warning) on a simulation's reports at the 16-bit rail, when it has any: how
+/// many, at which separations, and the likely cause. Close in, beacons at the grid's edge
+/// leave a cell of a pair in the dark (a note: the CTA gives the same at 2-3 in, and evaluate,
+/// calibrate, analyze and noise know such reports); a head far off the board (`--d` in
+/// millimetres?) or a view that misses the grid rails reports farther out (a warning).
+fn rail_note(cfg: &SimConfig, ds: &crate::measurement::Dataset) -> Option<String> {
+    let railed: Vec<f64> = ds
+        .samples
+        .iter()
+        .filter(|s| crate::measurement::any_sample_pinned([*s]))
+        .map(|s| s.separation_in)
+        .collect();
+    if railed.is_empty() {
+        return None;
+    }
+    let total = ds.samples.len();
+    let mut at: Vec<f64> = railed.clone();
+    at.sort_by(f64::total_cmp);
+    at.dedup();
+    let shown: Vec<String> = at.iter().take(8).map(|v| format!("{v}")).collect();
+    let where_ = format!(
+        "at {} in{}",
+        shown.join(", "),
+        if at.len() > 8 {
+            format!(" and {} more separations", at.len() - 8)
+        } else {
+            String::new()
+        }
+    );
+    let head = format!(
+        "{} of {} reports ({:.1} %) are at the 16-bit rail (x or y at +/-32767: a cell of a pair \
+         in the dark, so the report says nothing of where the beacon is), {where_}",
+        railed.len(),
+        total,
+        100.0 * railed.len() as f64 / total as f64
+    );
+    let d = cfg.pose.d;
+    let far = d.iter().any(|v| v.abs() > 12.0);
+    let close_in = at.last().is_some_and(|&s| s <= 5.0);
+    if far {
+        Some(format!(
+            "warning: {head}: the head offset --d {},{},{} puts the head {:.1} in from the board \
+             origin, beyond the beacons' view (a head on the CTA board sits within 12 in of it): \
+             --d is in inches (was it given in millimetres? divide by 25.4)",
+            d.x,
+            d.y,
+            d.z,
+            d.norm()
+        ))
+    } else if close_in && 2 * railed.len() <= total {
+        Some(format!(
+            "note: {head}: close in, beacons at the grid's edge leave a cell of a pair in the \
+             dark, as on the CTA (evaluate counts such reports and says so; calibrate, analyze \
+             and noise leave their points out)"
+        ))
+    } else {
+        Some(format!(
+            "warning: {head}: beacons outside the head's view (the head's attitude --p, the \
+             grid, or the effects [{}]?): those reports say nothing of the head",
+            cfg.effects
+                .iter()
+                .map(|e| e.to_string())
+                .collect::<Vec<_>>()
+                .join(" ")
+        ))
+    }
 }
 
 // ---------------------------------------------------------------------------------------

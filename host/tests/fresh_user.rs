@@ -115,3 +115,44 @@ fn a_file_cut_off_mid_row_is_said_to_be() {
     std::fs::write(&whole, text.trim_end()).unwrap();
     assert!(cta(&["fit", s(&whole)]).status.success());
 }
+
+/// The audit's case: `cta simulate --out g.csv --d 100,0,0` (millimetres typed for inches)
+/// said "0 points outside the field of view" though every report was railed. The rail is now
+/// counted when the file is written, with its likely cause; the close-in rail of a default
+/// simulation is a note; counts of one are singular.
+#[test]
+fn simulate_says_when_reports_rail_and_why() {
+    let d = tmpdir("rail");
+    let o = cta(&["simulate", "--out", s(&d.join("g.csv")), "--d", "100,0,0"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("warning: 2900 of 2900 reports (100.0 %) are at the 16-bit rail")
+            && err.contains("--d 100,0,0 puts the head 100.0 in from the board origin")
+            && err.contains("was it given in millimetres? divide by 25.4"),
+        "{err}"
+    );
+    let o = cta(&["simulate", "--out", s(&d.join("a.csv"))]);
+    let err = stderr(&o);
+    assert!(
+        err.contains("note: 68 of 2900 reports (2.3 %) are at the 16-bit rail")
+            && err.contains("at 2, 3 in: close in")
+            && !err.contains("warning"),
+        "{err}"
+    );
+    let o = cta(&[
+        "simulate",
+        "--out",
+        s(&d.join("one.csv")),
+        "--separations",
+        "20",
+        "--grid",
+        "1x1",
+    ]);
+    let err = stderr(&o);
+    assert!(
+        err.starts_with("wrote 1 report (1 separation x 1 beacon x 1 sample, 0 points outside")
+            && !err.contains("16-bit rail"),
+        "{err}"
+    );
+}
