@@ -240,6 +240,16 @@ pub enum ReadError {
         /// The repeated sample index.
         sample: u32,
     },
+    /// The first line that is neither blank nor a comment holds bytes that are not text
+    /// (control characters, bytes that are not UTF-8): a binary file, not a text CSV file.
+    NotText {
+        /// File.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// Control characters (binary data), not only bytes that are not UTF-8.
+        control: bool,
+    },
     /// A line that is not CSV (an unclosed quote).
     Syntax {
         /// File.
@@ -316,7 +326,12 @@ impl fmt::Display for ReadError {
                         path.display()
                     );
                 }
-                write!(f, "{}:{line}: column `{column}`: `{value}` ", path.display())?;
+                write!(
+                    f,
+                    "{}:{line}: column `{column}`: `{}` ",
+                    path.display(),
+                    printable(value)
+                )?;
                 match reason {
                     Reason::NotFinite if value == column => write!(
                         f,
@@ -377,6 +392,27 @@ impl fmt::Display for ReadError {
                  frequency, power, sensitivity and sample index {sample}): is (part of) the file in twice?",
                 path.display()
             ),
+            ReadError::NotText {
+                path,
+                line,
+                control,
+            } => {
+                write!(f, "{}:{line}: not a text CSV file: ", path.display())?;
+                if *control {
+                    write!(
+                        f,
+                        "its first line holds control characters (binary data: a program, an \
+                         image, a spreadsheet such as .xlsx or .ods, a compressed file?); give \
+                         the measurement file, or export the sheet as CSV (UTF-8)"
+                    )
+                } else {
+                    write!(
+                        f,
+                        "its first line holds bytes that are not UTF-8 text (binary data, or text \
+                         saved as Latin-1 or Windows-1252?); save it as UTF-8 CSV"
+                    )
+                }
+            }
             ReadError::Syntax {
                 path,
                 line,
@@ -412,9 +448,23 @@ pub fn file_looks_like_measurements(path: &Path) -> bool {
         && looks_like_measurements(&String::from_utf8_lossy(&start))
 }
 
+/// `s` for a message: control characters shown as escapes (`\u{7f}`), never sent to the
+/// terminal as they are.
+fn printable(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
+}
+
 /// A header for messages: the fields joined by commas, cut to a readable length.
 fn show_header(h: &[String]) -> String {
-    let s = h.join(",");
+    let s = printable(&h.join(","));
     match s.char_indices().nth(160) {
         Some((i, _)) => format!("{}...", &s[..i]),
         None => s,
@@ -425,9 +475,29 @@ fn show_header(h: &[String]) -> String {
 fn header_hint(h: &[String]) -> Option<String> {
     let known = |n: &str| REQUIRED.contains(&n) || OPTIONAL.contains(&n);
     let joined = h.join(",");
+    let start = joined.trim_start();
+    if start.starts_with('<') {
+        return Some(
+            "this is an HTML or XML document, not a CSV file (a web page saved in place of the \
+             file? download the raw file)"
+                .into(),
+        );
+    }
+    if start.starts_with('{') || start.starts_with('[') {
+        return Some(
+            "this looks like a JSON file (a saved fit, a calibration?), not a measurement CSV \
+             file"
+                .into(),
+        );
+    }
     if !h.iter().any(|n| known(n)) {
         for (sep, name) in [(';', "semicolons"), ('\t', "tabs")] {
-            if joined.contains(sep) {
+            // Only when the fields split there are the column names CTA knows.
+            let names = joined
+                .split([sep, ','])
+                .filter(|n| known(&n.trim().trim_matches('"').to_lowercase()))
+                .count();
+            if joined.contains(sep) && names >= 2 {
                 return Some(format!(
                     "the fields look separated by {name}: CTA reads comma-separated files \
                      (export with `,` between fields and `.` as the decimal mark)"
@@ -530,6 +600,7 @@ impl Dataset {
         let mut buf: Vec<u8> = Vec::new();
         let mut ends: Vec<usize> = Vec::new();
         let mut line = 0usize;
+        let mut header = true;
         // The next line that is neither blank nor a comment, split into `buf`/`ends`: its
         // number, and whether it ended with a newline (the last line of a file cut off
         // mid-write has none).
@@ -553,6 +624,19 @@ impl Dataset {
                 let t = t.trim_ascii();
                 if t.is_empty() || t.starts_with(b"#") {
                     continue;
+                }
+                // The header of a binary file (a program, an image, a spreadsheet) is not
+                // text: said so, and its bytes never reach the terminal.
+                if header {
+                    header = false;
+                    let control = t.iter().any(|&b| (b < 0x20 && b != b'\t') || b == 0x7f);
+                    if control || std::str::from_utf8(t).is_err() {
+                        return Err(ReadError::NotText {
+                            path: p.clone(),
+                            line,
+                            control,
+                        });
+                    }
                 }
                 split_line(t, buf, ends).map_err(|m| ReadError::Syntax {
                     path: p.clone(),

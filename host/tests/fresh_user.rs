@@ -156,3 +156,80 @@ fn simulate_says_when_reports_rail_and_why() {
         "{err}"
     );
 }
+
+/// `o`'s stderr holds no control character but its line ends.
+fn no_control_bytes(o: &Output) {
+    let err = stderr(o);
+    assert!(
+        !o.stderr
+            .iter()
+            .any(|&b| (b < 0x20 && b != b'\n') || b == 0x7f),
+        "control bytes: {err:?}"
+    );
+}
+
+/// The audit's cases: `cta fit` of a program dumped its bytes to the terminal as "the header
+/// line found", and an HTML page was said to be "separated by semicolons" (its style
+/// attribute). A binary file is now "not a text CSV file", an HTML page is named, semicolons
+/// are said only of fields that are column names, and no control byte is ever printed.
+#[test]
+fn binary_and_html_files_are_named_for_what_they_are() {
+    let d = tmpdir("binary");
+    let program = env!("CARGO_BIN_EXE_cta");
+    for args in readers(Path::new(program), &d.join("cal.json")) {
+        let o = run(&args);
+        fails_with(
+            &o,
+            &[
+                &format!("{program}:1: not a text CSV file"),
+                "control characters (binary data",
+            ],
+        );
+        no_control_bytes(&o);
+    }
+    let png = d.join("plot.png");
+    std::fs::write(&png, b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR").unwrap();
+    let o = cta(&["fit", s(&png)]);
+    fails_with(&o, &["plot.png:1: not a text CSV file", "not UTF-8 text"]);
+    no_control_bytes(&o);
+    let html = d.join("page.csv");
+    std::fs::write(
+        &html,
+        "<!DOCTYPE html>\n<html><head><style>td{color:red;margin:0;padding:1px}</style></head>\n\
+         <body>separation_in;x</body></html>\n",
+    )
+    .unwrap();
+    let o = cta(&["fit", s(&html)]);
+    fails_with(
+        &o,
+        &["page.csv:1:", "an HTML or XML document, not a CSV file"],
+    );
+    assert!(!stderr(&o).contains("semicolons"), "{}", stderr(&o));
+    // Text with semicolons that are not between column names: not a delimiter.
+    let notes = d.join("notes.csv");
+    std::fs::write(&notes, "run 3; plate level; 20 in\n1,2\n").unwrap();
+    let o = cta(&["fit", s(&notes)]);
+    fails_with(&o, &["start a title or note line with `#`"]);
+    assert!(!stderr(&o).contains("semicolons"), "{}", stderr(&o));
+    // Semicolon-separated column names still are.
+    let semi = d.join("semi.csv");
+    std::fs::write(
+        &semi,
+        "separation_in;beacon_x_in;beacon_y_in;beacon_z_in;x;y\n20;0;0;20;1;2\n",
+    )
+    .unwrap();
+    fails_with(&cta(&["fit", s(&semi)]), &["separated by semicolons"]);
+    // A control character in a value is shown escaped.
+    let esc = d.join("esc.csv");
+    std::fs::write(
+        &esc,
+        "separation_in,beacon_x_in,beacon_y_in,beacon_z_in,x,y\n20,0,0,20,1\x1b[31m,2\n",
+    )
+    .unwrap();
+    let o = cta(&["fit", s(&esc)]);
+    fails_with(
+        &o,
+        &["esc.csv:2: column `x`: `1\\u{1b}[31m` is not a finite number"],
+    );
+    no_control_bytes(&o);
+}
