@@ -1049,6 +1049,25 @@ fn parse_xyz(s: &str) -> std::result::Result<[f64; 3], String> {
 
 /// Run `cta evaluate`. The table (or JSON) is printed before `--plot` is written.
 pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
+    // A measurement file where the fit belongs: the arguments swapped, or no fit saved yet.
+    if crate::measurement::file_looks_like_measurements(&a.fit) {
+        if FitReport::load(&a.file).is_ok() {
+            bail!(
+                "the arguments look swapped: {} is a measurement file and {} a saved fit; `cta \
+                 evaluate` takes the fit first: cta evaluate {} {}",
+                a.fit.display(),
+                a.file.display(),
+                a.file.display(),
+                a.fit.display()
+            );
+        }
+        bail!(
+            "{}: this is a measurement file (CSV), not a saved fit: `cta evaluate FIT.json \
+             DATA.csv` takes a fit first; save one with `cta fit {} --save fit.json`",
+            a.fit.display(),
+            a.fit.display()
+        );
+    }
     let rep = FitReport::load(&a.fit).map_err(|e| anyhow!(e))?;
     let ds = load(&a.file, a.separations.as_deref())?;
     let truth = match Truth::load_for(&a.file) {

@@ -233,3 +233,30 @@ fn binary_and_html_files_are_named_for_what_they_are() {
     );
     no_control_bytes(&o);
 }
+
+/// The audit's case: `cta evaluate sim.csv fit.json` (arguments swapped) said "not a CTA fit
+/// file: expected value at line 1 column 1". It now says they look swapped, with the right
+/// order; a measurement file given alone as the fit says how to save one.
+#[test]
+fn evaluate_with_its_arguments_swapped_says_so() {
+    let d = tmpdir("swapped");
+    let csv = d.join("sim.csv");
+    simulate(&csv, &["--separations", "25,30"]);
+    let fit = d.join("fit.json");
+    assert!(cta(&["fit", s(&csv), "--save", s(&fit)]).status.success());
+    fails_with(
+        &cta(&["evaluate", s(&csv), s(&fit)]),
+        &[
+            "the arguments look swapped",
+            &format!("cta evaluate {} {}", s(&fit), s(&csv)),
+        ],
+    );
+    fails_with(
+        &cta(&["evaluate", s(&csv), s(&csv)]),
+        &[
+            "this is a measurement file (CSV), not a saved fit",
+            &format!("`cta fit {} --save fit.json`", s(&csv)),
+        ],
+    );
+    assert!(cta(&["evaluate", s(&fit), s(&csv)]).status.success());
+}
