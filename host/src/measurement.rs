@@ -845,10 +845,77 @@ impl Dataset {
                 self.samples.len()
             ));
         }
+        if let Some(t) = self.separation_typos() {
+            w.push(t);
+        }
         if let Some(g) = self.glitches().warning(&self.path, self.samples.len()) {
             w.push(g);
         }
         w
+    }
+
+    /// The warning (without `warning: `) on separations that look like typos of another: a
+    /// value within [`SEP_TYPO_IN`] of one with at least [`SEP_TYPO_RATIO`] times its rows
+    /// (`2.0001` on one row beside `2` on 99). One plate position records one value
+    /// (MEASUREMENTS.md), so such rows make a separation of their own, which `--separations`
+    /// then never selects (it takes the nearest). Names the values and their lines.
+    fn separation_typos(&self) -> Option<String> {
+        // Each separation's rows and first lines, ascending.
+        let mut by: BTreeMap<u64, (usize, Vec<usize>)> = BTreeMap::new();
+        for s in &self.samples {
+            let e = by.entry(s.separation_in.to_bits()).or_default();
+            e.0 += 1;
+            if e.1.len() < 5 {
+                e.1.push(s.line);
+            }
+        }
+        // Positive numbers sort as their bits do.
+        let seps: Vec<(f64, usize, Vec<usize>)> = by
+            .into_iter()
+            .map(|(b, (n, lines))| (f64::from_bits(b), n, lines))
+            .collect();
+        let rows = |n: usize| format!("{n} row{}", if n == 1 { "" } else { "s" });
+        let mut odd: Vec<(usize, String)> = Vec::new();
+        for (i, (v, n, lines)) in seps.iter().enumerate() {
+            let lo = seps[..i].iter().rev();
+            let hi = seps[i + 1..].iter();
+            let beside = lo
+                .take_while(|o| v - o.0 < SEP_TYPO_IN)
+                .chain(hi.take_while(|o| o.0 - v < SEP_TYPO_IN))
+                .filter(|o| o.1 >= SEP_TYPO_RATIO * n)
+                .max_by_key(|o| o.1);
+            if let Some((b, m, _)) = beside {
+                let shown: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+                odd.push((
+                    lines[0],
+                    format!(
+                        "separation_in {v} on {} (line{} {}{}) beside {b} on {}",
+                        rows(*n),
+                        if *n == 1 { "" } else { "s" },
+                        shown.join(", "),
+                        if *n > lines.len() { ", ..." } else { "" },
+                        rows(*m)
+                    ),
+                ));
+            }
+        }
+        let (first, _) = *odd.iter().min_by_key(|o| o.0)?;
+        let n = odd.len();
+        let listed: Vec<String> = odd.into_iter().take(5).map(|o| o.1).collect();
+        Some(format!(
+            "{}:{first}: {}{}: within {SEP_TYPO_IN} in of a separation with at least \
+             {SEP_TYPO_RATIO} times the rows, closer than two plate positions can be told apart. \
+             One plate position records one value of separation_in (a sweep writes the mean of \
+             its corner readings on every row), so these rows make a separation of their own, \
+             which --separations never selects: a typo? Correct them to the value beside them",
+            self.path.display(),
+            listed.join("; "),
+            if n > 5 {
+                format!("; and {} more", n - 5)
+            } else {
+                String::new()
+            },
+        ))
     }
 
     /// The glitch check ([`Glitches`]): each sample of a point with
@@ -1291,6 +1358,19 @@ pub const MAX_SEPARATIONS: usize = 10_000;
 /// limit, and beyond the 100 in of the README's Figure 57 example: [`Dataset::warnings`]
 /// asks whether the file is in millimetres.
 pub const FAR_SEPARATION_IN: f64 = 120.0;
+
+/// Separations closer than this (in) are one plate position written two ways when one has
+/// far more rows ([`SEP_TYPO_RATIO`]), and warned about: 0.01 in is twice Ch IV's +/-5 mil
+/// bound on a separation's uncertainty (plates leveled to 5 mils per foot, the corners'
+/// mean read to 1 mil), so the CTA cannot set two positions that close and tell them apart,
+/// while a typo in the last digits (`2.0001`, `10.0152` for `10.0125`) falls well inside it.
+/// It is also ten times finer than [`SEP_MATCH_IN`], which would take either for the other.
+pub const SEP_TYPO_IN: f64 = 0.01;
+
+/// A separation is warned about as a typo when a neighbour within [`SEP_TYPO_IN`] has at least
+/// this many times its rows: a few rows beside a whole plate position. (Two values with
+/// comparable rows are rather two positions, or a plate re-measured mid-sweep.)
+pub const SEP_TYPO_RATIO: usize = 4;
 
 /// How far (in) a requested separation may lie from a recorded one and still select it: a
 /// few times the scatter of a measured plate position (the mean of four corner readings,

@@ -260,3 +260,74 @@ fn evaluate_with_its_arguments_swapped_says_so() {
     );
     assert!(cta(&["evaluate", s(&fit), s(&csv)]).status.success());
 }
+
+/// The audit's case: one row's separation 2 edited to 2.0001 made a separation of its own,
+/// silently. Every command that reads a measurement file now warns, naming the values and the
+/// line; two values of comparable rows, or farther apart than 0.01 in, are not warned about.
+#[test]
+fn a_separation_typo_is_warned_about_with_its_line() {
+    let d = tmpdir("typo");
+    let csv = d.join("sim.csv");
+    simulate(
+        &csv,
+        &["--separations", "2..5", "--noise", "32.8", "--samples", "3"],
+    );
+    let text = std::fs::read_to_string(&csv).unwrap();
+    // The 20th row of 2 in, as a typo.
+    let mut rows = 0;
+    let mut line_no = 0;
+    let edited: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if l.starts_with("2,") {
+                rows += 1;
+                if rows == 20 {
+                    line_no = i + 1;
+                    return l.replacen("2,", "2.0001,", 1);
+                }
+            }
+            l.to_string()
+        })
+        .collect();
+    let typo = d.join("typo.csv");
+    std::fs::write(&typo, edited.join("\n") + "\n").unwrap();
+    let want = format!(
+        "warning: {}:{line_no}: separation_in 2.0001 on 1 row (line {line_no}) beside 2 on 299 \
+         rows: within 0.01 in",
+        s(&typo)
+    );
+    for args in [
+        vec!["fit", s(&typo)],
+        vec!["noise", s(&typo)],
+        vec!["analyze", s(&typo)],
+    ] {
+        let o = cta(&args);
+        let err = stderr(&o);
+        assert!(err.contains(&want), "{args:?}: {err}");
+        assert!(err.contains("a typo? Correct them"), "{err}");
+    }
+    // Not typos: one row at 2.02 in (beyond 0.01 in), and a whole separation at 2.005 beside
+    // the one at 2 (as many rows).
+    let far = edited.join("\n").replacen("2.0001,", "2.02,", 1) + "\n";
+    let whole = text
+        .lines()
+        .map(|l| match l.strip_prefix("3,") {
+            Some(rest) => format!("2.005,{rest}"),
+            None => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+        + "\n";
+    for (name, body) in [("far.csv", far), ("whole.csv", whole)] {
+        let f = d.join(name);
+        std::fs::write(&f, body).unwrap();
+        let o = cta(&["fit", s(&f)]);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        assert!(
+            !stderr(&o).contains("within 0.01 in"),
+            "{name}: {}",
+            stderr(&o)
+        );
+    }
+}
