@@ -7,15 +7,19 @@ use cta_host::commands;
 #[command(
     name = "cta",
     version,
-    about = "Characterize a NorthStar coarse sun sensor in the near field: simulate, fit, evaluate, analyze",
+    about = "Characterize a NorthStar coarse sun sensor in the near field: simulate, sweep, fit, evaluate, \
+calibrate, analyze (start with `cta demo`)",
     long_about = "CTA turns the NorthStar IR coarse sun sensor (four photocells in a pyramid) into a 6-dof \
 relative-navigation sensor. Close to a beacon the sun-sensor assumptions break: the cells see the beacon from \
 different places (proximity), at different distances (intensity), through a non-uniform LED pattern. `cta` \
 quantifies those near-field errors (thesis Ch II), the apparatus uncertainty (Ch IV), emulates the sensor and \
-fits its calibration model (Ch V), and analyzes measured data for what the model gets wrong.\n\n\
+fits its calibration model (Ch V), sweeps the apparatus (Ch VI), calibrates the sensor board, and analyzes \
+measured data for what the model gets wrong.\n\n\
 Conventions: inches and degrees at every interface; N = sensor-board frame, O = sensor-head frame; \
 d = N origin -> head centre (in N); C(p) maps N to O (MRP p). Equation numbers are those of Stancliffe (2010).\n\n\
-Start with:  cta simulate --out sim.csv --separations 20,25 && cta fit sim.csv --save fit.json && \
+Start with:  cta demo    (the main job on the built-in simulated CTA, no hardware: a sweep, the calibrations, \
+Figure 57 and the analysis report, in cta-demo/)\n\
+Step by step:  cta simulate --out sim.csv --separations 20,25 && cta fit sim.csv --save fit.json && \
 cta evaluate fit.json sim.csv"
 )]
 struct Cli {

@@ -331,3 +331,29 @@ fn a_separation_typo_is_warned_about_with_its_line() {
         );
     }
 }
+
+/// The audit's case: `cta --help` started a new user on simulate -> fit -> evaluate, not on
+/// `cta demo` (the main job), and `cta -h` named "simulate, fit, evaluate, analyze" only.
+#[test]
+fn help_starts_with_the_demo_and_names_sweep_and_calibrate() {
+    let o = cta(&["-h"]);
+    assert!(o.status.success());
+    // The summary above the usage line (the command list below names every command).
+    let out = String::from_utf8_lossy(&o.stdout).replace('\n', " ");
+    let short = out.split("Usage:").next().unwrap();
+    for w in [
+        "simulate",
+        "sweep",
+        "fit",
+        "evaluate",
+        "calibrate",
+        "analyze",
+        "`cta demo`",
+    ] {
+        assert!(short.contains(w), "`cta -h` lacks {w}: {short}");
+    }
+    let o = cta(&["--help"]);
+    let long = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(long.contains("Start with:  cta demo"), "{long}");
+    assert!(long.contains("Step by step:  cta simulate"), "{long}");
+}
