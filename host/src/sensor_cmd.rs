@@ -67,6 +67,8 @@ pub struct SensorArgs {
 
 /// Reply timeout per attempt when `--timeout-ms` is not given, ms.
 pub const DEFAULT_TIMEOUT_MS: u64 = 500;
+/// Resends after a timeout when `--retries` is not given (as `cta beacon`).
+pub const DEFAULT_RETRIES: u32 = crate::beacon_cmd::DEFAULT_RETRIES;
 
 /// The connection options of the subcommands that talk to the board.
 #[derive(Debug, Clone, Default, Args)]
@@ -80,6 +82,9 @@ pub struct SensorConn {
     /// Reply timeout per attempt, ms (1 or more) [default: 500].
     #[arg(long, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..))]
     pub timeout_ms: Option<u64>,
+    /// Resends after a timeout [default: 2].
+    #[arg(long, value_name = "N")]
+    pub retries: Option<u32>,
 }
 
 impl SensorConn {
@@ -96,6 +101,9 @@ impl SensorConn {
         if self.timeout_ms.is_some() {
             v.push("--timeout-ms");
         }
+        if self.retries.is_some() {
+            v.push("--retries");
+        }
         v
     }
 
@@ -106,6 +114,7 @@ impl SensorConn {
             port: one_of("--port", &self.port, &after.port)?,
             sim: self.sim || after.sim,
             timeout_ms: one_of("--timeout-ms", &self.timeout_ms, &after.timeout_ms)?,
+            retries: one_of("--retries", &self.retries, &after.retries)?,
         };
         if conn.sim && conn.port.is_some() {
             bail!("--sim and --port exclude each other: use the simulated board or the one on the port");
@@ -798,7 +807,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
         port,
         LinkConfig {
             timeout: Duration::from_millis(conn.timeout_ms.unwrap_or(DEFAULT_TIMEOUT_MS)),
-            retries: 2,
+            retries: conn.retries.unwrap_or(DEFAULT_RETRIES),
         },
     );
     let id = link
@@ -1312,7 +1321,7 @@ fn print_spots(s: &SpotReport) {
 
 fn print_status(s: &SensorStatus) {
     println!("uptime          {:.1} s", s.uptime_ms as f64 / 1000.0);
-    println!("mode            {:?}", s.mode);
+    println!("mode            {}", describe_mode(&s.mode));
     println!(
         "northstar       sensitivity {}, {} Hz",
         s.sensitivity, s.rate_hz
@@ -1341,7 +1350,36 @@ fn print_status(s: &SensorStatus) {
         s.reports, s.dropped, s.refused
     );
     println!("host silent     {} ms", s.since_host_ms);
-    println!("last pose       {:?}", s.last_pose);
+    println!("last pose       {}", describe_last_pose(s.last_pose));
+}
+
+/// The board's mode in words (the status line `mode`).
+fn describe_mode(m: &Mode) -> &'static str {
+    match m {
+        Mode::Idle => "Idle",
+        Mode::Stream => "Stream (spot reports)",
+        Mode::Pose(ModelKind::NearField) => "Pose (near-field model)",
+        Mode::Pose(ModelKind::Pinhole) => "Pose (pinhole model)",
+    }
+}
+
+/// The status of the board's last pose solve in words (the status line `last pose`), under
+/// the name `cta sensor pose` prints in its `status` column.
+fn describe_last_pose(p: Option<PoseStatus>) -> &'static str {
+    match p {
+        None => "none (no pose solved since the board started)",
+        Some(PoseStatus::Ok) => "Ok (converged)",
+        Some(PoseStatus::TooFewBeacons) => {
+            "TooFewBeacons (fewer usable beacons of the constellation than a pose needs)"
+        }
+        Some(PoseStatus::Diverged) => {
+            "Diverged (no convergence, or a false minimum: residual too large or the target \
+             beyond the constellation's far limit)"
+        }
+        Some(PoseStatus::IllConditioned) => {
+            "IllConditioned (the beacons seen do not determine the pose)"
+        }
+    }
 }
 
 fn run_sim(args: &SimArgs) -> Result<()> {

@@ -100,3 +100,89 @@ fn a_file_of_another_kind_is_named_with_what_to_do() {
     ok(&load("load-calibration", &cal));
     ok(&load("load-constellation", &con));
 }
+
+/// The audit's case: `cta sensor status` printed `last pose Some(Ok)` / `None` (Rust's debug
+/// text). It prints words now, before and after a pose.
+#[test]
+fn sensor_status_says_the_last_pose_in_words() {
+    let out = ok(&cta(&["sensor", "--sim", "status"]));
+    let line = |out: &str, key: &str| {
+        out.lines()
+            .find(|l| l.starts_with(key))
+            .unwrap_or_else(|| panic!("no `{key}` line: {out}"))
+            .to_string()
+    };
+    assert_eq!(
+        line(&out, "last pose"),
+        "last pose       none (no pose solved since the board started)"
+    );
+    assert_eq!(line(&out, "mode"), "mode            Idle");
+    let mut sim = std::process::Command::new(env!("CARGO_BIN_EXE_cta"))
+        .args(["sensor", "sim", "--configured", "--seconds", "60"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    std::io::BufRead::read_line(
+        &mut std::io::BufReader::new(sim.stdout.as_mut().unwrap()),
+        &mut first,
+    )
+    .unwrap();
+    let port = first.trim().rsplit(' ').next().unwrap().to_string();
+    ok(&cta(&["sensor", "--port", &port, "pose", "--count", "1"]));
+    let out = ok(&cta(&["sensor", "--port", &port, "status"]));
+    let _ = sim.kill();
+    let _ = sim.wait();
+    assert_eq!(line(&out, "last pose"), "last pose       Ok (converged)");
+    assert!(!out.contains("Some("), "{out}");
+}
+
+/// `cta sensor` takes `--retries` as `cta beacon` does (the link's resends after a timeout,
+/// before or after the subcommand): against a port nobody answers, the attempts follow it.
+#[test]
+fn sensor_retries_sets_the_links_resends() {
+    use serialport::SerialPort as _;
+    let (_master, slave) = serialport::TTYPort::pair().expect("a pseudo-terminal");
+    let port = slave.name().unwrap();
+    for (retries, attempts) in [("0", "1 attempt(s)"), ("3", "4 attempt(s)")] {
+        fails_with(
+            &cta(&[
+                "sensor",
+                "--port",
+                &port,
+                "--timeout-ms",
+                "30",
+                "--retries",
+                retries,
+                "status",
+            ]),
+            &[&format!(
+                "no reply from the board after {attempts} of 30ms each"
+            )],
+        );
+    }
+    fails_with(
+        &cta(&["sensor", "status", "--port", &port, "--timeout-ms", "30"]),
+        &["after 3 attempt(s)"],
+    );
+    fails_with(
+        &cta(&[
+            "sensor",
+            "--retries",
+            "1",
+            "status",
+            "--retries",
+            "2",
+            "--port",
+            &port,
+        ]),
+        &["--retries is given both before and after the subcommand"],
+    );
+    fails_with(
+        &cta(&["sensor", "--retries", "1", "accuracy"]),
+        &["--retries means nothing for `cta sensor accuracy`"],
+    );
+    let help = ok(&cta(&["sensor", "status", "--help"]));
+    assert!(help.contains("--retries"), "{help}");
+}
