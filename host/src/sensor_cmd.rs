@@ -3,6 +3,7 @@
 //!
 //! ```text
 //! cta sensor sim --range 12              # simulated board on a pty, target 12 in away
+//! cta sensor sim --truth run/data.truth.json --configured   # ... with a simulated sweep's head
 //! cta sensor --port /dev/ttyUSB1 identify
 //! cta sensor template calibration > cal.json             # edit, then:
 //! cta sensor --port P load-calibration cal.json
