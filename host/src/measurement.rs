@@ -1181,14 +1181,20 @@ impl Glitches {
             })
             .collect::<Vec<_>>()
             .join(" and ");
+        let percent = 100.0 * self.samples as f64 / rows.max(1) as f64;
+        let share = if percent < 0.05 {
+            "under 0.1 %".to_string()
+        } else {
+            format!("{percent:.1} %")
+        };
         Some(format!(
-            "{}: {} sample{} ({:.1} % of the rows) lie{} more than {} robust sigma from {} point's \
+            "{}: {} sample{} ({share} of the rows) lie{} more than {} robust sigma from {} point's \
              median ({lines}): glitches (an ID mix-up, a corrupted report?) that inflate the noise \
-             pooled {inflate}; every fit weights by that noise. Remove those lines, or re-measure",
+             pooled {inflate}; every fit weights by that noise. Remove those lines, or re-measure \
+             (`cta analyze --drop-glitches` leaves them out)",
             path.display(),
             self.samples,
             if self.samples == 1 { "" } else { "s" },
-            100.0 * self.samples as f64 / rows.max(1) as f64,
             if self.samples == 1 { "s" } else { "" },
             self.threshold_sigma,
             if self.samples == 1 { "its" } else { "their" },
@@ -1975,11 +1981,16 @@ mod tests {
             assert_eq!(bad.samples.len(), ds.samples.len());
             let w = bad.warnings();
             assert_eq!(w.len(), 1, "{w:?}");
+            // 2 of 900-21,000 rows; from 20 samples per point (0.033 %, 0.0095 %), `{:.1}`
+            // would print 0.0 %: under 0.1 % instead.
+            let share = match samples {
+                20 | 70 => "under 0.1 %".to_string(),
+                _ => format!("{:.1} %", 200.0 / ds.samples.len() as f64),
+            };
             assert!(
                 w[0].starts_with(&format!(
-                    "g.csv: 2 samples ({:.1} % of the rows) lie more than 8 robust sigma from \
-                     their point's median (Y at lines 9, 402): glitches",
-                    200.0 / ds.samples.len() as f64
+                    "g.csv: 2 samples ({share} of the rows) lie more than 8 robust sigma from \
+                     their point's median (Y at lines 9, 402): glitches"
                 )),
                 "{w:?}"
             );
