@@ -950,9 +950,22 @@ impl<'a> Engine<'a> {
                 ));
             }
             if !ok {
-                // Drop both links: the next attempt reconnects them after the backoff.
-                self.beacon.link = None;
-                self.sensor.link = None;
+                // Drop the link of the board that failed (a failed connect has dropped it
+                // already; a failed restore has not): the next attempt reconnects it after
+                // the backoff. The other board's link is kept: it answered, and reopening it
+                // would only disturb a healthy board (a beacon board reopened is re-identified
+                // and its table read again). Whatever happened to it during the pause is
+                // found by the restore that follows the reconnection (LEDs off, the status
+                // read afresh), and a board that stopped answering meanwhile fails that
+                // restore and is reconnected in turn.
+                match reconnect_error.as_ref().map(|(b, _)| *b) {
+                    Some("beacon") => self.beacon.link = None,
+                    Some("sensor") => self.sensor.link = None,
+                    _ => {
+                        self.beacon.link = None;
+                        self.sensor.link = None;
+                    }
+                }
             }
         }
     }
