@@ -317,14 +317,27 @@ fn without_a_terminal_the_sweep_logs_lines_instead_of_bars() {
         !has("both boards") && !has("reconnected (beacon board)"),
         "{stderr}"
     );
-    assert!(has("separation 10 in done: 10/20 points"), "{stderr}");
-    assert!(has("separation 20 in done: 20/20 points"), "{stderr}");
+    // Each separation's line has the rate and the ETA, as the terminal's bar (but the last).
+    let first = lines
+        .iter()
+        .find(|l| l.contains("separation 10 in done: 10/20 points"))
+        .unwrap_or_else(|| panic!("{stderr}"));
+    assert!(
+        first.contains("; ") && first.contains(" points/min, ETA "),
+        "{first}"
+    );
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.ends_with("] separation 20 in done: 20/20 points")),
+        "{stderr}"
+    );
     assert!(has("stopped: complete; 20/20 points"), "{stderr}");
     // The start comes first and the stop last; no progress bar was drawn.
     assert!(lines[0].contains("starting"), "{stderr}");
     assert!(lines.last().unwrap().contains("stopped"), "{stderr}");
     assert!(
-        !stderr.contains("[===") && !stderr.contains("ETA"),
+        !stderr.contains("[===") && !stderr.contains("run        ["),
         "{stderr}"
     );
     // The summary stays on stdout.

@@ -1200,7 +1200,10 @@ pub const PROGRESS_EVERY: Duration = Duration::from_secs(60);
 
 /// The log line after point `i` (0-based) of `n`, at `separation`, when a separation is done
 /// (`per` points each) or `since` the last progress line is [`PROGRESS_EVERY`] or more;
-/// `per_sec` and `eta` are the run's rate and estimate.
+/// `per_sec` and `eta` are the run's rate and estimate, as the terminal's run bar shows them
+/// (its points done of all, its ETA). Both lines say how many points are done of how many
+/// (`1234/69600 points`: a count, where `point 9` elsewhere is an index, from 0); the rate and
+/// the ETA are left out while there is no estimate yet, and once the run is done.
 fn progress_line(
     i: usize,
     n: usize,
@@ -1210,22 +1213,27 @@ fn progress_line(
     per_sec: f64,
     eta: Duration,
 ) -> Option<String> {
-    let eta = || {
+    let done = i + 1;
+    let rate = || {
+        if done >= n || !per_sec.is_finite() || per_sec <= 0.0 {
+            return String::new();
+        }
         let s = eta.as_secs();
-        format!("{}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60)
+        format!(
+            "; {:.1} points/min, ETA {}:{:02}:{:02}",
+            per_sec * 60.0,
+            s / 3600,
+            s / 60 % 60,
+            s % 60
+        )
     };
-    if (i + 1).is_multiple_of(per.max(1)) || i + 1 == n {
+    if done.is_multiple_of(per.max(1)) || done == n {
         Some(format!(
-            "separation {separation} in done: {}/{n} points",
-            i + 1
+            "separation {separation} in done: {done}/{n} points{}",
+            rate()
         ))
     } else if since >= PROGRESS_EVERY {
-        Some(format!(
-            "point {}/{n} at {separation} in: {:.1} points/min, ETA {}",
-            i + 1,
-            per_sec * 60.0,
-            eta()
-        ))
+        Some(format!("{done}/{n} points, at {separation} in{}", rate()))
     } else {
         None
     }
@@ -1337,14 +1345,15 @@ mod tests {
     use super::*;
 
     /// In log mode a line comes at each separation's end, and in between at least every
-    /// [`PROGRESS_EVERY`], with the rate and the ETA.
+    /// [`PROGRESS_EVERY`], each with the points done of all, the rate and the ETA (but at
+    /// the end, and before the rate is known).
     #[test]
     fn log_lines_come_per_separation_and_every_minute() {
         let eta = Duration::from_secs(3 * 3600 + 12 * 60 + 5);
         let line = |i, since| progress_line(i, 2400, 800, 10.0, since, 0.2, eta);
         assert_eq!(
             line(799, Duration::ZERO).as_deref(),
-            Some("separation 10 in done: 800/2400 points")
+            Some("separation 10 in done: 800/2400 points; 12.0 points/min, ETA 3:12:05")
         );
         assert_eq!(
             line(2399, Duration::ZERO).as_deref(),
@@ -1353,7 +1362,12 @@ mod tests {
         assert_eq!(line(5, PROGRESS_EVERY - Duration::from_millis(1)), None);
         assert_eq!(
             line(5, PROGRESS_EVERY).as_deref(),
-            Some("point 6/2400 at 10 in: 12.0 points/min, ETA 3:12:05")
+            Some("6/2400 points, at 10 in; 12.0 points/min, ETA 3:12:05")
+        );
+        // No estimate yet: no rate, no ETA.
+        assert_eq!(
+            progress_line(799, 2400, 800, 10.0, Duration::ZERO, 0.0, Duration::ZERO).as_deref(),
+            Some("separation 10 in done: 800/2400 points")
         );
     }
 }
