@@ -62,12 +62,20 @@ fn ctrl_c_exits_non_zero_with_the_resume_hint() {
         Some(130),
         "stdout: {stdout}\nstderr: {stderr}"
     );
-    // The summary and the error both say how to continue.
-    assert!(stdout.contains("interrupted at point"), "{stdout}");
+    // The summary and the error both say how far the run got and how to continue: the
+    // points done as the journal counts them, the next by its index, as the journal numbers
+    // points (from 0).
+    let done = cta_tests::journal_points(&run);
+    let progress = format!("with {done} of 2100 points done (next: point {done})");
+    assert!(
+        stdout.contains(&format!("interrupted by Ctrl-C {progress}")),
+        "{stdout}"
+    );
     let hint = format!("cta sweep --resume {}", run.display());
     assert!(stdout.contains(&hint), "{stdout}");
     assert!(
-        stderr.contains("cta: error: interrupted (Ctrl-C) at point") && stderr.contains(&hint),
+        stderr.contains(&format!("cta: error: interrupted (Ctrl-C) {progress}"))
+            && stderr.contains(&hint),
         "{stderr}"
     );
     // The run stopped cleanly (journalled) and is resumable.

@@ -189,17 +189,27 @@ fn assert_clean_stop(
     };
     assert_eq!(code, Some(expected), "stdout: {stdout}\nstderr: {stderr}");
     let hint = format!("cta sweep --resume {}", run.display());
+    // Points done, counted as the journal counts them; the next one by its index, as the
+    // journal numbers them (from 0): the same number.
+    let done = journal_points(run);
+    let progress = format!("with {done} of 2100 points done (next: point {done})");
     assert!(
-        stdout.contains("interrupted at point")
+        stdout.contains(&format!("interrupted by {name} {progress}"))
             // A hardware run: the hint names the ports it used.
-            && stdout.contains(&format!(" by {name} (continue with `{hint} --beacon ")),
+            && stdout.contains(&format!(" (continue with `{hint} --beacon ")),
         "{stdout}"
     );
     assert!(
-        stderr.contains(&format!("cta: error: interrupted ({name}) at point")),
+        stderr.contains(&format!(
+            "cta: error: interrupted ({name}) {progress}; the run is saved"
+        )),
         "{stderr}"
     );
     let j = journal(run);
+    assert!(
+        j.contains(&format!("\"next_point\":{done}}}")),
+        "the stop's next point: {j}"
+    );
     assert!(
         j.contains(&format!("\"reason\":\"interrupted ({name})\"")),
         "{j}"
@@ -246,7 +256,10 @@ fn a_signal_at_the_operator_prompt_stops_at_once_and_records_nothing() {
         // The child's stdin stays open: nobody answers.
         let (code, stdout) = signal_and_wait(child, signal);
         assert_clean_stop(&run, name, code, &stdout, &stderr);
-        assert!(stdout.contains("at point 0 of 2100"), "{stdout}");
+        assert!(
+            stdout.contains("with 0 of 2100 points done (next: point 0)"),
+            "{stdout}"
+        );
         // Nothing was entered: no separation, no point.
         let j = journal(&run);
         assert!(!j.contains("\"event\":\"separation\""), "{j}");

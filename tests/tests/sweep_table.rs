@@ -410,11 +410,12 @@ fn an_interrupted_hardware_run_names_its_ports_in_the_hint() {
     let hint = hint(&run, &b.display().to_string(), &s.display().to_string());
     // The summary and the error both say it.
     assert!(
-        stdout.contains(&format!("by Ctrl-C (continue with `{hint}`)")),
+        stdout.contains("interrupted by Ctrl-C with ")
+            && stdout.contains(&format!(" (continue with `{hint}`)")),
         "{stdout}"
     );
     assert!(
-        stdout.contains("error: interrupted (Ctrl-C) at point")
+        stdout.contains("error: interrupted (Ctrl-C) with ")
             && stdout.contains(&format!("continue with `{hint}`")),
         "{stdout}"
     );

@@ -204,8 +204,8 @@ pub(crate) fn ignored(sig: libc::c_int) -> bool {
 /// error status.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
-    "interrupted ({signal}) at point {next_point} of {points}; the run is saved: continue with \
-     `{resume}`"
+    "interrupted ({signal}) with {next_point} of {points} points done (next: point \
+     {next_point}); the run is saved: continue with `{resume}`"
 )]
 pub struct Interrupted {
     /// What stopped it: `Ctrl-C`, `SIGTERM` or `SIGHUP`.
@@ -218,10 +218,21 @@ pub struct Interrupted {
     pub dir: PathBuf,
     /// The command that continues the run ([`Summary::resume`]).
     pub resume: String,
-    /// Next point to measure.
+    /// Next point to measure (its index, from 0; also the number of points done).
     pub next_point: usize,
     /// Points in the plan.
     pub points: usize,
+}
+
+/// `N of M points done (next: point N)`: how far a run has got. Points are numbered from 0,
+/// as in the journal (`i`, `next_point`), the log (`fault at point 9`) and data.csv's
+/// comments, so the next point's index is the number done.
+pub fn points_done(next: usize, points: usize) -> String {
+    if next >= points {
+        format!("all {points} points done")
+    } else {
+        format!("{next} of {points} points done (next: point {next})")
+    }
 }
 
 fn print_summary(s: &Summary) {
@@ -229,15 +240,14 @@ fn print_summary(s: &Summary) {
     let state = match &s.ending {
         Ending::Complete => "complete".to_string(),
         Ending::Interrupted => format!(
-            "interrupted at point {} of {} by {} (continue with `{}`)",
-            s.next_point,
-            s.points,
+            "interrupted by {} with {} (continue with `{}`)",
             interruption(),
+            points_done(s.next_point, s.points),
             s.resume
         ),
         Ending::GaveUp(_) => format!(
-            "stopped at point {} of {}: a board stayed unreachable",
-            s.next_point, s.points
+            "stopped with {}: a board stayed unreachable",
+            points_done(s.next_point, s.points)
         ),
     };
     println!("sweep {}: {state}", s.dir.display());
@@ -479,7 +489,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             if from == 0 {
                 "starting".to_string()
             } else {
-                format!("resuming at point {from}")
+                format!("resuming at point {from} ({from} of {} done)", plan.len())
             },
             on,
         ));
@@ -494,8 +504,8 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                 eprintln!("cta: warning: the stop could not be recorded in full: {w:#}");
             }
             return Err(e.context(format!(
-                "sweep stopped at point {}; the run is saved: continue with `{}`",
-                store.next_point(),
+                "sweep stopped with {}; the run is saved: continue with `{}`",
+                points_done(store.next_point(), plan.len()),
                 resume_command(&store.dir, ports)
             )));
         }
