@@ -836,3 +836,51 @@ fn a_resume_whose_boards_do_not_answer_changes_nothing() {
     assert!(last_session(&run).contains("data.csv: discarded"));
     assert_eq!(read(&run.join("data.csv")), full);
 }
+
+/// `--resume` names a run directory that does not exist, or a file given for
+/// one (with its run when it is a run's file); `--out` names a file where its folder would be;
+/// `--plan` names a measurement file given as the plan. Nothing is created.
+#[test]
+fn paths_of_the_wrong_kind_are_named() {
+    let (d, run) = complete_run("paths");
+    let missing = d.join("run2");
+    let e = resume(&missing).unwrap_err();
+    assert_eq!(
+        e,
+        format!(
+            "{}: does not exist: there is no run there (--resume takes the folder a run was \
+             started in with --out; a run is started with `cta sweep --plan PLAN.toml --out \
+             RUN_DIR`)",
+            missing.display()
+        )
+    );
+    let e = resume(&run.join("data.csv")).unwrap_err();
+    assert!(
+        e.contains("data.csv: is a file, not a run directory")
+            && e.contains(&format!("`cta sweep --resume {}`", run.display())),
+        "{e}"
+    );
+    // --out on a file, and under one.
+    let csv = run.join("data.csv");
+    let plan = d.join("plan.toml");
+    for out in [csv.clone(), csv.join("run")] {
+        let e = format!("{:#}", sweep::sweep(&sweep_args(&plan, &out)).unwrap_err());
+        assert!(
+            e.starts_with(&format!(
+                "{}: is a file, not a folder: --out names the folder a new run creates",
+                csv.display()
+            )) && e.contains("nothing was started"),
+            "{e}"
+        );
+    }
+    // A measurement file given as the plan.
+    let e = format!(
+        "{:#}",
+        sweep::sweep(&sweep_args(&csv, &d.join("new"))).unwrap_err()
+    );
+    assert!(
+        e.contains("does not look like a plan TOML file") && e.contains("a CSV header or row"),
+        "{e}"
+    );
+    assert!(!d.join("new").exists() && !missing.exists());
+}

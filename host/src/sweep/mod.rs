@@ -287,14 +287,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     // The run directory, the plan, and what simulates it.
     let (store, plan, sim_settings) = if let Some(dir) = &args.resume {
         let plan_path = dir.join(store::PLAN);
-        if !plan_path.exists() && !dir.join(store::JOURNAL).exists() {
-            bail!(
-                "{}: not a sweep run directory (no {} or {}); start a run with --out",
-                dir.display(),
-                store::PLAN,
-                store::JOURNAL
-            );
-        }
+        run_dir_given(dir, "--resume")?;
         // The run's own plan.toml, or the plan file given: checked the same way against the
         // plan the last session ran with (only timing may change); a given file then becomes
         // the run's plan.toml.
@@ -304,8 +297,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                 RunDir::open(dir, sync, &plan).map(|s| (s, plan))
             }
             Some(p) => {
-                let text = std::fs::read_to_string(p)
-                    .with_context(|| format!("{}: cannot read the plan", p.display()))?;
+                let text = read_plan(p)?;
                 let plan = Plan::parse(&p.display().to_string(), &text)?;
                 let given = store::GivenPlan {
                     path: p,
@@ -388,8 +380,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         let Some(plan_path) = &args.plan else {
             bail!("give --plan PLAN.toml (see host/plans/ and host/SWEEP.md)");
         };
-        let src = std::fs::read_to_string(plan_path)
-            .with_context(|| format!("{}: cannot read the plan", plan_path.display()))?;
+        let src = read_plan(plan_path)?;
         let plan = Plan::parse(&plan_path.display().to_string(), &src)?;
         let sim = sim_settings(args)?;
         // The data file's header, but for what the run is on (known once the boards answered).
@@ -540,6 +531,67 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         seconds: t0.elapsed().as_secs_f64(),
         resume: resume_command(&store.dir, ports),
     })
+}
+
+/// The plan file given with `--plan`, read: a folder or an unreadable file is named as such.
+fn read_plan(path: &Path) -> Result<String> {
+    if path.is_dir() {
+        bail!(
+            "{}: is a folder: --plan takes a plan file (TOML, e.g. host/plans/short.toml; see \
+             host/SWEEP.md)",
+            path.display()
+        );
+    }
+    std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read the plan", path.display()))
+}
+
+/// The run directory given to `option` (`--resume`, `--status`) must be one: a path that does
+/// not exist, a file (perhaps a file of a run: its folder is named) and a folder without a
+/// run's files are each said as such.
+pub(crate) fn run_dir_given(dir: &Path, option: &str) -> Result<()> {
+    let start = "a run is started with `cta sweep --plan PLAN.toml --out RUN_DIR`";
+    match std::fs::metadata(dir) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => bail!(
+            "{}: does not exist: there is no run there ({option} takes the folder a run was \
+             started in with --out; {start})",
+            dir.display()
+        ),
+        Err(e) => bail!("{}: cannot read: {e}", dir.display()),
+        Ok(m) if !m.is_dir() => {
+            let parent = match dir.parent() {
+                Some(p) if p.as_os_str().is_empty() => Path::new("."),
+                Some(p) => p,
+                None => Path::new("/"),
+            };
+            let in_a_run = parent.join(store::JOURNAL).exists();
+            bail!(
+                "{}: is a file, not a run directory: {option} takes the folder a run was started \
+                 in with --out{}",
+                dir.display(),
+                if in_a_run {
+                    format!(
+                        "; this file is in the run {}: `cta sweep {option} {}`",
+                        parent.display(),
+                        shell_word(&parent.display().to_string())
+                    )
+                } else {
+                    format!(" ({start})")
+                }
+            )
+        }
+        Ok(_) => {
+            if !dir.join(store::PLAN).exists() && !dir.join(store::JOURNAL).exists() {
+                bail!(
+                    "{}: not a sweep run directory (no {} or {}); {start}",
+                    dir.display(),
+                    store::PLAN,
+                    store::JOURNAL
+                );
+            }
+            Ok(())
+        }
+    }
 }
 
 /// `--beacon` and `--sensor` must be two ports: the same path twice, or two names of one

@@ -478,6 +478,44 @@ fn check_types(src: &str) -> Result<(), (String, std::ops::Range<usize>, String)
     Ok(())
 }
 
+/// When `src` (named `file`) is not TOML but another kind of file: the line that shows it and
+/// what it looks like. Only asked about text that TOML cannot read: a CSV line (commas, no
+/// `=`), JSON (`{` or `[` followed by a quote or a brace), or a `.csv`/`.json` name.
+fn not_toml(file: &str, src: &str) -> Option<(usize, String)> {
+    if toml::de::DeTable::parse(src).is_ok() {
+        return None;
+    }
+    let (n, line) = src
+        .lines()
+        .enumerate()
+        .map(|(n, l)| (n + 1, l.trim()))
+        .find(|(_, l)| !l.is_empty() && !l.starts_with('#'))?;
+    let shown: String = line.chars().take(60).collect();
+    let shown = if shown.len() < line.len() {
+        format!("{shown}...")
+    } else {
+        shown
+    };
+    let lower = file.to_ascii_lowercase();
+    let json = line.starts_with('{')
+        || (line.starts_with('[') && line[1..].trim_start().starts_with(['{', '"', '[']));
+    if line.contains(',') && !line.contains('=') && !line.starts_with('[') {
+        Some((
+            n,
+            format!("line {n} reads `{shown}`, a CSV header or row (a measurement file?)"),
+        ))
+    } else if json || lower.ends_with(".json") || lower.ends_with(".jsonl") {
+        Some((n, format!("line {n} reads `{shown}`, JSON")))
+    } else if lower.ends_with(".csv") {
+        Some((
+            n,
+            format!("line {n} reads `{shown}`, and the file is named .csv"),
+        ))
+    } else {
+        None
+    }
+}
+
 impl Plan {
     /// Read and validate a plan file.
     pub fn load(path: &Path) -> Result<Plan, PlanError> {
@@ -504,6 +542,21 @@ impl Plan {
             // toml's messages name the key ("unknown field `x`", "missing field `y`"); we add
             // the line of its span.
             let line = e.span().map(|s| line_of(s.start));
+            // Not TOML at all (a measurement file given as the plan): said so, rather than
+            // the first syntax error the file happens to make.
+            if let Some((at, what)) = not_toml(file, src) {
+                return PlanError {
+                    file: file.into(),
+                    line: Some(at),
+                    key: None,
+                    message: format!(
+                        "does not look like a plan TOML file: {what} (TOML: {}). A plan has \
+                         `key = value` lines, e.g. `samples = 20`: see host/plans/short.toml \
+                         and host/SWEEP.md",
+                        e.message().trim()
+                    ),
+                };
+            }
             PlanError {
                 file: file.into(),
                 line,
@@ -953,6 +1006,33 @@ settle_ms = 0
         assert_eq!(pts[7].separation, 25.0);
         assert_eq!(pts[0].channel, 2);
         assert_eq!(pts[0].position(&p.layout, 20.0), [-4.5, -4.5, 20.0]);
+    }
+
+    /// A measurement file (or JSON) given as the plan is said not to be a plan, at its first
+    /// line that is not a comment; a plan with a TOML mistake keeps TOML's own message.
+    #[test]
+    fn a_file_of_another_kind_is_said_not_to_be_a_plan() {
+        let csv = "# cta simulate: 2 points\n# noise 10\nseparation_in,beacon_x_in,beacon_y_in,\
+                   beacon_z_in,x,y\n10,0,0,10,1,2\n";
+        let e = Plan::parse("tilt.csv", csv).unwrap_err();
+        let s = e.to_string();
+        assert!(
+            s.starts_with(
+                "tilt.csv:3: does not look like a plan TOML file: line 3 reads \
+                           `separation_in,beacon_x_in,beacon_y_in,beacon_z_in,x,y`, a CSV header \
+                           or row (a measurement file?)"
+            ) && s.contains("host/plans/short.toml"),
+            "{s}"
+        );
+        let e = Plan::parse("fit.json", "{\"d\": [1, 2]}\n").unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("fit.json:1: does not look like a plan TOML file: line 1 reads"),
+            "{e}"
+        );
+        // A plan with a mistake in it: TOML's message, no guess.
+        let e = Plan::parse("p.toml", &SHORT.replace("samples = 5", "samples =")).unwrap_err();
+        assert!(!e.to_string().contains("does not look like"), "{e}");
     }
 
     #[test]

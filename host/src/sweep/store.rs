@@ -415,6 +415,25 @@ impl RunDir {
 
     /// Refuse to start a new run in an existing, non-empty `dir` unless `force`.
     pub fn check_new(dir: &Path, force: bool) -> Result<()> {
+        // --out names a folder: a file there (or above it) is not one to create the run in.
+        let file_above = dir
+            .ancestors()
+            .filter(|a| !a.as_os_str().is_empty())
+            .find(|a| a.exists())
+            .filter(|a| !a.is_dir());
+        if let Some(f) = file_above {
+            bail!(
+                "{}: is a file, not a folder: --out names the folder a new run creates (its {DATA}, \
+                 {JOURNAL}, {MANIFEST} and {PLAN} go in it){}; nothing was started: choose \
+                 another --out",
+                f.display(),
+                if f == dir {
+                    String::new()
+                } else {
+                    format!(", and {} would be under it", dir.display())
+                }
+            );
+        }
         if dir.exists() {
             let nonempty = std::fs::read_dir(dir)
                 .with_context(|| format!("{}: cannot read the directory", dir.display()))?
