@@ -322,12 +322,15 @@ fn a_hardware_run_that_gives_up_names_its_ports_in_the_hint() {
         ..SweepArgs::default()
     };
     let e = format!("{:#}", sweep::sweep(&resume).unwrap_err());
+    // Said as it was: simulated boards (these say so of themselves) at those ports, not
+    // "real boards".
     assert!(
-        e.contains("was recorded on real boards")
-            && e.contains(&format!(
-                "its last session used them as `{}`",
-                hint(&d.join("run"), &b, &s)
-            )),
+        e.contains(&format!(
+            "the run was recorded on simulated beacon and sensor boards at ports (beacon board \
+             on {b}, sensor board on {s}), not on the simulated CTA of --sim: give --beacon and \
+             --sensor to resume it, as its last session did: `{}`",
+            hint(&d.join("run"), &b, &s)
+        )) && !e.contains("real boards"),
         "{e}"
     );
 }

@@ -345,28 +345,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             }
             Some(None) => {
                 if args.beacon.is_none() {
-                    // The ports of its last session, from the journal.
-                    let last = std::fs::read_to_string(dir.join(store::JOURNAL))
-                        .unwrap_or_default()
-                        .lines()
-                        .rev()
-                        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-                        .find(|v| v["event"] == "session")
-                        .and_then(|v| {
-                            let port = |b: &str| v["boards"][b]["port"].as_str().map(String::from);
-                            Some((port("beacon")?, port("sensor")?))
-                        });
-                    bail!(
-                        "{} was recorded on real boards: give --beacon and --sensor to resume it{}",
-                        dir.display(),
-                        match last {
-                            Some((b, s)) => format!(
-                                " (its last session used them as `{}`)",
-                                resume_command(dir, Some((&b, &s)))
-                            ),
-                            None => String::new(),
-                        }
-                    );
+                    bail!("{}", ports_needed(&store));
                 }
                 None
             }
@@ -591,6 +570,61 @@ pub(crate) fn run_dir_given(dir: &Path, option: &str) -> Result<()> {
             }
             Ok(())
         }
+    }
+}
+
+/// The ports of the last session, when the run is on ports (not the simulated CTA of
+/// `--sim`), from the journal.
+pub(crate) fn last_ports(store: &RunDir) -> Option<(String, String)> {
+    last_session_ports(&store.events)
+}
+
+/// [`last_ports`] of a journal's events.
+pub(crate) fn last_session_ports(events: &[Event]) -> Option<(String, String)> {
+    events.iter().rev().find_map(|e| match e {
+        Event::Session {
+            sim: None, boards, ..
+        } => {
+            let port = |b: &str| boards[b]["port"].as_str().map(String::from);
+            Some((port("beacon")?, port("sensor")?))
+        }
+        _ => None,
+    })
+}
+
+/// Why a run on ports cannot be resumed without them: the boards it was recorded on (hardware,
+/// or simulated boards served with `cta beacon sim` / `cta sensor sim`, as each said of itself)
+/// and the ports its last session used.
+fn ports_needed(store: &RunDir) -> String {
+    let boards = store.events.iter().find_map(|e| match e {
+        Event::Session { boards, .. } => Some(boards),
+        _ => None,
+    });
+    let simulated = |b: &str| boards.and_then(|v| v[b]["simulated"].as_bool());
+    let kind = match (simulated("beacon"), simulated("sensor")) {
+        (Some(b), Some(s)) => apparatus(false, b, s),
+        _ => "boards",
+    };
+    let pty = simulated("beacon") == Some(true) || simulated("sensor") == Some(true);
+    match last_ports(store) {
+        Some((b, s)) => format!(
+            "{}: the run was recorded on {kind} at ports (beacon board on {b}, sensor board on \
+             {s}), not on the simulated CTA of --sim: give --beacon and --sensor to resume it, \
+             as its last session did: `{}`{}",
+            store.dir.display(),
+            resume_command(&store.dir, Some((&b, &s))),
+            if pty {
+                " (a board served by `cta beacon sim` / `cta sensor sim` must be served again; \
+                 its port may have another name now)"
+            } else {
+                ""
+            }
+        ),
+        None => format!(
+            "{}: the run was recorded on {kind} at ports, not on the simulated CTA of --sim: \
+             give --beacon and --sensor to resume it",
+            store.dir.display()
+        ),
     }
 }
 
