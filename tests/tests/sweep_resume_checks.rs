@@ -15,7 +15,8 @@ use cta_host::sweep::sim::{Posing, SimCta, SimSettings};
 use cta_host::sweep::store::{Event, RunDir};
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{
-    child, child_paths, crash_after, journal, resume_args, sweep_args, write_plan, TestDir,
+    child, child_paths, crash_after, journal, resume_args, snapshot, sweep_args, write_plan,
+    TestDir,
 };
 
 const PLAN: &str = r#"
@@ -378,6 +379,8 @@ fn a_timing_change_resumes_with_a_note_and_the_same_data() {
     );
 
     // The next resume compares with the plan that session used: nothing changed, no note.
+    // (Each resume here has points to measure: a complete run's resume opens no session.)
+    crash_after(&run, 25);
     resume(&run).unwrap();
     let session = last_session(&run);
     assert!(!session.contains("timing changed"), "{session}");
@@ -390,6 +393,7 @@ fn a_timing_change_resumes_with_a_note_and_the_same_data() {
         ),
     )
     .unwrap();
+    crash_after(&run, 27);
     resume(&run).unwrap();
     let session = last_session(&run);
     assert!(
@@ -486,6 +490,7 @@ fn a_given_plan_with_a_timing_change_resumes_as_an_edited_one_and_becomes_the_ru
     assert_eq!(read(&plan), text);
     let m = read(&run.join("manifest.json"));
     assert!(m.contains("\"retries\": 4"), "{m}");
+    crash_after(&run, 25);
     resume(&run).unwrap();
     let session = last_session(&run);
     assert!(
@@ -883,4 +888,49 @@ fn paths_of_the_wrong_kind_are_named() {
         "{e}"
     );
     assert!(!d.join("new").exists() && !missing.exists());
+}
+
+/// Resuming a run whose every point is committed says so and opens no board: a hardware run
+/// needs no ports for it (these boards are gone). Nothing is written when the journal already
+/// ends with the complete stop; a run killed between its last point and its stop gets that
+/// stop, and a manifest that says complete.
+#[test]
+fn a_complete_run_resumed_says_so_and_opens_no_board() {
+    let (_d, run) = complete_run("complete");
+    let before = snapshot(&run);
+    let s = resume(&run).unwrap();
+    assert!(s.already_complete && s.ending == Ending::Complete, "{s:?}");
+    assert_eq!((s.next_point, s.points, s.stats.samples), (30, 30, 0));
+    assert_eq!(snapshot(&run), before, "a complete run was written to");
+
+    let d = TestDir::new("sweep-checks-complete-ports");
+    let plan = write_plan(&d, PORTS_PLAN);
+    let hw = d.join("hw");
+    {
+        let b = boards(HARDWARE);
+        let s = sweep::sweep(&SweepArgs {
+            plan: Some(plan),
+            out: Some(hw.clone()),
+            ..on_ports(&b)
+        })
+        .unwrap();
+        assert_eq!(s.ending, Ending::Complete);
+    }
+    // Killed after its last point: no stop, the manifest still running.
+    let j = read(&hw.join("journal.jsonl"));
+    let last_point = j.rfind("{\"event\":\"point\"").unwrap();
+    let end = last_point + j[last_point..].find('\n').unwrap() + 1;
+    std::fs::write(hw.join("journal.jsonl"), &j[..end]).unwrap();
+    let m = read(&hw.join("manifest.json")).replace("\"complete\"", "\"running\"");
+    std::fs::write(hw.join("manifest.json"), m).unwrap();
+    let s = resume(&hw).unwrap();
+    assert!(s.already_complete, "{s:?}");
+    let j = read(&hw.join("journal.jsonl"));
+    assert!(
+        j[end..].starts_with("{\"event\":\"stop\"") && j[end..].contains("\"reason\":\"complete\""),
+        "{}",
+        &j[end..]
+    );
+    assert_eq!(j[end..].lines().count(), 1, "{}", &j[end..]);
+    assert!(read(&hw.join("manifest.json")).contains("\"state\": \"complete\""));
 }

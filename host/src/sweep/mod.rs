@@ -139,6 +139,8 @@ pub struct Summary {
     /// The command that continues the run: `cta sweep --resume RUN_DIR`, with the ports
     /// (`--beacon P --sensor P`) when the run is on hardware ([`resume_command`]).
     pub resume: String,
+    /// A resume that found every point committed: nothing was measured and no board opened.
+    pub already_complete: bool,
 }
 
 /// `cta sweep`.
@@ -237,6 +239,15 @@ pub fn points_done(next: usize, points: usize) -> String {
 
 fn print_summary(s: &Summary) {
     let st = &s.stats;
+    if s.already_complete {
+        println!(
+            "sweep {}: already complete: {}; nothing to measure, no board was opened",
+            s.dir.display(),
+            points_done(s.next_point, s.points)
+        );
+        println!("  data: {}", s.dir.join(store::DATA).display());
+        return;
+    }
     let state = match &s.ending {
         Ending::Complete => "complete".to_string(),
         Ending::Interrupted => format!(
@@ -307,6 +318,11 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             }
         };
         let (store, plan) = store?;
+        // Every point committed: nothing to measure, so no board is opened (a hardware run
+        // needs no ports for it).
+        if store.next_point() >= plan.len() {
+            return already_complete(store, &plan, t0);
+        }
         let first_sim = store.events.iter().find_map(|e| match e {
             Event::Session { sim, .. } => Some(sim.clone()),
             _ => None,
@@ -490,6 +506,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         at: now(),
         reason: reason.clone(),
         next_point: next,
+        notes: Vec::new(),
     })?;
     write_manifest(
         &store,
@@ -509,6 +526,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         points: plan.len(),
         seconds: t0.elapsed().as_secs_f64(),
         resume: resume_command(&store.dir, ports),
+        already_complete: false,
     })
 }
 
@@ -571,6 +589,44 @@ pub(crate) fn run_dir_given(dir: &Path, option: &str) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// A resume of a run whose every point is committed: nothing is measured and no board is
+/// opened. A run whose journal already ends with its complete stop is left as it is. Otherwise
+/// (the last session was killed between its last point and its stop, or the resume found
+/// something to cut: bytes appended to data.csv since, a torn journal line; or a --plan to
+/// take in) the resume makes those changes as any resume does ([`RunDir::begin`]), says them,
+/// and journals the complete stop with them as its `notes`; the manifest says `complete`.
+fn already_complete(mut store: RunDir, plan: &Plan, t0: Instant) -> Result<Summary> {
+    let recorded =
+        matches!(store.events.last(), Some(Event::Stop { reason, .. }) if reason == "complete");
+    if !recorded || !store.notes.is_empty() {
+        store.begin()?;
+        for note in &store.notes {
+            eprintln!("cta: note: {}: {note}", store.dir.display());
+        }
+        store.log(Event::Stop {
+            at: now(),
+            reason: "complete".into(),
+            next_point: store.next_point(),
+            notes: store.notes.clone(),
+        })?;
+        write_manifest(&store, plan, "complete")?;
+    }
+    let ports = last_ports(&store);
+    Ok(Summary {
+        dir: store.dir.clone(),
+        ending: Ending::Complete,
+        stats: engine::Stats::default(),
+        next_point: store.next_point(),
+        points: plan.len(),
+        seconds: t0.elapsed().as_secs_f64(),
+        resume: resume_command(
+            &store.dir,
+            ports.as_ref().map(|(b, s)| (b.as_str(), s.as_str())),
+        ),
+        already_complete: true,
+    })
 }
 
 /// The ports of the last session, when the run is on ports (not the simulated CTA of

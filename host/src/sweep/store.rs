@@ -238,6 +238,11 @@ pub enum Event {
         reason: String,
         /// Next point to measure.
         next_point: usize,
+        /// What a resume of a complete run changed without opening the boards (the notes a
+        /// session would journal: uncommitted bytes cut, a torn line dropped, ...). Absent
+        /// otherwise, and in journals of older versions.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        notes: Vec<String>,
     },
 }
 
@@ -762,8 +767,7 @@ impl RunDir {
                 |n: u64, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
             notes.push(format!(
                 "{DATA}: discarded {} ({}, {}) past {}: not committed in the journal (written by \
-                 the previous session before it stopped, or added since); measuring resumes at \
-                 point {}",
+                 the previous session before it stopped, or added since); {}",
                 plural(len - end, "byte"),
                 plural(rows, "data row"),
                 plural(comments, "comment line"),
@@ -771,7 +775,12 @@ impl RunDir {
                     Some((i, _)) => format!("the last committed point, {i}"),
                     None => "the header (no committed point)".into(),
                 },
-                last_point.map_or(0, |(i, _)| i + 1)
+                match last_point.map_or(0, |(i, _)| i + 1) {
+                    n if n >= plan.len() => {
+                        "every point is committed (the run is complete)".to_string()
+                    }
+                    n => format!("measuring resumes at point {n}"),
+                }
             ));
         }
         // Every check passed. What the resume changes in the run directory is done by
@@ -936,6 +945,7 @@ impl RunDir {
             at: now(),
             reason,
             next_point: self.next_point(),
+            notes: Vec::new(),
         };
         let mut line = serde_json::to_string(&e)?;
         line.push('\n');
