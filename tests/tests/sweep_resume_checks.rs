@@ -934,3 +934,66 @@ fn a_complete_run_resumed_says_so_and_opens_no_board() {
     assert_eq!(j[end..].lines().count(), 1, "{}", &j[end..]);
     assert!(read(&hw.join("manifest.json")).contains("\"state\": \"complete\""));
 }
+
+/// `--sim-realtime` is journalled with the session: a resume keeps the mode the last session
+/// ran in, and a change (`--sim-realtime` on an unthrottled run, `--sim-unthrottled` on a
+/// real-time one) is said in a note.
+#[test]
+fn the_simulated_ctas_real_time_is_kept_on_resume() {
+    let d = TestDir::new("sweep-checks-realtime");
+    let plan = write_plan(
+        &d,
+        "separations_in = [20]\nbeacons = [44, 45, 54, 55]\nsamples = 2\nsettle_ms = 0\n\
+         rate_hz = 50\n",
+    );
+    let run = d.join("run");
+    sweep::sweep(&SweepArgs {
+        no_sync: true,
+        sim_realtime: true,
+        ..sweep_args(&plan, &run)
+    })
+    .unwrap();
+    let realtime = |run: &Path| {
+        let s = last_session(run);
+        assert!(s.contains("\"realtime\":"), "{s}");
+        s.contains("\"realtime\":true")
+    };
+    assert!(realtime(&run));
+    crash_after(&run, 1);
+    resume(&run).unwrap();
+    assert!(realtime(&run), "the resume dropped --sim-realtime");
+    assert!(
+        !last_session(&run).contains("from this session on"),
+        "{}",
+        last_session(&run)
+    );
+    crash_after(&run, 2);
+    sweep::sweep(&SweepArgs {
+        no_sync: true,
+        sim_unthrottled: true,
+        ..resume_args(&run)
+    })
+    .unwrap();
+    assert!(!realtime(&run));
+    assert!(
+        last_session(&run).contains(
+            "simulated unthrottled from this session on (--sim-unthrottled); the last session \
+             ran in real time (--sim-realtime)"
+        ),
+        "{}",
+        last_session(&run)
+    );
+    crash_after(&run, 3);
+    sweep::sweep(&SweepArgs {
+        no_sync: true,
+        sim_realtime: true,
+        ..resume_args(&run)
+    })
+    .unwrap();
+    assert!(realtime(&run));
+    assert!(
+        last_session(&run).contains("simulated in real time from this session on"),
+        "{}",
+        last_session(&run)
+    );
+}

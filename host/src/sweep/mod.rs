@@ -96,9 +96,14 @@ pub struct SweepArgs {
     #[arg(long, value_name = "N")]
     pub sim_seed: Option<u64>,
     /// Simulated CTA: run the simulated NorthStar at the plan's rate (10 Hz, as the real
-    /// sensor) and honour settle times, instead of unthrottled.
-    #[arg(long)]
+    /// sensor) and honour settle times, instead of unthrottled. Journalled: a resume keeps the
+    /// mode the last session ran in (--sim-realtime or --sim-unthrottled change it, with a note).
+    #[arg(long, conflicts_with = "sim_unthrottled")]
     pub sim_realtime: bool,
+    /// Simulated CTA, with --resume: run unthrottled although the last session ran with
+    /// --sim-realtime (the data are the same either way).
+    #[arg(long, requires = "resume")]
+    pub sim_unthrottled: bool,
     /// Simulated CTA: inject faults (testing): `drop=P`, `corrupt=P` (per byte, both lines),
     /// `vanish=BOARD@N:MS` (unplugged), `silent=BOARD@N:MS`, `stall=sensor@N:MS`, triggered at
     /// the N-th point attempt of the session, and `reset=BOARD@N` (the board restarts, its
@@ -317,7 +322,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                 RunDir::resume(dir, sync, &plan, Some(given)).map(|s| (s, plan))
             }
         };
-        let (store, plan) = store?;
+        let (mut store, plan) = store?;
         // Every point committed: nothing to measure, so no board is opened (a hardware run
         // needs no ports for it).
         if store.next_point() >= plan.len() {
@@ -355,11 +360,43 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                         s.effects
                     );
                 }
-                s.realtime = args.sim_realtime;
+                // Real time or unthrottled: as the last session ran (journalled with its
+                // simulation settings), unless this resume asks otherwise; said either way
+                // when it changes. The data are the same in both.
+                let was = store
+                    .events
+                    .iter()
+                    .rev()
+                    .find_map(|e| match e {
+                        Event::Session { sim: Some(v), .. } => v["realtime"].as_bool(),
+                        _ => None,
+                    })
+                    .unwrap_or(s.realtime);
+                s.realtime = if args.sim_unthrottled {
+                    false
+                } else {
+                    args.sim_realtime || was
+                };
+                if s.realtime != was {
+                    store.notes.push(if s.realtime {
+                        "simulated in real time from this session on (--sim-realtime: the \
+                         NorthStar at the plan's rate_hz, settle times honoured); the last session \
+                         ran unthrottled. The data are the same either way"
+                            .to_string()
+                    } else {
+                        "simulated unthrottled from this session on (--sim-unthrottled); the \
+                         last session ran in real time (--sim-realtime). The data are the same \
+                         either way"
+                            .to_string()
+                    });
+                }
                 s.faults = parse_faults(args)?;
                 Some(s)
             }
             Some(None) => {
+                if args.sim_unthrottled {
+                    bail!("--sim-unthrottled applies to a run on the simulated CTA; {} was recorded on ports", dir.display());
+                }
                 if args.beacon.is_none() {
                     bail!("{}", ports_needed(&store));
                 }
@@ -467,7 +504,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             None => Box::new(Prompt::new(&bars)),
         };
         bars.log(&format!(
-            "sweep {}: plan `{}`, {} points ({} per separation), {} on the {}",
+            "sweep {}: plan `{}`, {} points ({} per separation), {} on the {}{}",
             store.dir.display(),
             plan.name,
             plan.len(),
@@ -478,6 +515,10 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                 format!("resuming at point {from} ({from} of {} done)", plan.len())
             },
             on,
+            match &sim_settings {
+                Some(s) if s.realtime => " (in real time: --sim-realtime)",
+                _ => "",
+            },
         ));
         engine.run(&mut store, operator.as_mut(), from, &bars)
     })();
@@ -782,6 +823,7 @@ fn sim_settings(args: &SweepArgs) -> Result<Option<SimSettings>> {
             || !args.sim_effect.is_empty()
             || args.sim_seed.is_some()
             || args.sim_realtime
+            || args.sim_unthrottled
             || args.sim_fault.is_some();
         if sim_only {
             bail!("--sim-* options apply to the simulated CTA, not to --beacon/--sensor hardware");
