@@ -15,8 +15,8 @@ use cta_host::sweep::sim::{Posing, SimCta, SimSettings};
 use cta_host::sweep::store::{Event, RunDir};
 use cta_host::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{
-    child, child_paths, crash_after, journal, resume_args, snapshot, sweep_args, write_plan,
-    TestDir,
+    child, child_paths, crash_after, journal, journal_field, resume_args, snapshot, sweep_args,
+    write_plan, TestDir,
 };
 
 const PLAN: &str = r#"
@@ -840,6 +840,128 @@ fn a_resume_whose_boards_do_not_answer_changes_nothing() {
     assert_eq!(resume_on(&run, &first).unwrap().ending, Ending::Complete);
     assert!(last_session(&run).contains("data.csv: discarded"));
     assert_eq!(read(&run.join("data.csv")), full);
+}
+
+/// The last point whose data end within the first `len` bytes of the run's data file, by the
+/// journal: (its index, its end).
+fn last_whole(run: &Path, len: u64) -> (u64, u64) {
+    journal(run)
+        .lines()
+        .filter(|l| l.contains("\"event\":\"point\""))
+        .map(|l| (journal_field(l, "i"), journal_field(l, "csv_end")))
+        .rfind(|&(_, end)| end <= len)
+        .unwrap()
+}
+
+/// A data file cut short (a copy that stopped, a disk that filled, a slip of `truncate`):
+/// the resume says which points the file still holds whole, checked against their hashes,
+/// and what to do, changing nothing. With `--recover-truncated` it continues after that
+/// point, keeps what it cuts in `recovered-1/`, and measures the rest again: on the simulated
+/// CTA the data are the uninterrupted run's.
+#[test]
+fn a_data_file_cut_short_names_what_it_holds_and_recovers_on_request() {
+    let (_d, run) = complete_run("cut-short");
+    let full = read(&run.join("data.csv"));
+    let journal_before = read(&run.join("journal.jsonl"));
+    // Cut in the middle of a row, past half of the file.
+    let len = full.len() as u64 * 3 / 5;
+    let (i, whole) = last_whole(&run, len);
+    assert!(whole < len && i < 29, "{i} {whole} {len}");
+    let cut = full.as_bytes()[..len as usize].to_vec();
+    std::fs::write(run.join("data.csv"), &cut).unwrap();
+    let before = snapshot(&run);
+    let e = resume(&run).unwrap_err();
+    let dp = run.join("data.csv").display().to_string();
+    assert!(
+        e.contains(&format!(
+            "{dp}: {len} bytes, but the journal committed {} (through point 29): the data file \
+             was cut short. It still holds points 0 to {i} whole (its first {whole} bytes are as \
+             written: checked against the hash journalled with point {i}); the rows of points {} \
+             to 29 are gone from it. Not resuming, nothing was changed.",
+            full.len(),
+            i + 1
+        )) && e.contains(&format!(
+            "or continue from point {} with `cta sweep --resume {} --recover-truncated`",
+            i + 1,
+            run.display()
+        )),
+        "{e}"
+    );
+    assert_eq!(snapshot(&run), before, "the refusal changed the run");
+
+    // The same file, edited within the bytes left: refused even with the recovery, as an
+    // edited file is.
+    let mut edited = cut.clone();
+    let k = edited.len() / 2
+        + edited[edited.len() / 2..]
+            .iter()
+            .position(|c| c.is_ascii_digit())
+            .unwrap();
+    edited[k] = if edited[k] == b'7' { b'8' } else { b'7' };
+    std::fs::write(run.join("data.csv"), &edited).unwrap();
+    let recover = |run: &Path| {
+        sweep::sweep(&SweepArgs {
+            no_sync: true,
+            recover_truncated: true,
+            ..resume_args(run)
+        })
+        .map_err(|e| format!("{e:#}"))
+    };
+    let e = recover(&run).unwrap_err();
+    assert!(
+        e.contains("not what was written") && e.contains("Not resuming"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(run.join("data.csv")).unwrap(), edited);
+    assert!(!run.join("recovered-1").exists());
+
+    // The file as cut: recovered. The plate is where the run last recorded it (25 in, cut
+    // from the journal with the points after point i), so the point after i, at 15 in, asks
+    // for it to be moved rather than taken as still there.
+    std::fs::write(run.join("data.csv"), &cut).unwrap();
+    {
+        let plan = Plan::load(&run.join("plan.toml")).unwrap();
+        let opened = RunDir::resume_recovering(&run, false, &plan, None, true).unwrap();
+        assert_eq!(opened.next_point(), i as usize + 1);
+        assert_eq!(plan.point(opened.next_point()).sep_idx, 1);
+        assert_eq!(opened.plate.as_ref().map(|p| p.sep_idx), Some(2));
+    }
+    assert_eq!(
+        std::fs::read(run.join("data.csv")).unwrap(),
+        cut,
+        "opened is not begun"
+    );
+    let s = recover(&run).unwrap();
+    assert_eq!(s.ending, Ending::Complete);
+    assert_eq!(
+        s.stats.ok + s.stats.no_signal + s.stats.partial,
+        29 - i as usize
+    );
+    assert_eq!(
+        read(&run.join("data.csv")),
+        full,
+        "not the uninterrupted run's data"
+    );
+    // What was cut is kept: the journal's lines after point i, the bytes past it.
+    let kept = run.join("recovered-1");
+    let line = journal_before
+        .find(&format!("{{\"event\":\"point\",\"i\":{i},"))
+        .unwrap();
+    let at = line + journal_before[line..].find('\n').unwrap() + 1;
+    assert_eq!(read(&kept.join("journal-tail.jsonl")), journal_before[at..]);
+    assert_eq!(
+        std::fs::read(kept.join("data-tail.csv")).unwrap(),
+        &cut[whole as usize..]
+    );
+    // The journal holds what it held up to point i, then the recovering session with its note.
+    let j = read(&run.join("journal.jsonl"));
+    assert!(j.starts_with(&journal_before[..at]));
+    let note = format!(
+        "data.csv: cut short at {len} bytes, where the journal committed {} (through point 29): \
+         resuming after point {i}, the last it holds whole",
+        full.len()
+    );
+    assert!(last_session(&run).contains(&note), "{}", last_session(&run));
 }
 
 /// `--resume` names a run directory that does not exist, or a file given for

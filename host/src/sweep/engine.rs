@@ -620,11 +620,10 @@ impl<'a> Engine<'a> {
         let mut place: Option<(usize, usize)> = None; // (sep_idx, quadrant) in place
         let mut entry: Option<SeparationEntry> = None;
         let mut power: Option<u8> = None;
-        // Resume: the last recorded plate position and power, to confirm.
-        let mut previous_entry = store.events.iter().rev().find_map(|e| match e {
-            Event::Separation(s) => Some(s.clone()),
-            _ => None,
-        });
+        // Resume: the last recorded plate position, to confirm (also when a recovery cut it
+        // from the journal: the plate is where it was last recorded, and a point at another
+        // separation asks for it to be moved).
+        let mut previous_entry = store.plate.clone();
         bars.start(plan, from);
         // An operator's answer, or `None` when the run was interrupted while waiting for it
         // (then nothing is recorded for that question).

@@ -124,6 +124,14 @@ pub struct SweepArgs {
     /// process still loses nothing.
     #[arg(long)]
     pub no_sync: bool,
+    /// With --resume, when RUN_DIR/data.csv was cut short (it holds fewer bytes than the
+    /// journal committed): resume from the last point it still holds whole, once its bytes and
+    /// every earlier point's are checked against the hashes journalled with them. The journal
+    /// lines after that point and the bytes past it are moved to RUN_DIR/recovered-N/, and
+    /// the points after it are measured again. Refused when the bytes left are not what was
+    /// written.
+    #[arg(long, requires = "resume")]
+    pub recover_truncated: bool,
 }
 
 /// What a finished session did (for tests and callers).
@@ -307,10 +315,11 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         // The run's own plan.toml, or the plan file given: checked the same way against the
         // plan the last session ran with (only timing may change); a given file then becomes
         // the run's plan.toml.
+        let recover = args.recover_truncated;
         let store = match &args.plan {
             None => {
                 let plan = Plan::load(&plan_path)?;
-                RunDir::open(dir, sync, &plan).map(|s| (s, plan))
+                RunDir::resume_recovering(dir, sync, &plan, None, recover).map(|s| (s, plan))
             }
             Some(p) => {
                 let text = read_plan(p)?;
@@ -319,7 +328,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                     path: p,
                     text: &text,
                 };
-                RunDir::resume(dir, sync, &plan, Some(given)).map(|s| (s, plan))
+                RunDir::resume_recovering(dir, sync, &plan, Some(given), recover).map(|s| (s, plan))
             }
         };
         let (mut store, plan) = store?;

@@ -357,6 +357,10 @@ pub struct RunDir {
     last_sync: std::time::Instant,
     /// A resume's changes not made yet ([`RunDir::begin`]).
     unapplied: Option<Unapplied>,
+    /// Where the plate was last recorded when the run was opened (the journal's last
+    /// `separation`, also when a recovery cut it from the journal): a resume asks to confirm
+    /// it only when the next point is at that separation.
+    pub plate: Option<SeparationEntry>,
     _lock: Lock,
 }
 
@@ -365,7 +369,24 @@ pub struct RunDir {
 struct Unapplied {
     /// The text to write as plan.toml (`--plan FILE` with another text).
     plan_text: Option<String>,
+    /// A recovery of a data file cut short (`--recover-truncated`): what is moved aside
+    /// before the cuts.
+    recovery: Option<Recovery>,
 }
+
+/// What `--recover-truncated` keeps before it cuts: the journal from `journal_from` (the
+/// lines after the last point the data file still holds whole) and data.csv from `data_from`
+/// (the bytes past that point), each to its own file in `folder`.
+struct Recovery {
+    folder: PathBuf,
+    journal_from: u64,
+    data_from: u64,
+}
+
+/// In a recovery folder: the journal lines cut.
+pub const JOURNAL_TAIL: &str = "journal-tail.jsonl";
+/// In a recovery folder: the data bytes cut.
+pub const DATA_TAIL: &str = "data-tail.csv";
 
 /// Longest time between two syncs while points complete.
 pub const SYNC_INTERVAL: std::time::Duration = std::time::Duration::from_millis(250);
@@ -529,6 +550,7 @@ impl RunDir {
             pending_events: 0,
             last_sync: std::time::Instant::now(),
             unapplied: None,
+            plate: None,
             _lock: lock,
         })
     }
@@ -558,6 +580,25 @@ impl RunDir {
         plan: &Plan,
         given: Option<GivenPlan<'_>>,
     ) -> Result<RunDir> {
+        RunDir::resume_recovering(dir, sync, plan, given, false)
+    }
+
+    /// [`RunDir::resume`], and with `recover` (`--recover-truncated`) a data file cut short
+    /// (fewer bytes than the journal committed) is not refused but resumed from the last
+    /// point it still holds whole: that point's bytes, and so every earlier point's, must
+    /// have the hash journalled with it (a file whose remaining bytes differ is refused as an
+    /// edited one). The journal lines after that point and the data bytes past it are moved
+    /// to `RUN_DIR/recovered-N/` ([`JOURNAL_TAIL`], [`DATA_TAIL`]) by [`RunDir::begin`], which
+    /// then cuts both files there: the run is as if it had been killed just after that point,
+    /// and the points after it are measured again. Said in a note. Without `recover` the
+    /// refusal names that point and the command that recovers.
+    pub fn resume_recovering(
+        dir: &Path,
+        sync: bool,
+        plan: &Plan,
+        given: Option<GivenPlan<'_>>,
+        recover: bool,
+    ) -> Result<RunDir> {
         let jp = dir.join(JOURNAL);
         let dp = dir.join(DATA);
         match (jp.exists(), dp.exists()) {
@@ -585,6 +626,8 @@ impl RunDir {
         let mut notes: Vec<String> = stale.map(took_over).into_iter().collect();
         let mut events = Vec::new();
         let mut good_len = 0u64;
+        // The journal's length after each event's line.
+        let mut line_ends: Vec<u64> = Vec::new();
         {
             let f = File::open(&jp).with_context(|| format!("{}: cannot open", jp.display()))?;
             let mut r = BufReader::new(f);
@@ -612,6 +655,7 @@ impl RunDir {
                     Err(e) => bail!("{}:{lineno}: unreadable journal entry: {e}", jp.display()),
                 }
                 good_len += n as u64;
+                line_ends.push(good_len);
             }
         }
         // The points are numbered by the plan: continuing with another one would leave points
@@ -702,13 +746,21 @@ impl RunDir {
             )),
             None => {}
         }
+        // Where the plate was last recorded (before any recovery cuts the journal).
+        let plate = events.iter().rev().find_map(|e| match e {
+            Event::Separation(s) => Some(s.clone()),
+            _ => None,
+        });
         // The CSV ends where the last committed point ended (or after the header).
-        let header_len = csv_header_len(&dp)?;
-        let last_point = events.iter().rev().find_map(|e| match e {
+        let mut last_point = events.iter().rev().find_map(|e| match e {
             Event::Point { i, csv_end, .. } => Some((*i, *csv_end)),
             _ => None,
         });
-        let end = last_point.map_or(header_len, |(_, e)| e);
+        let header_len = match last_point {
+            Some(_) => None,
+            None => Some(csv_header_len(&dp)?),
+        };
+        let mut end = last_point.map_or(header_len.unwrap_or(0), |(_, e)| e);
         let csv = OpenOptions::new()
             .write(true)
             .open(&dp)
@@ -717,19 +769,78 @@ impl RunDir {
             .metadata()
             .with_context(|| format!("{}: cannot read", dp.display()))?
             .len();
+        let mut recovery = None;
         if len < end {
-            bail!(
-                "{}: {len} bytes, but the journal says {end} were committed: the data file was \
-                 truncated or replaced; not resuming",
-                dp.display()
-            );
+            // Cut short: the last point the file still holds whole, checked; without
+            // `recover`, a refusal that names it and the command that recovers.
+            let (k, i, whole_end) = whole_points(&dp, &events, len, end, last_point)?;
+            if !recover {
+                let last = last_point.map_or(0, |(l, _)| l);
+                bail!(
+                    "{}: {len} bytes, but the journal committed {end} (through point {last}): the \
+                     data file was cut short. It still holds points 0 to {i} whole (its first \
+                     {whole_end} bytes are as written: checked against the hash journalled with \
+                     point {i}); the rows of points {} to {last} are gone from it. Not resuming, \
+                     nothing was changed. Put back a copy of {DATA} that holds them, if you have \
+                     one, and resume as usual; or continue from point {} with `{} \
+                     --recover-truncated`, which measures points {} to {last} again and moves what \
+                     it cuts (the journal's lines after point {i}, the {} bytes past it) to {}",
+                    dp.display(),
+                    i + 1,
+                    i + 1,
+                    super::resume_command(
+                        dir,
+                        super::last_session_ports(&events)
+                            .as_ref()
+                            .map(|(b, s)| (b.as_str(), s.as_str()))
+                    ),
+                    i + 1,
+                    len - whole_end,
+                    recovery_folder(dir).display()
+                );
+            }
+            let folder = recovery_folder(dir);
+            let last = last_point.map_or(0, |(l, _)| l);
+            let cut = events.len() - (k + 1);
+            notes.push(format!(
+                "{DATA}: cut short at {len} bytes, where the journal committed {end} (through \
+                 point {last}): resuming after point {i}, the last it holds whole (its first \
+                 {whole_end} bytes checked against the hash journalled with it); points {} to \
+                 {last} are measured again. Moved to {}: the journal's {cut} line{} after point \
+                 {i} ({JOURNAL_TAIL}: their points, sessions, faults){}",
+                i + 1,
+                folder.display(),
+                if cut == 1 { "" } else { "s" },
+                if len > whole_end {
+                    format!(
+                        " and {DATA}'s {} bytes past it ({DATA_TAIL})",
+                        len - whole_end
+                    )
+                } else {
+                    String::new()
+                }
+            ));
+            recovery = Some(Recovery {
+                folder,
+                journal_from: line_ends[k],
+                data_from: whole_end,
+            });
+            events.truncate(k + 1);
+            good_len = line_ends[k];
+            last_point = Some((i, whole_end));
+            end = whole_end;
+        } else if recover {
+            notes.push(format!(
+                "--recover-truncated: {DATA} holds every committed point ({end} bytes): nothing \
+                 to recover"
+            ));
         }
         if last_point.is_none() {
             // Nothing committed: rows past the header can only be a first session's uncommitted
             // leftovers, which come after its `session` line. An empty journal with rows, or a
             // manifest counting committed points, means the journal was emptied or replaced:
             // resuming would start again at point 0 and cut every measurement.
-            let (rows, _) = data_lines(&dp, header_len)?;
+            let (rows, _) = data_lines(&dp, end)?;
             if rows > 0 && events.is_empty() {
                 bail!(
                     "{} is empty but {} holds {rows} data rows: the journal was emptied or \
@@ -759,7 +870,7 @@ impl RunDir {
         // inserted, a value changed) would otherwise be cut at the journalled length in the
         // middle of a row, silently.
         let csv_hash = verify_committed(&dp, &events, end)?;
-        if len > end {
+        if len > end && recovery.is_none() {
             // Rows of points whose journal line never made it (the session stopped between
             // the two), or anything appended since: cut, and said.
             let (rows, comments) = data_lines(&dp, end)?;
@@ -814,7 +925,11 @@ impl RunDir {
             pending: Vec::new(),
             pending_events: 0,
             last_sync: std::time::Instant::now(),
-            unapplied: Some(Unapplied { plan_text }),
+            unapplied: Some(Unapplied {
+                plan_text,
+                recovery,
+            }),
+            plate,
             _lock: lock,
         })
     }
@@ -829,10 +944,20 @@ impl RunDir {
         let Some(u) = &self.unapplied else {
             return Ok(());
         };
+        let (jp, dp) = (self.dir.join(JOURNAL), self.dir.join(DATA));
+        if let Some(r) = &u.recovery {
+            // Kept before anything is cut (synced: the cut follows).
+            std::fs::create_dir(&r.folder)
+                .with_context(|| format!("{}: cannot create", r.folder.display()))?;
+            copy_tail(&jp, r.journal_from, &r.folder.join(JOURNAL_TAIL))?;
+            copy_tail(&dp, r.data_from, &r.folder.join(DATA_TAIL))?;
+            if let Ok(d) = File::open(&r.folder) {
+                let _ = d.sync_all();
+            }
+        }
         if let Some(text) = &u.plan_text {
             write_atomically(&self.dir.join(PLAN), text.as_bytes(), self.sync)?;
         }
-        let (jp, dp) = (self.dir.join(JOURNAL), self.dir.join(DATA));
         let (good_len, end) = (self.journal_len, self.csv_len);
         let journal = &mut self.journal;
         journal
@@ -1153,6 +1278,87 @@ fn verify_committed(path: &Path, events: &[Event], end: u64) -> Result<Fnv> {
     }
     feed(&mut r, &mut hash, end - pos)?;
     Ok(hash)
+}
+
+/// The folder a recovery of `dir` moves what it cuts to: `recovered-N`, the first N not taken.
+fn recovery_folder(dir: &Path) -> PathBuf {
+    (1..)
+        .map(|n| dir.join(format!("recovered-{n}")))
+        .find(|p| !p.exists())
+        .expect("a free name")
+}
+
+/// Copy `from`'s bytes past `start` to a new file `to`, synced (an empty tail makes an empty
+/// file: the folder says what was cut, even when nothing of the data was).
+fn copy_tail(from: &Path, start: u64, to: &Path) -> Result<()> {
+    (|| -> std::io::Result<()> {
+        let mut src = File::open(from)?;
+        src.seek(SeekFrom::Start(start))?;
+        let mut dst = OpenOptions::new().write(true).create_new(true).open(to)?;
+        std::io::copy(&mut src, &mut dst)?;
+        dst.sync_all()
+    })()
+    .with_context(|| {
+        format!(
+            "{}: cannot keep what the recovery cuts from {}",
+            to.display(),
+            from.display()
+        )
+    })
+}
+
+/// For a data file cut short to `len` bytes (the journal committed `end`, through
+/// `last_point`): the last point it still holds whole, as (its event's index in `events`, its
+/// point index, its end), once its first bytes are checked against the hash journalled with
+/// it (which covers every earlier point's). Refused, saying why, when none is whole, when the
+/// journal has no hash to check with (an older version), or when the bytes differ.
+fn whole_points(
+    dp: &Path,
+    events: &[Event],
+    len: u64,
+    end: u64,
+    last_point: Option<(usize, u64)>,
+) -> Result<(usize, usize, u64)> {
+    let last = last_point.map_or(0, |(l, _)| l);
+    let short = format!(
+        "{}: {len} bytes, but the journal committed {end} (through point {last}): the data file \
+         was cut short",
+        dp.display()
+    );
+    let whole = events.iter().enumerate().rev().find_map(|(k, e)| match e {
+        Event::Point { i, csv_end, .. } if *csv_end <= len => Some((k, *i, *csv_end)),
+        _ => None,
+    });
+    let Some((k, i, whole_end)) = whole else {
+        bail!(
+            "{short}, and holds no committed point whole (point 0 ends at byte {}). Not \
+             resuming, nothing was changed: put back a copy of {DATA} that holds the committed \
+             points, or start a new run with --out",
+            events
+                .iter()
+                .find_map(|e| match e {
+                    Event::Point { csv_end, .. } => Some(*csv_end),
+                    _ => None,
+                })
+                .unwrap_or(end)
+        );
+    };
+    if !matches!(
+        &events[k],
+        Event::Point {
+            csv_hash: Some(_),
+            ..
+        }
+    ) {
+        bail!(
+            "{short}. The journal (of an older version) has no hash to check what the file still \
+             holds against. Not resuming, nothing was changed: put back a copy of {DATA} that \
+             holds the committed points, or start a new run with --out"
+        );
+    }
+    // Every hashed point up to it: a file replaced or edited within them is refused here.
+    verify_committed(dp, &events[..=k], whole_end).with_context(|| short.clone())?;
+    Ok((k, i, whole_end))
 }
 
 /// Data rows and comment lines (blank lines aside) in `path` from byte `from`.
