@@ -964,7 +964,7 @@ fn a_data_file_cut_short_names_what_it_holds_and_recovers_on_request() {
     assert!(last_session(&run).contains(&note), "{}", last_session(&run));
 }
 
-/// `--resume` names a run directory that does not exist, or a file given for
+/// `--resume` and `--status` name a run directory that does not exist, or a file given for
 /// one (with its run when it is a run's file); `--out` names a file where its folder would be;
 /// `--plan` names a measurement file given as the plan. Nothing is created.
 #[test]
@@ -980,6 +980,11 @@ fn paths_of_the_wrong_kind_are_named() {
              RUN_DIR`)",
             missing.display()
         )
+    );
+    let e = format!("{:#}", sweep::status::status(&missing).unwrap_err());
+    assert!(
+        e.contains("does not exist") && e.contains("--status"),
+        "{e}"
     );
     let e = resume(&run.join("data.csv")).unwrap_err();
     assert!(

@@ -14,6 +14,7 @@
 pub mod engine;
 pub mod plan;
 pub mod sim;
+pub mod status;
 pub mod store;
 
 use std::path::{Path, PathBuf};
@@ -45,13 +46,15 @@ synced to disk before the point is journalled. The run asks the operator to move
 corner measurements: their mean is recorded as the separation, and the larger of its differences from the \
 highest and the lowest corner as its uncertainty, Ch IV) and to flip the power switches; --yes runs without asking.\n\n\
 Nothing is lost and nothing is written twice: after Ctrl-C, a killed process or a power cut, \
-`cta sweep --resume RUN_DIR` continues with the next point. An unplugged or silent board pauses the run, which \
+`cta sweep --resume RUN_DIR` continues with the next point; `cta sweep --status RUN_DIR` says how far a run has \
+got without changing anything, also while it runs. An unplugged or silent board pauses the run, which \
 retries with backoff and continues when the board is back. Every fault and retry is in RUN_DIR/journal.jsonl \
 and RUN_DIR/manifest.json.\n\n\
 Without --beacon/--sensor the run uses the simulated CTA: both boards' firmware behind pseudo-terminals, the \
 simulated NorthStar seeing what the beacon board lights through the emulator (eqs 60-63), the plate moving \
 itself. Example:\n  cta sweep --plan host/plans/short.toml --out run1 --sim-noise 20\n  \
-cta sweep --resume run1\n  cta sweep --plan plan.toml --out lab1 --beacon /dev/ttyUSB0 --sensor /dev/ttyUSB1"
+cta sweep --resume run1\n  cta sweep --status run1\n  \
+cta sweep --plan plan.toml --out lab1 --beacon /dev/ttyUSB0 --sensor /dev/ttyUSB1"
 )]
 pub struct SweepArgs {
     /// The plan (TOML; see host/SWEEP.md). Not needed with --resume (the run keeps its copy,
@@ -132,6 +135,19 @@ pub struct SweepArgs {
     /// written.
     #[arg(long, requires = "resume")]
     pub recover_truncated: bool,
+    /// Say how far the run in RUN_DIR has got, without changing anything (no lock, no cut, no
+    /// write; also while another `cta sweep` is running it): points done of all, per
+    /// separation, the last commit, sessions, faults, whether it is complete, running or
+    /// stopped, and the command that continues it.
+    #[arg(
+        long,
+        value_name = "RUN_DIR",
+        conflicts_with_all = ["out", "resume", "plan", "beacon", "sensor", "sim", "force", "yes"]
+    )]
+    pub status: Option<PathBuf>,
+    /// With --status: JSON instead of the table.
+    #[arg(long, requires = "status")]
+    pub json: bool,
 }
 
 /// What a finished session did (for tests and callers).
@@ -158,6 +174,9 @@ pub struct Summary {
 
 /// `cta sweep`.
 pub fn run(args: &SweepArgs) -> Result<()> {
+    if let Some(dir) = &args.status {
+        return status::run(dir, args.json);
+    }
     catch_stop_signals();
     let s = sweep(args)?;
     print_summary(&s);
@@ -416,7 +435,10 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         (Ok(store), plan, sim)
     } else {
         let Some(out) = &args.out else {
-            bail!("give --out RUN_DIR for a new run, or --resume RUN_DIR to continue one");
+            bail!(
+                "give --out RUN_DIR for a new run, --resume RUN_DIR to continue one, or \
+                 --status RUN_DIR to see how far one has got"
+            );
         };
         let Some(plan_path) = &args.plan else {
             bail!("give --plan PLAN.toml (see host/plans/ and host/SWEEP.md)");
@@ -760,7 +782,7 @@ fn two_ports(beacon: &str, sensor: &str) -> Result<()> {
 /// `cta sweep --sim`, or the boards on the ports given, which are hardware or simulated
 /// (`cta beacon sim`, `cta sensor sim`) as each board says of itself (`beacon_simulated`,
 /// `sensor_simulated`).
-fn apparatus(sim: bool, beacon_simulated: bool, sensor_simulated: bool) -> &'static str {
+pub(crate) fn apparatus(sim: bool, beacon_simulated: bool, sensor_simulated: bool) -> &'static str {
     match (sim, beacon_simulated, sensor_simulated) {
         (true, _, _) => "simulated CTA",
         (false, true, true) => "simulated beacon and sensor boards",

@@ -216,6 +216,10 @@ pub enum Event {
         /// committed data are still what was written. Absent in journals of older versions.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         csv_hash: Option<String>,
+        /// When it was committed, seconds since the epoch (`cta sweep --status`'s last commit
+        /// and rate). Absent in journals of older versions.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        at: Option<f64>,
     },
     /// Something went wrong, and what was done about it.
     Fault {
@@ -1116,6 +1120,7 @@ impl RunDir {
             attempts,
             csv_end: self.csv_len,
             csv_hash: Some(self.csv_hash.hex()),
+            at: Some(now()),
         };
         let mut line = serde_json::to_string(&e)?;
         line.push('\n');
