@@ -99,7 +99,10 @@ for run in pinhole nearfield nearfield20; do
 done
 
 echo "== face-angle sine and cosine on the target vs libm (QEMU)"
-(cd "$root/tests/qemu" && cargo build --release --quiet --bin trig --config 'profile.release.package.cta-qemu.opt-level="z"')
+(cd "$root/tests/qemu" && cargo build --release --quiet --bin trig \
+  --config 'profile.release.package.cta-qemu.opt-level="z"' \
+  --config 'profile.release.package."*".opt-level="z"' \
+  --config 'profile.release.package.cta-core.opt-level=3')
 trig_elf="${CARGO_TARGET_DIR:-$root/tests/qemu/target}/thumbv7m-none-eabi/release/trig"
 out=$(qemu-system-arm -machine lm3s6965evb -cpu cortex-m3 -nographic \
   -semihosting-config enable=on,target=native -kernel "$trig_elf" 2>/dev/null) || true

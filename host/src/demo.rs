@@ -236,6 +236,9 @@ fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> 
         .with_context(|| format!("{}", cal.display()))?
         .noise;
     let truth = crate::simulate::Truth::path_for(&run_dir.join("data.csv"));
+    // The simulated board's own scene, as `cta sensor sim` takes it by default.
+    let scene = parse_args::<crate::sensor_cmd::SimArgs>(&[])?;
+    let [x, y] = scene.offset;
     Ok(format!(
         "\nRehearse the sensor board with cal.json, no hardware: a simulated board with this sweep's \
          head (its hidden `{effect}` included: the plain `cta sensor sim` head has none, and its \
@@ -244,10 +247,12 @@ fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> 
          \x20 cta sensor sim --truth {} --noise {noise:.1} --configured\n\
          \x20 cta sensor --port PTY load-calibration {}\n\
          \x20 cta sensor --port PTY pose --count 5\n\
-         The target sits at x 0.2, y -0.1, z 12 in (the simulated board's --offset and --range): \
-         the poses read that within their 1-sigma (sx, sy, sz).\n",
+         The target sits at x {x}, y {y}, z {} in (the simulated board's --offset and --range): \
+         single poses scatter about it by their 1-sigma (sx, sy, sz), and the mean of a few lies \
+         within it.\n",
         truth.display(),
         cal.display(),
+        scene.range,
     ))
 }
 

@@ -907,7 +907,9 @@ impl Dataset {
              {SEP_TYPO_RATIO} times the rows, closer than two plate positions can be told apart. \
              One plate position records one value of separation_in (a sweep writes the mean of \
              its corner readings on every row), so these rows make a separation of their own, \
-             which --separations never selects: a typo? Correct them to the value beside them",
+             which --separations never selects: a typo? Correct them to the value beside them (a plate \
+             placed again within one separation, as a resumed sweep may do, reads a little \
+             differently: then they are real, and the warning can be ignored)",
             self.path.display(),
             listed.join("; "),
             if n > 5 {
@@ -1191,7 +1193,8 @@ impl Glitches {
             "{}: {} sample{} ({share} of the rows) lie{} more than {} robust sigma from {} point's \
              median ({lines}): glitches (an ID mix-up, a corrupted report?) that inflate the noise \
              pooled {inflate}; every fit weights by that noise. Remove those lines, or re-measure \
-             (`cta analyze --drop-glitches` leaves them out)",
+             (`cta analyze --drop-glitches` leaves them out of an analysis; other commands need them \
+             removed)",
             path.display(),
             self.samples,
             if self.samples == 1 { "" } else { "s" },

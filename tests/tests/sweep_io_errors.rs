@@ -172,8 +172,10 @@ fn root(d: &Path) -> bool {
 
 /// Runs `c` (a child sweep) so that permission bits bind it: as it is, or, under `root`, as
 /// [`NOBODY`] (the test folder was handed to it). `None`, said on stderr, when a root test
-/// cannot start a process as another user (a container without the capability): then
-/// nothing here can make a folder read-only to the sweep.
+/// cannot start a process as another user (a container without the capability, or a
+/// checkout `nobody` cannot read): then nothing here can make a folder read-only to the
+/// sweep. Under CI (`CI=true`, as `.ci/run` sets) that is a failure, not a skip: the test
+/// would otherwise pass while checking nothing.
 fn run_bound_by_permissions(mut c: Command, root: bool) -> Option<Output> {
     if !root {
         return Some(c.output().unwrap());
@@ -181,10 +183,14 @@ fn run_bound_by_permissions(mut c: Command, root: bool) -> Option<Output> {
     match c.uid(NOBODY).gid(NOBODY).output() {
         Ok(o) => Some(o),
         Err(e) => {
-            eprintln!(
-                "skipped: running as root, where read-only permissions do not stop writes, and \
-                 a child sweep cannot be started as uid {NOBODY} ({e})"
+            let why = format!(
+                "running as root, where read-only permissions do not stop writes, and a child \
+                 sweep cannot be started as uid {NOBODY} ({e}; it must be able to run {} and \
+                 the cta binary: a checkout in a folder only root can read stops it)",
+                std::env::current_exe().unwrap().display()
             );
+            assert!(std::env::var("CI").as_deref() != Ok("true"), "{why}");
+            eprintln!("skipped: {why}");
             None
         }
     }

@@ -142,7 +142,11 @@ pub struct SweepArgs {
     #[arg(
         long,
         value_name = "RUN_DIR",
-        conflicts_with_all = ["out", "resume", "plan", "beacon", "sensor", "sim", "force", "yes"]
+        conflicts_with_all = [
+            "out", "resume", "plan", "beacon", "sensor", "sim", "force", "yes", "sim_noise",
+            "sim_magnitude_noise", "sim_effect", "sim_seed", "sim_realtime", "sim_unthrottled",
+            "sim_fault", "quiet", "no_sync", "recover_truncated"
+        ]
     )]
     pub status: Option<PathBuf>,
     /// With --status: JSON instead of the table.

@@ -106,6 +106,20 @@ pub struct Status {
 /// Read the status of the run in `dir`. Nothing is written, locked or cut.
 pub fn status(dir: &Path) -> Result<Status> {
     super::run_dir_given(dir, "--status")?;
+    // The lock's holder read before and after the journal: a session that starts or ends in
+    // between (a clean stop read as a kill) is read again.
+    for _ in 0..3 {
+        let before = holder(dir);
+        let s = status_held(dir, before.clone())?;
+        if holder(dir) == before {
+            return Ok(s);
+        }
+    }
+    status_held(dir, holder(dir))
+}
+
+/// [`status`] with the lock's holder as read.
+fn status_held(dir: &Path, holder: Holder) -> Result<Status> {
     let jp = dir.join(store::JOURNAL);
     let bytes = match std::fs::read(&jp) {
         Ok(b) => b,
@@ -201,7 +215,6 @@ pub fn status(dir: &Path) -> Result<Status> {
         })
         .collect();
 
-    let holder = holder(dir);
     let last_session_at = events
         .iter()
         .rposition(|e| matches!(e, Event::Session { .. }));
@@ -363,13 +376,28 @@ pub fn holder(dir: &Path) -> Holder {
         });
         return match held {
             Some(pid) => Holder::Running(written.or(pid)),
-            None => Holder::Free(written),
+            // Not in the table: free, unless the pid written is a live `cta` (on btrfs
+            // subvolumes and overlayfs `stat` gives another device number than the table
+            // prints, so a held lock is not found by its id there).
+            None => match written {
+                Some(pid) if runs_cta(pid) => Holder::Running(Some(pid)),
+                other => Holder::Free(other),
+            },
         };
     }
     // No lock table: the pid a running sweep writes (and empties when it ends).
     match written {
-        Some(pid) if alive(pid) => Holder::Running(Some(pid)),
+        Some(pid) if runs_cta(pid) => Holder::Running(Some(pid)),
         other => Holder::Free(other),
+    }
+}
+
+/// Whether `pid` is a live `cta` process: its name where `/proc` gives it (a pid reused by
+/// another program is no sweep), else whether it exists at all.
+fn runs_cta(pid: u32) -> bool {
+    match std::fs::read_to_string(format!("/proc/{pid}/comm")) {
+        Ok(name) => name.trim() == "cta",
+        Err(_) => alive(pid),
     }
 }
 

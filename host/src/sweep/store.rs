@@ -955,8 +955,11 @@ impl RunDir {
                 .with_context(|| format!("{}: cannot create", r.folder.display()))?;
             copy_tail(&jp, r.journal_from, &r.folder.join(JOURNAL_TAIL))?;
             copy_tail(&dp, r.data_from, &r.folder.join(DATA_TAIL))?;
-            if let Ok(d) = File::open(&r.folder) {
-                let _ = d.sync_all();
+            // The folder's entries, then the run folder's entry for the folder itself.
+            for d in [&r.folder, &self.dir] {
+                if let Ok(d) = File::open(d) {
+                    let _ = d.sync_all();
+                }
             }
         }
         if let Some(text) = &u.plan_text {
@@ -967,6 +970,7 @@ impl RunDir {
         journal
             .set_len(good_len)
             .and_then(|_| journal.seek(SeekFrom::End(0)))
+            .and_then(|_| journal.sync_all())
             .with_context(|| format!("{}: cannot cut back to {good_len} bytes", jp.display()))?;
         let csv = self.csv.get_mut();
         csv.set_len(end)
