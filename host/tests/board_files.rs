@@ -3,31 +3,16 @@
 use std::process::Output;
 
 mod common;
-use common::{cta, s, simulate};
+use common::{cta, fails_in_one_line, s, simulate, stderr};
 
 fn tmpdir(name: &str) -> common::TmpDir {
     common::tmpdir_of("board-files", name)
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// `o` succeeded; its stdout.
 fn ok(o: &Output) -> String {
     assert!(o.status.success(), "failed: {}", stderr(o));
     String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// `o` failed, without a panic, with one line holding every needle.
-fn fails_with(o: &Output, needles: &[&str]) {
-    let err = stderr(o);
-    assert!(!o.status.success(), "expected failure: {err}");
-    assert!(!err.contains("panicked"), "panic: {err}");
-    assert_eq!(err.trim().lines().count(), 1, "not one line: {err}");
-    for n in needles {
-        assert!(err.contains(n), "stderr lacks `{n}`: {err}");
-    }
 }
 
 /// The audit's case: `load-calibration fit.json` said "missing field `d` at line 88 column 1"
@@ -45,7 +30,7 @@ fn a_file_of_another_kind_is_named_with_what_to_do() {
     let cal = d.join("cal.json");
     std::fs::write(&cal, ok(&cta(&["sensor", "template", "calibration"]))).unwrap();
     let load = |what: &str, file: &std::path::Path| cta(&["sensor", "--sim", what, s(file)]);
-    fails_with(
+    fails_in_one_line(
         &load("load-calibration", &fit),
         &[
             "this is a saved fit (`cta fit --save`",
@@ -53,14 +38,14 @@ fn a_file_of_another_kind_is_named_with_what_to_do() {
             &format!("`cta calibrate {} --out cal.json`", s(&csv)),
         ],
     );
-    fails_with(
+    fails_in_one_line(
         &load("load-calibration", &con),
         &[
             "this is a constellation",
             &format!("load-constellation {}", s(&con)),
         ],
     );
-    fails_with(
+    fails_in_one_line(
         &load("load-constellation", &cal),
         &[
             "this is a sensor calibration",
@@ -68,18 +53,18 @@ fn a_file_of_another_kind_is_named_with_what_to_do() {
             &format!("load-calibration {}", s(&cal)),
         ],
     );
-    fails_with(
+    fails_in_one_line(
         &load("load-constellation", &fit),
         &["this is a saved fit", "`cta sensor template constellation"],
     );
-    fails_with(
+    fails_in_one_line(
         &load("load-calibration", &csv),
         &[
             "this is a measurement file (CSV)",
             &format!("`cta calibrate {} --out cal.json`", s(&csv)),
         ],
     );
-    fails_with(
+    fails_in_one_line(
         &load("load-calibration", &d.join("sim.truth.json")),
         &["truth sidecar", "`cta sensor sim --truth"],
     );
@@ -92,7 +77,7 @@ fn a_file_of_another_kind_is_named_with_what_to_do() {
             .replacen("\"d\": [", "\"d\": [[", 1),
     )
     .unwrap();
-    fails_with(
+    fails_in_one_line(
         &load("load-calibration", &bad),
         &["not a valid JSON document of the expected shape"],
     );
@@ -146,7 +131,7 @@ fn sensor_retries_sets_the_links_resends() {
     let (_master, slave) = serialport::TTYPort::pair().expect("a pseudo-terminal");
     let port = slave.name().unwrap();
     for (retries, attempts) in [("0", "1 attempt(s)"), ("3", "4 attempt(s)")] {
-        fails_with(
+        fails_in_one_line(
             &cta(&[
                 "sensor",
                 "--port",
@@ -162,11 +147,11 @@ fn sensor_retries_sets_the_links_resends() {
             )],
         );
     }
-    fails_with(
+    fails_in_one_line(
         &cta(&["sensor", "status", "--port", &port, "--timeout-ms", "30"]),
         &["after 3 attempt(s)"],
     );
-    fails_with(
+    fails_in_one_line(
         &cta(&[
             "sensor",
             "--retries",
@@ -179,7 +164,7 @@ fn sensor_retries_sets_the_links_resends() {
         ]),
         &["--retries is given both before and after the subcommand"],
     );
-    fails_with(
+    fails_in_one_line(
         &cta(&["sensor", "--retries", "1", "accuracy"]),
         &["--retries means nothing for `cta sensor accuracy`"],
     );

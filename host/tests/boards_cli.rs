@@ -4,21 +4,13 @@
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, ChildStdout, Command, Output, Stdio};
+use std::process::{Command, Output, Stdio};
 
-fn cta(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cta"))
-        .args(args)
-        .output()
-        .expect("run cta")
-}
+mod common;
+use common::{cta, stderr, Sim};
 
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// `o` succeeded; its stdout.
@@ -38,44 +30,6 @@ fn fails_with(o: &Output, needles: &[&str]) {
     assert!(!err.contains("panicked"), "panic: {err}");
     for n in needles {
         assert!(err.contains(n), "stderr lacks `{n}`: {err}");
-    }
-}
-
-/// A simulated board served on a pty by `cta <board> sim` (killed when dropped).
-struct Sim {
-    child: Child,
-    // Kept open so the board's own prints never hit a closed pipe.
-    _out: BufReader<ChildStdout>,
-    path: String,
-}
-
-impl Sim {
-    fn start(args: &[&str]) -> Sim {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_cta"))
-            .args(args)
-            .args(["--seconds", "120"])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start the simulated board");
-        let mut out = BufReader::new(child.stdout.take().unwrap());
-        let mut line = String::new();
-        out.read_line(&mut line).unwrap();
-        // "simulated ... board on /dev/pts/N"
-        let path = line.trim().rsplit(' ').next().unwrap().to_string();
-        assert!(path.starts_with("/dev/"), "{line}");
-        Sim {
-            child,
-            _out: out,
-            path,
-        }
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
     }
 }
 

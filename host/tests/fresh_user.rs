@@ -6,25 +6,10 @@ use std::path::Path;
 use std::process::Output;
 
 mod common;
-use common::{cta, s, simulate};
+use common::{cta, fails_in_one_line, s, simulate, stderr};
 
 fn tmpdir(name: &str) -> common::TmpDir {
     common::tmpdir_of("fresh-user", name)
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// `o` failed, without a panic, with one line holding every needle.
-fn fails_with(o: &Output, needles: &[&str]) {
-    let err = stderr(o);
-    assert!(!o.status.success(), "expected failure: {err}");
-    assert!(!err.contains("panicked"), "panic: {err}");
-    assert_eq!(err.trim().lines().count(), 1, "not one line: {err}");
-    for n in needles {
-        assert!(err.contains(n), "stderr lacks `{n}`: {err}");
-    }
 }
 
 /// The data commands that read a measurement file, each with `file`.
@@ -58,7 +43,7 @@ fn a_run_folder_suggests_its_data_csv() {
     simulate(&run1.join("data.csv"), &["--separations", "25,30"]);
     let data = run1.join("data.csv");
     for args in readers(&run1, &d.join("cal.json")) {
-        fails_with(
+        fails_in_one_line(
             &run(&args),
             &[
                 &format!("{}: is a folder, not a measurement file", s(&run1)),
@@ -68,13 +53,13 @@ fn a_run_folder_suggests_its_data_csv() {
     }
     let fit = d.join("fit.json");
     assert!(cta(&["fit", s(&data), "--save", s(&fit)]).status.success());
-    fails_with(
+    fails_in_one_line(
         &cta(&["evaluate", s(&fit), s(&run1)]),
         &[&format!("give the sweep's data file in it, {}", s(&data))],
     );
     let empty = d.join("empty");
     std::fs::create_dir_all(&empty).unwrap();
-    fails_with(
+    fails_in_one_line(
         &cta(&["fit", s(&empty)]),
         &["is a folder, not a measurement file: give a CSV file"],
     );
@@ -96,7 +81,7 @@ fn a_file_cut_off_mid_row_is_said_to_be() {
     let cut = d.join("trunc.csv");
     std::fs::write(&cut, &text[..keep]).unwrap();
     for args in readers(&cut, &d.join("cal.json")) {
-        fails_with(
+        fails_in_one_line(
             &run(&args),
             &[
                 &format!("trunc.csv:{lines}: 5 fields, the header has 12"),
@@ -108,7 +93,7 @@ fn a_file_cut_off_mid_row_is_said_to_be() {
     let short = d.join("short.csv");
     std::fs::write(&short, format!("{}\n", &text[..keep])).unwrap();
     let o = cta(&["fit", s(&short)]);
-    fails_with(&o, &["5 fields, the header has 12"]);
+    fails_in_one_line(&o, &["5 fields, the header has 12"]);
     assert!(!stderr(&o).contains("cut off"), "{}", stderr(&o));
     // A whole last row without a newline is fine.
     let whole = d.join("whole.csv");
@@ -178,7 +163,7 @@ fn binary_and_html_files_are_named_for_what_they_are() {
     let program = env!("CARGO_BIN_EXE_cta");
     for args in readers(Path::new(program), &d.join("cal.json")) {
         let o = run(&args);
-        fails_with(
+        fails_in_one_line(
             &o,
             &[
                 &format!("{program}:1: not a text CSV file"),
@@ -190,7 +175,7 @@ fn binary_and_html_files_are_named_for_what_they_are() {
     let png = d.join("plot.png");
     std::fs::write(&png, b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR").unwrap();
     let o = cta(&["fit", s(&png)]);
-    fails_with(&o, &["plot.png:1: not a text CSV file", "not UTF-8 text"]);
+    fails_in_one_line(&o, &["plot.png:1: not a text CSV file", "not UTF-8 text"]);
     no_control_bytes(&o);
     let html = d.join("page.csv");
     std::fs::write(
@@ -200,7 +185,7 @@ fn binary_and_html_files_are_named_for_what_they_are() {
     )
     .unwrap();
     let o = cta(&["fit", s(&html)]);
-    fails_with(
+    fails_in_one_line(
         &o,
         &["page.csv:1:", "an HTML or XML document, not a CSV file"],
     );
@@ -209,7 +194,7 @@ fn binary_and_html_files_are_named_for_what_they_are() {
     let notes = d.join("notes.csv");
     std::fs::write(&notes, "run 3; plate level; 20 in\n1,2\n").unwrap();
     let o = cta(&["fit", s(&notes)]);
-    fails_with(&o, &["start a title or note line with `#`"]);
+    fails_in_one_line(&o, &["start a title or note line with `#`"]);
     assert!(!stderr(&o).contains("semicolons"), "{}", stderr(&o));
     // Semicolon-separated column names still are.
     let semi = d.join("semi.csv");
@@ -218,7 +203,7 @@ fn binary_and_html_files_are_named_for_what_they_are() {
         "separation_in;beacon_x_in;beacon_y_in;beacon_z_in;x;y\n20;0;0;20;1;2\n",
     )
     .unwrap();
-    fails_with(&cta(&["fit", s(&semi)]), &["separated by semicolons"]);
+    fails_in_one_line(&cta(&["fit", s(&semi)]), &["separated by semicolons"]);
     // A control character in a value is shown escaped.
     let esc = d.join("esc.csv");
     std::fs::write(
@@ -227,7 +212,7 @@ fn binary_and_html_files_are_named_for_what_they_are() {
     )
     .unwrap();
     let o = cta(&["fit", s(&esc)]);
-    fails_with(
+    fails_in_one_line(
         &o,
         &["esc.csv:2: column `x`: `1\\u{1b}[31m` is not a finite number"],
     );
@@ -244,14 +229,14 @@ fn evaluate_with_its_arguments_swapped_says_so() {
     simulate(&csv, &["--separations", "25,30"]);
     let fit = d.join("fit.json");
     assert!(cta(&["fit", s(&csv), "--save", s(&fit)]).status.success());
-    fails_with(
+    fails_in_one_line(
         &cta(&["evaluate", s(&csv), s(&fit)]),
         &[
             "the arguments look swapped",
             &format!("cta evaluate {} {}", s(&fit), s(&csv)),
         ],
     );
-    fails_with(
+    fails_in_one_line(
         &cta(&["evaluate", s(&csv), s(&csv)]),
         &[
             "this is a measurement file (CSV), not a saved fit",

@@ -2,12 +2,11 @@
 //! calibration on `cta sensor sim`, exactly as the demo prints the commands (and as
 //! firmware-sensor/README.md gives them), reads the simulated target where it is.
 
-use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, ChildStdout, Command, Output, Stdio};
+use std::process::{Command, Output};
 
 mod common;
-use common::s;
+use common::{s, Sim};
 
 /// `cta ARGS` run in `dir`.
 fn cta_in(dir: &Path, args: &[&str]) -> Output {
@@ -26,44 +25,6 @@ fn ok(o: &Output) -> String {
         String::from_utf8_lossy(&o.stderr)
     );
     String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// A `cta sensor sim ...` served on a pty (killed when dropped).
-struct Sim {
-    child: Child,
-    // Kept open so the board's own prints never hit a closed pipe.
-    _out: BufReader<ChildStdout>,
-    path: String,
-}
-
-impl Sim {
-    fn start(dir: &Path, args: &[&str]) -> Sim {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_cta"))
-            .args(args)
-            .args(["--seconds", "120"])
-            .current_dir(dir)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start the simulated board");
-        let mut out = BufReader::new(child.stdout.take().unwrap());
-        let mut line = String::new();
-        out.read_line(&mut line).unwrap();
-        let path = line.trim().rsplit(' ').next().unwrap().to_string();
-        assert!(path.starts_with("/dev/"), "{line}");
-        Sim {
-            child,
-            _out: out,
-            path,
-        }
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
 }
 
 /// The command lines the demo prints to rehearse the board: indented `cta sensor ...` lines.
@@ -126,7 +87,7 @@ fn the_demos_calibration_rehearsed_as_printed_reads_the_true_offset() {
         );
     }
     let sim_args: Vec<&str> = cmds[0].iter().map(String::as_str).collect();
-    let sim = Sim::start(&d, &sim_args);
+    let sim = Sim::start_in(&d, &sim_args);
     let run = |c: &Vec<String>, extra: &[&str]| {
         let args: Vec<&str> = c
             .iter()

@@ -1,10 +1,11 @@
-//! Helpers shared by the `cta` binary's end-to-end tests (cli.rs, glitches.rs, wiring.rs):
-//! run the binary, a fresh scratch folder, simulate a file, parse JSON output.
+//! Helpers shared by the `cta` binary's end-to-end tests (host/tests/*.rs): run the binary,
+//! a fresh scratch folder, simulate a file, parse JSON output, a simulated board on a pty.
 // Each test file uses some of them.
 #![allow(dead_code)]
 
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Child, ChildStdout, Command, Output, Stdio};
 
 /// Run the `cta` binary with `args`.
 pub fn cta(args: &[&str]) -> Output {
@@ -88,4 +89,66 @@ pub fn simulate_at(out: &Path, seps: &str, samples: &str, seed: &str, extra: &[&
     ];
     args.extend_from_slice(extra);
     simulate(out, &args);
+}
+
+/// `o`'s stderr as text.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// `o` failed, without a panic, with one line holding every needle.
+pub fn fails_in_one_line(o: &Output, needles: &[&str]) {
+    let err = stderr(o);
+    assert!(!o.status.success(), "expected failure: {err}");
+    assert!(!err.contains("panicked"), "panic: {err}");
+    assert_eq!(err.trim().lines().count(), 1, "not one line: {err}");
+    for n in needles {
+        assert!(err.contains(n), "stderr lacks `{n}`: {err}");
+    }
+}
+
+/// A simulated board served on a pty by `cta <board> sim ...` (killed when dropped).
+pub struct Sim {
+    child: Child,
+    // Kept open so the board's own prints never hit a closed pipe.
+    _out: BufReader<ChildStdout>,
+    /// The pty it serves.
+    pub path: String,
+}
+
+impl Sim {
+    /// `cta ARGS --seconds 120`, from the current folder.
+    pub fn start(args: &[&str]) -> Sim {
+        Sim::start_in(Path::new("."), args)
+    }
+
+    /// The same, run in `dir` (its relative paths are `dir`'s).
+    pub fn start_in(dir: &Path, args: &[&str]) -> Sim {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_cta"))
+            .args(args)
+            .args(["--seconds", "120"])
+            .current_dir(dir)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start the simulated board");
+        let mut out = BufReader::new(child.stdout.take().unwrap());
+        let mut line = String::new();
+        out.read_line(&mut line).unwrap();
+        // "simulated ... board on /dev/pts/N"
+        let path = line.trim().rsplit(' ').next().unwrap().to_string();
+        assert!(path.starts_with("/dev/"), "{line}");
+        Sim {
+            child,
+            _out: out,
+            path,
+        }
+    }
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
 }
