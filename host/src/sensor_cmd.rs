@@ -2044,6 +2044,23 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
 
 #[cfg(test)]
 mod tests {
+    /// The status line's mode names each mode and model as itself (a swap of the two models'
+    /// words would read one for the other).
+    #[test]
+    fn the_mode_in_words_names_the_model() {
+        use super::{Mode, ModelKind};
+        assert_eq!(super::describe_mode(&Mode::Idle), "Idle");
+        assert_eq!(super::describe_mode(&Mode::Stream), "Stream (spot reports)");
+        assert_eq!(
+            super::describe_mode(&Mode::Pose(ModelKind::NearField)),
+            "Pose (near-field model)"
+        );
+        assert_eq!(
+            super::describe_mode(&Mode::Pose(ModelKind::Pinhole)),
+            "Pose (pinhole model)"
+        );
+    }
+
     use super::*;
 
     #[test]
@@ -2203,6 +2220,11 @@ mod tests {
                 "beacon_pattern=45",
             ])
             .unwrap(),
+            // A head pose other than Table 3's (the default), which the sidecar must carry.
+            pose: cta_core::emulator::Pose {
+                d: Vector3::new(-0.3, 0.4, 0.2),
+                p: Vector3::new(0.01, -0.02, 0.03),
+            },
             ..Default::default()
         };
         let (ds, truth) = cfg.try_run().unwrap();
@@ -2218,6 +2240,8 @@ mod tests {
         .emulator;
         let r = Vector3::new(1.5, -2.0, 10.0);
         assert_eq!(h.emulator.output(&r), want.output(&r));
+        let table3 = crate::simulate::SimConfig::default().physics().emulator;
+        assert_ne!(h.emulator.output(&r), table3.output(&r));
         assert_eq!(h.left_out, ["plate_offset=0.05"]);
         std::fs::write(&tp, "{}").unwrap();
         let err = with(&[], Some(tp)).check().unwrap_err().to_string();

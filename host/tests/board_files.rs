@@ -102,23 +102,11 @@ fn sensor_status_says_the_last_pose_in_words() {
         "last pose       none (no pose solved since the board started)"
     );
     assert_eq!(line(&out, "mode"), "mode            Idle");
-    let mut sim = std::process::Command::new(env!("CARGO_BIN_EXE_cta"))
-        .args(["sensor", "sim", "--configured", "--seconds", "60"])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut first = String::new();
-    std::io::BufRead::read_line(
-        &mut std::io::BufReader::new(sim.stdout.as_mut().unwrap()),
-        &mut first,
-    )
-    .unwrap();
-    let port = first.trim().rsplit(' ').next().unwrap().to_string();
+    // Killed when dropped, also when an assert below fails.
+    let sim = common::Sim::start(&["sensor", "sim", "--configured"]);
+    let port = sim.path.clone();
     ok(&cta(&["sensor", "--port", &port, "pose", "--count", "1"]));
     let out = ok(&cta(&["sensor", "--port", &port, "status"]));
-    let _ = sim.kill();
-    let _ = sim.wait();
     assert_eq!(line(&out, "last pose"), "last pose       Ok (converged)");
     assert!(!out.contains("Some("), "{out}");
 }

@@ -191,6 +191,11 @@ fn binary_and_html_files_are_named_for_what_they_are() {
     );
     assert!(!stderr(&o).contains("semicolons"), "{}", stderr(&o));
     // Text with semicolons that are not between column names: not a delimiter.
+    // A JSON file (a saved fit, a calibration) given as the data.
+    let js = d.join("fit.json");
+    std::fs::write(&js, "{\n  \"params\": {\"d\": [1.1, 0.1, 0.6]}\n}\n").unwrap();
+    let o = cta(&["fit", s(&js)]);
+    fails_in_one_line(&o, &["fit.json:1:", "this looks like a JSON file"]);
     let notes = d.join("notes.csv");
     std::fs::write(&notes, "run 3; plate level; 20 in\n1,2\n").unwrap();
     let o = cta(&["fit", s(&notes)]);
@@ -292,6 +297,17 @@ fn a_separation_typo_is_warned_about_with_its_line() {
         assert!(err.contains(&want), "{args:?}: {err}");
         assert!(err.contains("a typo? Correct them"), "{err}");
     }
+    // The same slip below the value (1.9999 beside 2) is warned about too.
+    let below = edited.join("\n").replacen("2.0001,", "1.9999,", 1) + "\n";
+    let f = d.join("below.csv");
+    std::fs::write(&f, below).unwrap();
+    let err = stderr(&cta(&["fit", s(&f)]));
+    assert!(
+        err.contains(&format!(
+            "separation_in 1.9999 on 1 row (line {line_no}) beside 2 on 299 rows"
+        )),
+        "{err}"
+    );
     // Not typos: one row at 2.02 in (beyond 0.01 in), and a whole separation at 2.005 beside
     // the one at 2 (as many rows).
     let far = edited.join("\n").replacen("2.0001,", "2.02,", 1) + "\n";

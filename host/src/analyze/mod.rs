@@ -2086,6 +2086,33 @@ mod tests {
         let k = d.separations.iter().position(|&s| s == 12.0).unwrap();
         let r = d.noise_by_sep[k][0] / clean.noise_by_sep[k][0];
         assert!((0.9..1.1).contains(&r), "{r}");
+        // Weighted per point: the note names the glitched point's variance.
+        let opts = Options {
+            weights: Weights::Point,
+            ..Options::default()
+        };
+        let p = analyze(&ds, &opts, &|_: &str| {}).unwrap();
+        let note = p.data_notes.join(" | ");
+        assert!(
+            note.contains("the glitch (line 4242) inflates the variance of its point"),
+            "{note}"
+        );
+        // A glitch that inflates the pooled noise by less than 1.2-fold (a flagged sample
+        // at 12 sigma: 1.12-fold at its separation, measured) gets the load-time warning but
+        // no note; one at 30 sigma (1.70-fold) gets both.
+        for (sigma, noted) in [(12.0, false), (30.0, true)] {
+            let mut small = cfg.run().0;
+            small.samples[row].x += sigma * 32.768;
+            small.samples[row].line = 4242;
+            assert_eq!(small.glitches().samples, 1, "{sigma}");
+            let a = analyze(&small, &Options::default(), &|_: &str| {}).unwrap();
+            assert_eq!(
+                !a.data_notes.is_empty(),
+                noted,
+                "{sigma}: {:?}",
+                a.data_notes
+            );
+        }
     }
 
     /// Settings whose noise differs within a separation, pooled by the default weights: the
@@ -2154,13 +2181,44 @@ mod tests {
             .and_then(|v| v.parse().ok())
             .unwrap_or_else(|| panic!("{note}"));
         assert!((8.0..12.0).contains(&rerun), "{note}");
-        // At the true noise, no note.
+        // At the true noise, no note; far above it, the note names --noise.
         let opts = Options {
             noise: Some(10.0),
             ..Options::default()
         };
         let b = analyze(&ds, &opts, &|_: &str| {}).unwrap();
         assert!(b.data_notes.is_empty(), "{:?}", b.data_notes);
+        let opts = Options {
+            noise: Some(200.0),
+            ..Options::default()
+        };
+        let c = analyze(&ds, &opts, &|_: &str| {}).unwrap();
+        let note = c.data_notes.join(" | ");
+        assert!(
+            note.contains("far smaller than the noise set by --noise (200.0 counts)"),
+            "{note}"
+        );
+        // Measured noise: 4 samples per point, each moved by +/-60 counts in turn, so the
+        // samples scatter ~4x more than their means (which stay put) do.
+        let cfg = SimConfig { samples: 4, ..cfg };
+        let (mut ds, _) = cfg.run();
+        for g in ds.points() {
+            for (j, &i) in g.rows.iter().enumerate() {
+                let s = &mut ds.samples[i];
+                if s.x.abs() < 30_000.0 && s.y.abs() < 30_000.0 {
+                    let d = if j % 2 == 0 { 60.0 } else { -60.0 };
+                    s.x += d;
+                    s.y += d;
+                }
+            }
+        }
+        let m = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
+        assert!(m.chi2_dof_before < 0.5, "{}", m.chi2_dof_before);
+        let note = m.data_notes.join(" | ");
+        assert!(
+            note.contains("the point means scatter far less than their repeated samples say"),
+            "{note}"
+        );
     }
 
     /// One sample per point with 3x the assumed noise: the excess chi-square is no structure
