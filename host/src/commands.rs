@@ -625,7 +625,7 @@ pub struct SimulateArgs {
     /// Inject an effect of the vocabulary, NAME=VALUE (repeatable): proximity=S, intensity,
     /// beacon_pattern=H, beacon_tilt=T[,AZ], cell_gain=GX[,GY], cell_bias=BX[,BY],
     /// face_angle=DX[,DY], saturation=S, plate_offset=SIGMA, separation_error=SIGMA,
-    /// crosstalk=K (simulation only).
+    /// plate_tilt=SIGMA (deg), crosstalk=K (simulation only).
     // The brackets are --help text (optional parts), not doc links.
     #[allow(rustdoc::broken_intra_doc_links)]
     #[arg(long = "effect", value_name = "NAME=VALUE")]

@@ -43,6 +43,16 @@ pub enum Effect {
     /// drawn with standard deviation SIGMA in; analysis estimates one correction per
     /// separation.
     SeparationError(f64),
+    /// `plate_tilt=SIGMA`: at each separation the plate is not parallel to the sensor board:
+    /// it is tilted about its centre by a tilt vector (tx, ty) whose components are drawn
+    /// with standard deviation SIGMA deg (seeded). A tilt T toward azimuth AZ leans the
+    /// plate's downward normal T from -z of N toward AZ, so the plate's side toward AZ is
+    /// farther from the sensor (by about u T at u in from the centre), and every LED's
+    /// boresight tilts with it. The thesis levels both plates to 5 mils/ft (0.024 deg) and
+    /// measures the four corners (Ch IV); uneven nuts on the threaded rods tilt the plate.
+    /// Unlike `beacon_tilt` (the LEDs' boresights alone, the same at every separation) it
+    /// moves the beacons. Analysis estimates one tilt per separation.
+    PlateTilt(f64),
     /// `crosstalk=K`: each cell picks up K times the signal of the matching cell of the other
     /// pair. NOT in the analysis vocabulary: simulation only, to test that `analyze` reports
     /// unexplained structure instead of a false name.
@@ -50,7 +60,7 @@ pub enum Effect {
 }
 
 /// The names `cta analyze` can report (every effect but `crosstalk`).
-pub const VOCABULARY: [&str; 10] = [
+pub const VOCABULARY: [&str; 11] = [
     "proximity",
     "intensity",
     "beacon_pattern",
@@ -61,6 +71,7 @@ pub const VOCABULARY: [&str; 10] = [
     "saturation",
     "plate_offset",
     "separation_error",
+    "plate_tilt",
 ];
 
 impl Effect {
@@ -77,6 +88,7 @@ impl Effect {
             Effect::Saturation(_) => "saturation",
             Effect::PlateOffset(_) => "plate_offset",
             Effect::SeparationError(_) => "separation_error",
+            Effect::PlateTilt(_) => "plate_tilt",
             Effect::Crosstalk(_) => "crosstalk",
         }
     }
@@ -164,6 +176,15 @@ impl Effect {
             }
             "plate_offset" => Effect::PlateOffset(nonneg(name, nums(1, 1)?[0])?),
             "separation_error" => Effect::SeparationError(nonneg(name, nums(1, 1)?[0])?),
+            "plate_tilt" => {
+                let v = nums(1, 1)?[0];
+                if !(0.0..=10.0).contains(&v) {
+                    return Err(format!(
+                        "effect `plate_tilt`: SIGMA = {v} must be in [0, 10] deg (the 1-sigma tilt of the plate at each separation)"
+                    ));
+                }
+                Effect::PlateTilt(v)
+            }
             "crosstalk" => {
                 let k = nums(1, 1)?[0];
                 if !(0.0..1.0).contains(&k) {
@@ -211,7 +232,7 @@ impl Effect {
             }
             Effect::Saturation(s) => fx.saturation = Some(s),
             Effect::Crosstalk(k) => fx.crosstalk = k,
-            Effect::PlateOffset(_) | Effect::SeparationError(_) => {}
+            Effect::PlateOffset(_) | Effect::SeparationError(_) | Effect::PlateTilt(_) => {}
         }
     }
 }
@@ -260,6 +281,7 @@ fn usage(name: &str) -> &'static str {
         "saturation" => "saturation=S (1/in^2)",
         "plate_offset" => "plate_offset=SIGMA (in)",
         "separation_error" => "separation_error=SIGMA (in)",
+        "plate_tilt" => "plate_tilt=SIGMA (deg)",
         "crosstalk" => "crosstalk=K (fraction)",
         _ => "NAME=VALUE",
     }
@@ -271,7 +293,10 @@ impl fmt::Display for Effect {
             Effect::Proximity(v) | Effect::BeaconPattern(v) | Effect::Saturation(v) => {
                 write!(f, "{}={v}", self.name())
             }
-            Effect::PlateOffset(v) | Effect::SeparationError(v) | Effect::Crosstalk(v) => {
+            Effect::PlateOffset(v)
+            | Effect::SeparationError(v)
+            | Effect::PlateTilt(v)
+            | Effect::Crosstalk(v) => {
                 write!(f, "{}={v}", self.name())
             }
             Effect::Intensity(on) => write!(f, "intensity={}", if on { 1 } else { 0 }),
@@ -302,6 +327,7 @@ mod tests {
             "saturation=0.1",
             "plate_offset=0.05",
             "separation_error=0.05",
+            "plate_tilt=0.5",
             "crosstalk=0.02",
         ] {
             let e = Effect::parse(s).unwrap();
@@ -342,6 +368,8 @@ mod tests {
             ("cell_gain=0,-1", "> -1"),
             ("face_angle=60", "(-30, 60)"),
             ("face_angle=0,-30", "(-30, 60)"),
+            ("plate_tilt=-1", "[0, 10]"),
+            ("plate_tilt=20", "[0, 10]"),
         ] {
             let e = Effect::parse(s).unwrap_err();
             let name = s.split('=').next().unwrap();

@@ -376,15 +376,16 @@ pub struct SimArgs {
     /// writes next to its file (FILE.truth.json) and a sweep of the simulated CTA (`cta demo`'s
     /// among them) into its run folder (data.truth.json). Its head offset d, attitude p, base physics,
     /// beacon pattern and effects (e.g. the demo's hidden cell gains) make the simulated
-    /// NorthStar; `plate_offset`, `separation_error` and `beacon_tilt` describe the CTA's
-    /// plate, not the head, and are left out (said on stderr). Default: the Table 3 head with
+    /// NorthStar; `plate_offset`, `separation_error`, `plate_tilt` and `beacon_tilt` describe
+    /// the CTA's plate, not the head, and are left out (said on stderr). Default: the Table 3 head with
     /// the nominal near-field physics.
     #[arg(long, value_name = "FILE.truth.json")]
     pub truth: Option<std::path::PathBuf>,
     /// Give the simulated head an effect of the vocabulary, NAME=VALUE (repeatable), as `cta
     /// simulate --effect` does: proximity=S, intensity, beacon_pattern=H, cell_gain=GX[,GY],
     /// cell_bias=BX[,BY], face_angle=DX[,DY], saturation=S, crosstalk=K. (beacon_tilt,
-    /// plate_offset and separation_error describe the CTA's plate, not the head: refused.)
+    /// plate_offset, separation_error and plate_tilt describe the CTA's plate, not the head:
+    /// refused.)
     // The brackets are --help text (optional parts), not doc links.
     #[allow(rustdoc::broken_intra_doc_links)]
     #[arg(long = "effect", value_name = "NAME=VALUE", conflicts_with = "truth")]
@@ -529,7 +530,10 @@ fn acts_on_the_head(e: &crate::effects::Effect) -> bool {
     use crate::effects::Effect;
     !matches!(
         e,
-        Effect::BeaconTilt(..) | Effect::PlateOffset(_) | Effect::SeparationError(_)
+        Effect::BeaconTilt(..)
+            | Effect::PlateOffset(_)
+            | Effect::SeparationError(_)
+            | Effect::PlateTilt(_)
     )
 }
 
@@ -2200,6 +2204,7 @@ mod tests {
             "beacon_tilt=3,45",
             "plate_offset=0.05",
             "separation_error=0.05",
+            "plate_tilt=0.5",
         ] {
             let err = with(&[e], None).check().unwrap_err().to_string();
             assert!(

@@ -5,8 +5,8 @@ use crate::effects::{self, Effect};
 use crate::measurement::{Dataset, Sample, MAX_SEPARATIONS};
 use cta_core::emulator::{grid_position, saturate_i16, Effects, Emulator, Head, Pose};
 use cta_core::pattern::Pattern;
-use cta_core::real::deg;
-use nalgebra::Vector3;
+use cta_core::real::{deg, rad};
+use nalgebra::{Rotation3, Vector3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Normal, StandardNormal};
@@ -27,6 +27,9 @@ pub const MAX_MAGNITUDE_NOISE: f64 = 25.0;
 
 /// Mixed into the seed of the magnitude noise's stream.
 const MAGNITUDE_STREAM: u64 = 0x6d61_676e_6974_7564;
+
+/// Seed of the plate tilts' stream ("plattilt"), XORed with the seed.
+const TILT_STREAM: u64 = 0x706c_6174_7469_6c74;
 
 /// What to simulate.
 #[derive(Debug, Clone)]
@@ -105,6 +108,10 @@ pub struct Truth {
     pub plate_offsets: Vec<[f64; 2]>,
     /// Per separation: true separation minus recorded separation, in (separation_error).
     pub separation_errors: Vec<f64>,
+    /// Per separation: the plate's tilt vector (tx, ty), deg (plate_tilt; see
+    /// [`Placement::tilt_deg`]). Empty in files written before it existed.
+    #[serde(default)]
+    pub plate_tilts_deg: Vec<[f64; 2]>,
     /// Recorded separations, in.
     pub separations: Vec<f64>,
     /// Noise 1-sigma, counts.
@@ -174,8 +181,58 @@ impl Truth {
 pub struct Physics {
     /// The emulator.
     pub emulator: Emulator<f64>,
-    /// Per separation (in `separations` order): plate offset (x, y) and separation error.
-    pub geometry: Vec<([f64; 2], f64)>,
+    /// Per separation (in `separations` order): where the plate truly is.
+    pub geometry: Vec<Placement>,
+}
+
+/// Where the beacon plate truly is at one separation, against where it was recorded: the
+/// per-separation apparatus errors `plate_offset`, `separation_error` and `plate_tilt`.
+/// The recorded plate is centred on the N z axis at z = the recorded separation, parallel
+/// to the sensor board.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Placement {
+    /// Lateral offset of the plate's centre (x, y), in (`plate_offset`).
+    pub offset: [f64; 2],
+    /// True minus recorded separation, in (`separation_error`).
+    pub sep_error: f64,
+    /// Tilt vector (tx, ty), deg (`plate_tilt`): the plate's downward normal leans
+    /// `|t|` from -z of N toward the azimuth `atan2(ty, tx)`.
+    pub tilt_deg: [f64; 2],
+}
+
+impl Placement {
+    /// Whether the plate is tilted.
+    pub fn tilted(&self) -> bool {
+        self.tilt_deg != [0.0, 0.0]
+    }
+
+    /// The plate's rotation about its centre: -z goes to
+    /// `(sin T cos AZ, sin T sin AZ, -cos T)` by a rotation about the in-plate axis
+    /// perpendicular to the azimuth (scaled axis `(ty, -tx, 0)`, radians).
+    pub fn rotation(&self) -> Rotation3<f64> {
+        let [tx, ty] = self.tilt_deg.map(rad);
+        Rotation3::from_scaled_axis(Vector3::new(ty, -tx, 0.0))
+    }
+
+    /// The true position (N, in) of a beacon recorded at `r` (N, in): the plate's recorded
+    /// centre is `(0, 0, r.z)`; the beacon's place on the plate is turned with the plate
+    /// about its centre, and the centre moved by the offset and separation error.
+    pub fn beacon(&self, r: &Vector3<f64>) -> Vector3<f64> {
+        let moved = r + Vector3::new(self.offset[0], self.offset[1], self.sep_error);
+        if !self.tilted() {
+            return moved;
+        }
+        let u = Vector3::new(r.x, r.y, 0.0);
+        moved - u + self.rotation() * u
+    }
+
+    /// `em` with its LEDs' boresight turned with the plate (on top of any `beacon_tilt`).
+    pub fn emulator(&self, em: &Emulator<f64>) -> Emulator<f64> {
+        if !self.tilted() {
+            return *em;
+        }
+        em.with_boresight(&(self.rotation() * em.boresight()))
+    }
 }
 
 impl SimConfig {
@@ -198,12 +255,17 @@ impl SimConfig {
         let emulator = Emulator::new(head, self.pose, fx);
         // Geometry draws use their own stream so noise settings do not change them.
         let mut rng = StdRng::seed_from_u64(self.seed ^ 0x9e37_79b9_7f4a_7c15);
+        // The tilts have a stream of their own: adding `plate_tilt` leaves the offsets and
+        // separation errors of a seed as they were.
+        let mut tilt_rng = StdRng::seed_from_u64(self.seed ^ TILT_STREAM);
         let mut plate_sigma = 0.0;
         let mut sep_sigma = 0.0;
+        let mut tilt_sigma = 0.0;
         for e in &self.effects {
             match *e {
                 Effect::PlateOffset(s) => plate_sigma = s,
                 Effect::SeparationError(s) => sep_sigma = s,
+                Effect::PlateTilt(s) => tilt_sigma = s,
                 _ => {}
             }
         }
@@ -212,9 +274,17 @@ impl SimConfig {
             .separations
             .iter()
             .map(|_| {
-                let o = [rng.sample(std) * plate_sigma, rng.sample(std) * plate_sigma];
-                let e = rng.sample(std) * sep_sigma;
-                (o, e)
+                let offset = [rng.sample(std) * plate_sigma, rng.sample(std) * plate_sigma];
+                let sep_error = rng.sample(std) * sep_sigma;
+                let tilt_deg = [
+                    tilt_rng.sample(std) * tilt_sigma,
+                    tilt_rng.sample(std) * tilt_sigma,
+                ];
+                Placement {
+                    offset,
+                    sep_error,
+                    tilt_deg,
+                }
             })
             .collect();
         Physics { emulator, geometry }
@@ -322,10 +392,11 @@ impl SimConfig {
         );
         let mut skipped = 0;
         for (k, &sep) in self.separations.iter().enumerate() {
-            let (off, err) = phys.geometry[k];
+            let place = phys.geometry[k];
+            let em = place.emulator(em);
             for i in 0..n {
                 let nominal = grid_position_xy(self.grid, self.pitch, sep, i);
-                let truth = nominal + Vector3::new(off[0], off[1], err);
+                let truth = place.beacon(&nominal);
                 let Some(out) = em.output(&truth) else {
                     skipped += 1;
                     continue;
@@ -375,8 +446,9 @@ impl SimConfig {
             },
             pattern: describe_pattern(&em.effects.pattern),
             effects: self.effects.iter().map(|e| e.to_string()).collect(),
-            plate_offsets: phys.geometry.iter().map(|g| g.0).collect(),
-            separation_errors: phys.geometry.iter().map(|g| g.1).collect(),
+            plate_offsets: phys.geometry.iter().map(|g| g.offset).collect(),
+            separation_errors: phys.geometry.iter().map(|g| g.sep_error).collect(),
+            plate_tilts_deg: phys.geometry.iter().map(|g| g.tilt_deg).collect(),
             separations: self.separations.clone(),
             noise_counts: self.noise,
             noise_law: None,
@@ -857,5 +929,72 @@ mod tests {
         let (d, t) = cfg.run();
         assert!(t.plate_offsets[0][0].abs() > 0.0);
         assert_eq!(d.samples[0].r, [-4.5, -4.5, 10.0]);
+    }
+
+    /// A plate tilted T toward azimuth AZ: its downward normal (and so every LED boresight)
+    /// leans T toward AZ, the side toward AZ is farther from the sensor by u sin T, the
+    /// centre stays put and distances on the plate are kept.
+    #[test]
+    fn a_tilted_plate_turns_about_its_centre() {
+        let t = 2.0f64;
+        for az in [0.0f64, 90.0, 135.0, -60.0] {
+            let (c, s) = (az.to_radians().cos(), az.to_radians().sin());
+            let pl = Placement {
+                offset: [0.1, -0.2],
+                sep_error: 0.05,
+                tilt_deg: [t * c, t * s],
+            };
+            let n = pl.rotation() * Vector3::new(0.0, 0.0, -1.0);
+            let want = Vector3::new(rad(t).sin() * c, rad(t).sin() * s, -rad(t).cos());
+            assert!((n - want).norm() < 1e-12, "AZ {az}: {n}");
+            let centre = pl.beacon(&Vector3::new(0.0, 0.0, 10.0));
+            assert!((centre - Vector3::new(0.1, -0.2, 10.05)).norm() < 1e-12);
+            // 4 in from the centre toward AZ: farther by 4 sin T; the opposite side nearer.
+            let toward = pl.beacon(&Vector3::new(4.0 * c, 4.0 * s, 10.0));
+            let away = pl.beacon(&Vector3::new(-4.0 * c, -4.0 * s, 10.0));
+            assert!(
+                (toward.z - 10.05 - 4.0 * rad(t).sin()).abs() < 1e-12,
+                "AZ {az}"
+            );
+            assert!(
+                (away.z - 10.05 + 4.0 * rad(t).sin()).abs() < 1e-12,
+                "AZ {az}"
+            );
+            assert!(((toward - centre).norm() - 4.0).abs() < 1e-12);
+            // Across the azimuth: no change in z.
+            let side = pl.beacon(&Vector3::new(-4.0 * s, 4.0 * c, 10.0));
+            assert!((side.z - 10.05).abs() < 1e-12, "AZ {az}");
+            let em = SimConfig::default().physics().emulator;
+            assert!((pl.emulator(&em).boresight() - want).norm() < 1e-12);
+        }
+        // No tilt: the recorded place plus the offsets, the emulator unchanged.
+        let flat = Placement {
+            offset: [0.1, 0.0],
+            ..Default::default()
+        };
+        assert_eq!(
+            flat.beacon(&Vector3::new(3.0, 1.0, 5.0)),
+            Vector3::new(3.1, 1.0, 5.0)
+        );
+        // A seed's offsets and separation errors do not change when a tilt is added.
+        let run = |fx: Vec<Effect>| {
+            SimConfig {
+                separations: vec![5.0, 10.0],
+                effects: fx,
+                ..Default::default()
+            }
+            .physics()
+            .geometry
+        };
+        let a = run(vec![Effect::PlateOffset(0.1), Effect::SeparationError(0.1)]);
+        let b = run(vec![
+            Effect::PlateOffset(0.1),
+            Effect::SeparationError(0.1),
+            Effect::PlateTilt(0.5),
+        ]);
+        for (a, b) in a.iter().zip(&b) {
+            assert_eq!((a.offset, a.sep_error), (b.offset, b.sep_error));
+            assert!(!a.tilted() && b.tilted());
+        }
     }
 }

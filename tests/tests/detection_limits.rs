@@ -83,6 +83,7 @@ fn ladder(name: &str) -> Vec<(Effect, Vec<f64>)> {
             "face_angle" => (Effect::FaceAngle(f, -0.5 * f), vec![f, -0.5 * f]),
             "plate_offset" => (Effect::PlateOffset(0.05 * f), vec![0.05 * f]),
             "separation_error" => (Effect::SeparationError(0.05 * f), vec![0.05 * f]),
+            "plate_tilt" => (Effect::PlateTilt(0.2 * f), vec![0.2 * f]),
             other => unreachable!("{other}"),
         }
     };
@@ -180,7 +181,7 @@ fn detection_limits() {
         }
     }
     println!(
-        "\n| candidate | per-separation | median noise-only weighted RMS (in) | mean (weighted RMS / noise-only)^2 |"
+        "\n| candidate | per-separation | median noise-only weighted RMS (in; deg for plate_tilt) | mean (weighted RMS / noise-only)^2 |"
     );
     println!("|---|---|---|---|");
     for ((e, p), (rs, ss)) in &ratio2 {
@@ -204,6 +205,7 @@ fn detection_limits() {
             "face_angle" => vec!["DX", "DY"],
             "plate_offset" => vec!["x"],
             "separation_error" => vec!["z"],
+            "plate_tilt" => vec!["tx_deg"],
             _ => vec![],
         }
     };

@@ -90,7 +90,7 @@ fn off_boresight_deg(model: &Model, x: &[f64], data: &Data, i: usize) -> f64 {
     let d = Vector3::new(x[0], x[1], x[2]);
     let c = mrp::dcm(&Vector3::new(x[3], x[4], x[5]));
     let bore = c.transpose() * Vector3::z();
-    let u = p.r + model.offset(x, p.sep) - d;
+    let u = model.placement(x, p.sep).beacon(&p.r) - d;
     (u.normalize().dot(&bore))
         .clamp(-1.0, 1.0)
         .acos()
@@ -231,7 +231,7 @@ pub fn angle_errors(model: &Model, x: &[f64], data: &Data) -> Vec<f64> {
         .iter()
         .zip(&data.points)
         .map(|(dir, p)| match dir {
-            Some(v) => angle_deg(v, &(p.r + model.offset(x, p.sep) - d)),
+            Some(v) => angle_deg(v, &(model.placement(x, p.sep).beacon(&p.r) - d)),
             None => f64::NAN,
         })
         .collect()
@@ -248,12 +248,13 @@ pub fn angle_deg(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
 /// beacon's range in the tangent plane of the predicted direction (for the pinhole model
 /// this is eq 67). None where the model cannot reach the measured output.
 pub fn inferred_directions(model: &Model, x: &[f64], data: &Data) -> Vec<Option<Vector3<f64>>> {
-    let em = model.emulator(x);
+    let view = model.view(x);
     let d = Vector3::new(x[0], x[1], x[2]);
     data.points
         .iter()
         .map(|p| {
-            let u = p.r + model.offset(x, p.sep) - d;
+            let em = view.emulator(p.sep);
+            let u = view.beacon(p) - d;
             let len = u.norm();
             let un = u / len;
             let helper = if un.x.abs() < 0.9 {

@@ -327,7 +327,7 @@ pub fn board_note(effect: &str) -> String {
             "outside the board's model: its poses use saturated spots as they are; keep the \
              beacons outside the range where the cells clip"
         }
-        "plate_offset" | "separation_error" => {
+        "plate_offset" | "separation_error" | "plate_tilt" => {
             "an error of the apparatus, not of the sensor: nothing for the board to hold; the \
              sensor's calibration from these data absorbs part of it"
         }
@@ -1026,7 +1026,10 @@ fn cause_params(model: &Model, c: Cand, f: &FitResult, seps: &[f64]) -> CausePar
             })
             .collect();
         let sumsq: f64 = locals.iter().map(|l| l.1 * l.1).sum();
-        p.insert("rms_in", (sumsq / locals.len().max(1) as f64).sqrt());
+        p.insert(
+            c.local_rms_name(),
+            (sumsq / locals.len().max(1) as f64).sqrt(),
+        );
         for (name, val, sg) in locals {
             p.insert(name.clone(), val);
             s.insert(name, sg);
@@ -1295,6 +1298,7 @@ pub fn analyze(
     let n_constraints = |m: &Model| {
         m.effects
             .iter()
+            .filter(|e| e.zero_mean())
             .map(|e| e.local_names().len())
             .sum::<usize>()
     };
@@ -1859,8 +1863,10 @@ fn estimates_text(
         let each: Vec<String> = spreads
             .iter()
             .map(|p| {
+                // Names that carry their unit (`tx_deg`) print without one; the rest are in.
+                let u = if p.name.ends_with("_deg") { "" } else { " in" };
                 format!(
-                    "{} weighted RMS {:.1e} in (noise alone {:.1e})",
+                    "{} weighted RMS {:.1e}{u} (noise alone {:.1e})",
                     p.name, p.rms, p.noise_rms
                 )
             })

@@ -6,12 +6,14 @@
 //! the physics the analysis fits is exactly the physics `cta simulate` injects. The
 //! parameter vector is laid out as: the starting model's parameters, then each global
 //! effect's parameters in the order the effects were added, then the per-separation blocks
-//! (`plate_offset`: x, y per separation; `separation_error`: z per separation).
+//! (`plate_offset`: x, y per separation; `separation_error`: z per separation; `plate_tilt`:
+//! tx, ty per separation).
 //!
 //! Jacobians are forward finite differences (host only; the per-separation parameters touch
 //! only their own separation's rows, so they cost one evaluation of that separation each).
 
 use super::data::{Data, PointMean};
+use crate::simulate::Placement;
 use cta_core::emulator::{Effects, Emulator, Head, BETA};
 use cta_core::glsdc::{self, ModelError, Problem, Settings};
 use cta_core::pattern::Pattern;
@@ -84,10 +86,16 @@ pub enum Cand {
     /// `separation_error`: one separation correction z per separation, in (true minus
     /// recorded). Their mean is held at zero (a common error is d3).
     SeparationError,
+    /// `plate_tilt`: one tilt vector (tx, ty) of the plate per separation, deg (the plate
+    /// turned about its centre, its LEDs' boresights with it; see
+    /// [`crate::simulate::Placement`]). Their mean is free: a tilt common to every
+    /// separation moves the beacons by an amount that grows with their distance from the
+    /// plate's centre, which no head pose or offset does.
+    PlateTilt,
 }
 
 /// Every candidate, in the order they are tried.
-pub const ALL: [Cand; 10] = [
+pub const ALL: [Cand; 11] = [
     Cand::Proximity,
     Cand::Intensity,
     Cand::BeaconPattern,
@@ -98,6 +106,7 @@ pub const ALL: [Cand; 10] = [
     Cand::Saturation,
     Cand::PlateOffset,
     Cand::SeparationError,
+    Cand::PlateTilt,
 ];
 
 impl Cand {
@@ -114,6 +123,7 @@ impl Cand {
             Cand::Saturation => "saturation",
             Cand::PlateOffset => "plate_offset",
             Cand::SeparationError => "separation_error",
+            Cand::PlateTilt => "plate_tilt",
         }
     }
 
@@ -139,7 +149,7 @@ impl Cand {
             Cand::FaceAngle if base == Base::Pinhole => &["DY"],
             Cand::FaceAngle => &["DX", "DY"],
             Cand::Saturation => &["lnS"],
-            Cand::PlateOffset | Cand::SeparationError => &[],
+            Cand::PlateOffset | Cand::SeparationError | Cand::PlateTilt => &[],
         }
     }
 
@@ -148,7 +158,31 @@ impl Cand {
         match self {
             Cand::PlateOffset => &["x", "y"],
             Cand::SeparationError => &["z"],
+            Cand::PlateTilt => &["tx_deg", "ty_deg"],
             _ => &[],
+        }
+    }
+
+    /// Whether the mean of each per-separation parameter over the separations is held at
+    /// zero (a common lateral offset is the head offset d1, d2; a common separation error is
+    /// d3). False for global effects.
+    pub fn zero_mean(self) -> bool {
+        matches!(self, Cand::PlateOffset | Cand::SeparationError)
+    }
+
+    /// Name of the summary of the per-separation values (their RMS), with its unit.
+    pub fn local_rms_name(self) -> &'static str {
+        match self {
+            Cand::PlateTilt => "rms_deg",
+            _ => "rms_in",
+        }
+    }
+
+    /// Finite-difference step of the per-separation parameters.
+    fn local_step(self) -> f64 {
+        match self {
+            Cand::PlateTilt => 1e-5,
+            _ => 1e-6,
         }
     }
 
@@ -398,7 +432,12 @@ impl Model {
         for &e in &self.effects {
             v.extend(e.steps(self.base));
         }
-        v.resize(self.n_params(), 1e-6);
+        // The per-separation blocks, in their layout order (see `local_slot`).
+        for &e in &self.effects {
+            let w = e.local_names().len();
+            v.extend(std::iter::repeat_n(e.local_step(), w * self.nsep));
+        }
+        debug_assert_eq!(v.len(), self.n_params());
         v
     }
 
@@ -469,7 +508,7 @@ impl Model {
                     Base::Pinhole => head.alpha_y = head.alpha_x + rad(v[0]),
                 },
                 Cand::Saturation => fx.saturation = Some(v[0].exp()),
-                Cand::PlateOffset | Cand::SeparationError => {}
+                Cand::PlateOffset | Cand::SeparationError | Cand::PlateTilt => {}
             }
         }
         let pose = cta_core::emulator::Pose {
@@ -479,22 +518,30 @@ impl Model {
         Emulator::new(head, pose, fx)
     }
 
-    /// The correction to the recorded beacon positions of separation `k` (plate offset and
-    /// separation error), in.
-    pub fn offset(&self, x: &[f64], k: usize) -> Vector3<f64> {
-        let mut o = Vector3::zeros();
+    /// Where the plate of separation `k` truly is by the per-separation parameters in `x`
+    /// (plate offset, separation error, plate tilt; none of them in the model: the recorded
+    /// place).
+    pub fn placement(&self, x: &[f64], k: usize) -> Placement {
+        let mut pl = Placement::default();
         for &e in &self.effects {
             let r = self.local_indices(e, k);
             match e {
-                Cand::PlateOffset => {
-                    o.x = x[r.start];
-                    o.y = x[r.start + 1];
-                }
-                Cand::SeparationError => o.z = x[r.start],
+                Cand::PlateOffset => pl.offset = [x[r.start], x[r.start + 1]],
+                Cand::SeparationError => pl.sep_error = x[r.start],
+                Cand::PlateTilt => pl.tilt_deg = [x[r.start], x[r.start + 1]],
                 _ => {}
             }
         }
-        o
+        pl
+    }
+
+    /// The model at `x`, separation by separation: each separation's plate placement and
+    /// emulator (the LEDs' boresights turn with a tilted plate).
+    pub fn view(&self, x: &[f64]) -> View {
+        let em = self.emulator(x);
+        let places: Vec<Placement> = (0..self.nsep).map(|k| self.placement(x, k)).collect();
+        let ems = places.iter().map(|pl| pl.emulator(&em)).collect();
+        View { ems, places }
     }
 
     /// Predicted (X, Y) of every point in `subset`.
@@ -504,17 +551,38 @@ impl Model {
         data: &Data,
         subset: &[usize],
     ) -> Result<Vec<[f64; 2]>, ModelError> {
-        let em = self.emulator(x);
-        let offs: Vec<Vector3<f64>> = (0..self.nsep).map(|k| self.offset(x, k)).collect();
+        let v = self.view(x);
         subset
             .iter()
             .map(|&i| {
-                let p = &data.points[i];
-                em.output(&(p.r + offs[p.sep]))
+                v.output(&data.points[i])
                     .filter(|o| o[0].is_finite() && o[1].is_finite())
                     .ok_or(ModelError::NonFinite)
             })
             .collect()
+    }
+}
+
+/// A model evaluated at one parameter vector (see [`Model::view`]).
+pub struct View {
+    ems: Vec<Emulator<f64>>,
+    places: Vec<Placement>,
+}
+
+impl View {
+    /// The true beacon position (N, in) of point `p` by the model.
+    pub fn beacon(&self, p: &PointMean) -> Vector3<f64> {
+        self.places[p.sep].beacon(&p.r)
+    }
+
+    /// The emulator of separation `k`.
+    pub fn emulator(&self, k: usize) -> &Emulator<f64> {
+        &self.ems[k]
+    }
+
+    /// The model's output for point `p`.
+    pub fn output(&self, p: &PointMean) -> Option<[f64; 2]> {
+        self.ems[p.sep].output(&self.beacon(p))
     }
 }
 
@@ -597,14 +665,16 @@ impl Problem<f64> for FitProblem<'_> {
                     let sep = (0..m.nsep)
                         .find(|&k| m.locals_of_sep(k).contains(&i))
                         .unwrap_or(0);
-                    let em = m.emulator(&xp);
-                    let off = m.offset(&xp, sep);
+                    let place = m.placement(&xp, sep);
+                    let em = place.emulator(&m.emulator(&xp));
                     for (j, &pi) in self.subset.iter().enumerate() {
                         let p = &data.points[pi];
                         if p.sep != sep {
                             continue;
                         }
-                        let yp = em.output(&(p.r + off)).ok_or(ModelError::NonFinite)?;
+                        let yp = em
+                            .output(&place.beacon(&p.r))
+                            .ok_or(ModelError::NonFinite)?;
                         for a in 0..2 {
                             jm[(j * 2 + a) * nf + f] = (yp[a] - y0[j][a]) / h;
                         }
@@ -704,7 +774,7 @@ pub fn fit(
     }
     let mut constraints = Vec::new();
     if constrain {
-        for &e in &model.effects {
+        for &e in model.effects.iter().filter(|e| e.zero_mean()) {
             for c in 0..e.local_names().len() {
                 let idx: Vec<usize> = (0..model.nsep)
                     .filter(|&k| present[k])

@@ -89,10 +89,15 @@ fn cause_rows(s: &mut String, causes: &[Cause]) {
             })
             .collect();
         if !locals.is_empty() {
+            let relative = super::model::Cand::from_name(&c.effect).is_some_and(|c| c.zero_mean());
             let _ = write!(
                 s,
-                "<tr><td></td><td colspan=6><details><summary>per-separation values (relative to \
-                 their mean; the common part is in the head offset d)</summary>{}</details></td></tr>",
+                "<tr><td></td><td colspan=6><details><summary>per-separation values{}</summary>{}</details></td></tr>",
+                if relative {
+                    " (relative to their mean; the common part is in the head offset d)"
+                } else {
+                    ""
+                },
                 locals.join(", ")
             );
         }

@@ -400,7 +400,12 @@ pub fn cross_validate(
 /// Added parameters of `cand` (per-separation blocks minus their zero-mean constraints).
 fn added_params(model: &Model, cand: Cand) -> usize {
     let w = cand.local_names().len();
-    cand.global_names(model.base).len() + w * model.nsep.saturating_sub(1)
+    let per_block = if cand.zero_mean() {
+        model.nsep.saturating_sub(1)
+    } else {
+        model.nsep
+    };
+    cand.global_names(model.base).len() + w * per_block
 }
 
 /// Start values for `cand` on top of `model`'s fit `prev`: neutral values, except for
@@ -419,12 +424,12 @@ fn start(
     if cand != Cand::Saturation {
         return Some(x0);
     }
-    let em = model.emulator(&prev.x);
+    let view = model.view(&prev.x);
     let mut peaks: Vec<f64> = data
         .points
         .iter()
         .map(|p| {
-            let s = em.signals(&(p.r + model.offset(&prev.x, p.sep)));
+            let s = view.emulator(p.sep).signals(&view.beacon(p));
             s.iter().fold(0.0f64, |a, &b| a.max(b))
         })
         .collect();

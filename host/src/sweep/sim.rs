@@ -53,7 +53,7 @@ use serialport::{SerialPort, TTYPort};
 use super::plan::{Layout, Plan};
 use super::store::{corner_mean, corner_uncertainty, SeparationEntry};
 use crate::effects::Effect;
-use crate::simulate::{SimConfig, Truth};
+use crate::simulate::{Placement, SimConfig, Truth};
 
 /// Reported magnitude of a beacon on the axis at 30 in, power level 2, sensitivity 4.
 const MAG_AT_30: f64 = 20_000.0;
@@ -230,7 +230,7 @@ struct Apparatus {
 
 struct World {
     em: Emulator<f64>,
-    geometry: Vec<([f64; 2], f64)>,
+    geometry: Vec<Placement>,
     separations: Vec<f64>,
     layout: Layout,
     settings: SimSettings,
@@ -269,8 +269,9 @@ impl World {
                 spots,
             };
         };
-        let (off, err) = self.geometry[si];
-        let sep = self.separations[si] + err;
+        let place = self.geometry[si];
+        let em = place.emulator(&self.em);
+        let sep = self.separations[si];
         let c = self.layout.centre(st.quadrant);
         let gain =
             if st.power == 1 { POWER1_GAIN } else { 1.0 } * f64::powi(2.0, sensitivity as i32 - 4);
@@ -282,11 +283,11 @@ impl World {
                 continue;
             };
             let g = grid_position(10, 1.0, sep, led);
-            let r = nalgebra::Vector3::new(g.x + c[0] + off[0], g.y + c[1] + off[1], g.z);
-            let Some(out) = self.em.output(&r) else {
+            let r = place.beacon(&nalgebra::Vector3::new(g.x + c[0], g.y + c[1], g.z));
+            let Some(out) = em.output(&r) else {
                 continue;
             };
-            let mag = self.em.magnitude(&r) * scale * gain;
+            let mag = em.magnitude(&r) * scale * gain;
             if mag.is_nan() || mag < NO_SIGNAL {
                 continue;
             }
@@ -854,8 +855,9 @@ impl SimCta {
         let phys = self.config.physics();
         t.generator = format!("cta {} sweep --sim", env!("CARGO_PKG_VERSION"));
         t.separations = self.config.separations.clone();
-        t.plate_offsets = phys.geometry.iter().map(|g| g.0).collect();
-        t.separation_errors = phys.geometry.iter().map(|g| g.1).collect();
+        t.plate_offsets = phys.geometry.iter().map(|g| g.offset).collect();
+        t.separation_errors = phys.geometry.iter().map(|g| g.sep_error).collect();
+        t.plate_tilts_deg = phys.geometry.iter().map(|g| g.tilt_deg).collect();
         t.noise_counts = self.config.noise;
         t.noise_law = Some(format!(
             "noise_counts for a spot of magnitude {STRONG} or more, noise_counts * sqrt({STRONG} \
