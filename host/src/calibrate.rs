@@ -968,8 +968,8 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
             bail!("--noise {v}: a positive number of counts");
         }
     }
-    let all = Dataset::read(&a.file).map_err(|e| anyhow!("{e}"))?;
-    for w in all.warnings() {
+    let (all, warnings) = Dataset::read_warned(&a.file).map_err(|e| anyhow!("{e}"))?;
+    for w in warnings {
         eprintln!("warning: {w}");
     }
     let ds = match &a.separations {

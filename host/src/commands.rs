@@ -839,8 +839,8 @@ pub struct FitArgs {
 
 /// Load and restrict a dataset.
 pub fn load(file: &Path, separations: Option<&str>) -> Result<Dataset> {
-    let ds = Dataset::read(file).map_err(|e| anyhow!("{e}"))?;
-    for w in ds.warnings() {
+    let (ds, warnings) = Dataset::read_warned(file).map_err(|e| anyhow!("{e}"))?;
+    for w in warnings {
         eprintln!("warning: {w}");
     }
     match separations {

@@ -581,6 +581,13 @@ const BOM: &[u8] = b"\xEF\xBB\xBF";
 impl Dataset {
     /// Read a measurement file.
     pub fn read(path: &Path) -> Result<Dataset, ReadError> {
+        Self::read_warned(path).map(|(ds, _)| ds)
+    }
+
+    /// Read a measurement file, with every warning an analysis command prints on load
+    /// (without `warning: `): what reading noticed of the file itself (a last value that may
+    /// be cut short, [`Dataset::from_reader_warned`]), then [`Dataset::warnings`].
+    pub fn read_warned(path: &Path) -> Result<(Dataset, Vec<String>), ReadError> {
         if path.is_dir() {
             let data = crate::sweep::data_path(path);
             return Err(ReadError::Folder {
@@ -589,11 +596,31 @@ impl Dataset {
             });
         }
         let f = std::fs::File::open(path).map_err(|e| ReadError::Io(path.to_path_buf(), e))?;
-        Self::from_reader(path, f)
+        Self::from_reader_warned(path, f)
     }
 
     /// Read from any reader; `path` is used in messages.
     pub fn from_reader(path: &Path, r: impl Read) -> Result<Dataset, ReadError> {
+        Self::parse(path, r).map(|(ds, _)| ds)
+    }
+
+    /// [`Dataset::from_reader`], with the warnings of [`Dataset::read_warned`]. A file whose
+    /// last row is whole (as many fields as the header, every value valid) but not followed
+    /// by a line break may have been cut inside that row's last value (`-1234` cut to `-12`
+    /// still reads): warned about, naming the line and the value. (A row cut short of its
+    /// fields is an error, [`ReadError::ShortRow`].)
+    pub fn from_reader_warned(
+        path: &Path,
+        r: impl Read,
+    ) -> Result<(Dataset, Vec<String>), ReadError> {
+        let (ds, unended) = Self::parse(path, r)?;
+        let mut w: Vec<String> = unended.into_iter().collect();
+        w.extend(ds.warnings());
+        Ok((ds, w))
+    }
+
+    /// The rows, and the warning on a last row without a line break after it.
+    fn parse(path: &Path, r: impl Read) -> Result<(Dataset, Option<String>), ReadError> {
         let p = path.to_path_buf();
         let mut br = BufReader::new(r);
         let mut raw: Vec<u8> = Vec::new();
@@ -602,11 +629,11 @@ impl Dataset {
         let mut line = 0usize;
         let mut header = true;
         // The next line that is neither blank nor a comment, split into `buf`/`ends`: its
-        // number, and whether it ended with a newline (the last line of a file cut off
-        // mid-write has none).
+        // number, and its last byte (a newline, except on a file's last line, which has none
+        // when the file was cut off mid-write).
         let mut next = |buf: &mut Vec<u8>,
                         ends: &mut Vec<usize>|
-         -> Result<Option<(usize, bool)>, ReadError> {
+         -> Result<Option<(usize, Option<u8>)>, ReadError> {
             loop {
                 raw.clear();
                 let n = br
@@ -643,7 +670,7 @@ impl Dataset {
                     line,
                     message: m,
                 })?;
-                return Ok(Some((line, raw.last() == Some(&b'\n'))));
+                return Ok(Some((line, raw.last().copied())));
             }
         };
         let field = |ends: &[usize], k: usize| -> std::ops::Range<usize> {
@@ -682,7 +709,10 @@ impl Dataset {
         let mut samples = Vec::new();
         // First line of each (separation, position, beacon, settings, sample index).
         let mut seen: HashMap<[u64; 9], usize> = HashMap::new();
-        while let Some((line, ended)) = next(&mut buf, &mut ends)? {
+        // The last row, when no line break follows it: its line, last column and last value.
+        let mut unended: Option<(usize, String, String)> = None;
+        while let Some((line, last_byte)) = next(&mut buf, &mut ends)? {
+            let ended = last_byte == Some(b'\n');
             let nf = ends.len();
             if nf < header.len() {
                 return Err(ReadError::ShortRow {
@@ -788,11 +818,47 @@ impl Dataset {
                 seen.insert(key, line);
             }
             samples.push(s);
+            // Only a file's last line can lack a line break (`\r` alone is one too: a CRLF
+            // file cut between the two bytes has its last value whole).
+            if !matches!(last_byte, Some(b'\n' | b'\r')) {
+                let raw = &buf[field(&ends, nf - 1)];
+                unended = Some((
+                    line,
+                    header[nf - 1].clone(),
+                    String::from_utf8_lossy(raw).into_owned(),
+                ));
+            }
         }
         if samples.is_empty() {
             return Err(ReadError::Empty(p));
         }
-        Ok(Dataset { path: p, samples })
+        let warning = unended.map(|(line, column, value)| {
+            // A long value (a note column) is shown by its end, where a cut would be.
+            let shown = printable(&value);
+            let shown = match shown.char_indices().rev().nth(39) {
+                Some((i, _)) => format!("...{}", &shown[i..]),
+                None => shown,
+            };
+            let value = if value.is_empty() {
+                format!(
+                    "its last field (column `{}`) is empty, and",
+                    printable(&column)
+                )
+            } else {
+                format!(
+                    "its last value, `{shown}` (column `{}`),",
+                    printable(&column)
+                )
+            };
+            format!(
+                "{}:{line}: the file's last line has no end of line: {value} may be cut short \
+                 (`-1234` cut to `-12` still reads as a number; a copy not finished, a sweep \
+                 still writing?). If the file was cut, delete that line, or copy or export the \
+                 file again once complete; if it is whole, end it with a line break",
+                p.display()
+            )
+        });
+        Ok((Dataset { path: p, samples }, warning))
     }
 
     /// The distinct separations, ascending.
@@ -1621,6 +1687,66 @@ mod tests {
 
     fn read(s: &str) -> Result<Dataset, ReadError> {
         Dataset::from_reader(Path::new("m.csv"), s.as_bytes())
+    }
+
+    /// A file cut inside its last value (`-1234` to `-12`) still reads, so a last row with no
+    /// line break after it is warned about, naming its line and value and what to do; a file
+    /// ending with a line break (`\n`, `\r\n`, or a lone `\r`), or with a comment after its
+    /// last row, is not.
+    #[test]
+    fn a_last_value_without_a_line_break_may_be_cut_short() {
+        let warned = |text: &str| {
+            let (ds, w) = Dataset::from_reader_warned(Path::new("m.csv"), text.as_bytes())
+                .unwrap_or_else(|e| panic!("{text:?}: {e}"));
+            assert_eq!(ds.samples.len(), 2, "{text:?}");
+            (ds, w)
+        };
+        let head = "# title\nseparation_in,beacon_x_in,beacon_y_in,beacon_z_in,x,y\n\
+                    20,0,0,20,10,-1234\n";
+        let (ds, w) = warned(&format!("{head}20,1,0,20,11,-12"));
+        assert_eq!(ds.samples[1].y, -12.0);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].starts_with(
+                "m.csv:4: the file's last line has no end of line: its last value, `-12` \
+                 (column `y`), may be cut short"
+            ) && w[0].contains("delete that line, or copy or export the file again"),
+            "{w:?}"
+        );
+        // The plain reader reads the same rows.
+        let plain = Dataset::from_reader(
+            Path::new("m.csv"),
+            format!("{head}20,1,0,20,11,-12").as_bytes(),
+        );
+        assert_eq!(plain.unwrap().samples, ds.samples);
+        for ending in ["\n", "\r\n", "\r", "\n# the end", "\n\n"] {
+            let (_, w) = warned(&format!("{head}20,1,0,20,11,-12{ending}"));
+            assert!(w.is_empty(), "{ending:?}: {w:?}");
+        }
+        // An optional last column left empty by the cut, and a long value shown by its end.
+        let (_, w) = warned(
+            "separation_in,beacon_x_in,beacon_y_in,beacon_z_in,x,y,magnitude\n\
+             20,0,0,20,10,-1234,0.5\n20,1,0,20,11,-1234,",
+        );
+        assert!(
+            w[0].starts_with(
+                "m.csv:3: the file's last line has no end of line: its last field (column \
+                 `magnitude`) is empty, and may be cut short"
+            ),
+            "{w:?}"
+        );
+        let note = format!("{}cut here", "x".repeat(100));
+        let (_, w) = warned(&format!(
+            "separation_in,beacon_x_in,beacon_y_in,beacon_z_in,x,y,note\n\
+             20,0,0,20,10,-1234,a\n20,1,0,20,11,-1234,{note}"
+        ));
+        assert!(
+            w[0].contains(&format!(
+                "its last value, `...{}` (column `note`)",
+                &note[68..]
+            )),
+            "{w:?}"
+        );
     }
 
     #[test]

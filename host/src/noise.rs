@@ -962,8 +962,8 @@ fn panel(f: &Factor, log_x: bool) -> Panel {
 
 /// Run `cta noise`.
 pub fn run(args: &NoiseArgs) -> anyhow::Result<()> {
-    let ds = Dataset::read(&args.file).map_err(anyhow::Error::msg)?;
-    for w in ds.warnings() {
+    let (ds, warnings) = Dataset::read_warned(&args.file).map_err(anyhow::Error::msg)?;
+    for w in warnings {
         eprintln!("warning: {w}");
     }
     let r = analyze_noise(&ds).map_err(anyhow::Error::msg)?;

@@ -101,6 +101,52 @@ fn a_file_cut_off_mid_row_is_said_to_be() {
     assert!(cta(&["fit", s(&whole)]).status.success());
 }
 
+/// A file cut inside its last value (`0.006927100158441942` to `0.0069271001584`) still
+/// reads, so every command that reads a measurement file warns when the last row has no line
+/// break after it, naming the line and the value and saying what to do; the same file ending
+/// with a line break is not warned about.
+#[test]
+fn a_file_cut_inside_its_last_value_is_warned_about() {
+    let d = tmpdir("cut-value");
+    let full = d.join("full.csv");
+    simulate(&full, &["--separations", "25,30", "--samples", "3"]);
+    let text = std::fs::read_to_string(&full).unwrap();
+    let lines = text.lines().count();
+    let body = &text.trim_end()[..text.trim_end().len() - 5];
+    let value = body.rsplit(',').next().unwrap();
+    assert!(value.parse::<f64>().is_ok() && value.len() > 3, "{value}");
+    let cut = d.join("cut.csv");
+    std::fs::write(&cut, body).unwrap();
+    let want = format!(
+        "warning: {}:{lines}: the file's last line has no end of line: its last value, \
+         `{value}` (column `magnitude`), may be cut short",
+        s(&cut)
+    );
+    for args in readers(&cut, &d.join("cal.json")) {
+        let o = run(&args);
+        let err = stderr(&o);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        let line = err
+            .lines()
+            .find(|l| l.starts_with(&want))
+            .unwrap_or_else(|| panic!("{args:?}: {err}"));
+        assert!(
+            line.contains(
+                "If the file was cut, delete that line, or copy or export the file again"
+            ),
+            "{line}"
+        );
+    }
+    let o = cta(&["fit", s(&cut)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Ended by a line break: no warning.
+    let whole = d.join("whole.csv");
+    std::fs::write(&whole, format!("{body}\n")).unwrap();
+    let o = cta(&["fit", s(&whole)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("cut short"), "{}", stderr(&o));
+}
+
 /// The audit's case: `cta simulate --out g.csv --d 100,0,0` (millimetres typed for inches)
 /// said "0 points outside the field of view" though every report was railed. The rail is now
 /// counted when the file is written, with its likely cause; the close-in rail of a default

@@ -1952,8 +1952,8 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<()> {
         b
     };
     bar.set_message(format!("reading {}", args.file.display()));
-    let mut ds = Dataset::read(&args.file).map_err(anyhow::Error::msg)?;
-    for w in ds.warnings() {
+    let (mut ds, warnings) = Dataset::read_warned(&args.file).map_err(anyhow::Error::msg)?;
+    for w in warnings {
         bar.suspend(|| eprintln!("warning: {w}"));
     }
     if let Some(s) = &args.separations {
