@@ -2064,6 +2064,45 @@ mod tests {
         );
     }
 
+    /// The typo warning's row ratio at its boundary: 2 rows at 2.0001 in beside 8 at 2 in
+    /// (4 times theirs) are warned about, beside 7 (3.5 times) are not; whichever side of
+    /// the value the few rows lie.
+    #[test]
+    fn a_separation_typo_needs_four_times_the_rows_beside_it() {
+        let file = |many: usize, odd: f64| {
+            let mut samples = Vec::new();
+            for (sep, n) in [(2.0, many), (odd, 2)] {
+                for k in 0..n {
+                    samples.push(Sample {
+                        separation_in: sep,
+                        r: [k as f64 - 4.0, 0.5, sep],
+                        x: 100.0 * k as f64,
+                        y: -50.0,
+                        line: samples.len() + 2,
+                        ..Default::default()
+                    });
+                }
+            }
+            Dataset {
+                path: "t.csv".into(),
+                samples,
+            }
+        };
+        for odd in [2.0001, 1.9999] {
+            let w = file(4 * 2, odd).warnings();
+            assert_eq!(w.len(), 1, "{w:?}");
+            assert!(
+                w[0].starts_with(&format!(
+                    "t.csv:10: separation_in {odd} on 2 rows (lines 10, 11) beside 2 on 8 rows: \
+                     within 0.01 in of a separation with at least 4 times the rows"
+                )),
+                "{w:?}"
+            );
+            let w = file(4 * 2 - 1, odd).warnings();
+            assert!(w.is_empty(), "{odd}: {w:?}");
+        }
+    }
+
     /// The robust sigma is the noise for any number of samples per point (odd and even: the
     /// [`MAD_FACTOR`] table), and a glitch is named, counted and kept.
     #[test]
