@@ -2161,6 +2161,64 @@ mod tests {
         assert!(b.data_notes.is_empty(), "{:?}", b.data_notes);
     }
 
+    /// The settings note for each setting alone: a separation's points differing only in
+    /// frequency, only in power or only in sensitivity (every other setting the same) make
+    /// more than one setting there, so the noise test runs and names it. Settings that
+    /// differ, with the same noise: no note.
+    #[test]
+    fn each_setting_alone_is_told_apart_by_the_settings_note() {
+        type Set = fn(&mut crate::measurement::Sample, bool);
+        let cases: [(Set, &str); 3] = [
+            (
+                |s, loud| s.frequency_hz = Some(if loud { 4050.0 } else { 2000.0 }),
+                "modulation frequency",
+            ),
+            (
+                |s, loud| s.power = Some(if loud { 2.0 } else { 1.0 }),
+                "power level",
+            ),
+            (
+                |s, loud| s.sensitivity = Some(if loud { 4.0 } else { 1.0 }),
+                "sensitivity setting",
+            ),
+        ];
+        let cfg = SimConfig {
+            effects: Vec::new(),
+            separations: vec![4.0, 8.0, 15.0, 30.0],
+            ..sim("cell_gain=0", 6)
+        };
+        let base = cfg.run().0;
+        for (set, name) in cases {
+            for louder in [40.0, 0.0] {
+                let mut ds = base.clone();
+                // Every other point at the other setting, with `louder` counts more noise
+                // (alternating signs, so the means stay put).
+                for (k, g) in ds.points().iter().enumerate() {
+                    let loud = k % 2 == 0;
+                    for (j, &i) in g.rows.iter().enumerate() {
+                        let s = &mut ds.samples[i];
+                        set(s, loud);
+                        if loud && s.x.abs() < 30_000.0 && s.y.abs() < 30_000.0 {
+                            let d = if j % 2 == 0 { louder } else { -louder };
+                            s.x += d;
+                            s.y += d;
+                        }
+                    }
+                }
+                let (_, notes) = super::data_notes(&ds, &Options::default()).unwrap();
+                let note = notes.join(" | ");
+                let want = format!(
+                    "the noise differs between settings within a separation: {name} (max/min std"
+                );
+                assert_eq!(
+                    note.contains(&want),
+                    louder > 0.0,
+                    "{name} {louder}: {note}"
+                );
+            }
+        }
+    }
+
     /// One sample per point, 10 counts of noise, 32.8 assumed: chi2/dof ~0.1, and the note
     /// says the assumed noise is far too large and what to rerun with.
     #[test]
