@@ -995,6 +995,31 @@ impl Dataset {
         glitch_check(self)
     }
 
+    /// The dataset without the samples the glitch check flags ([`Dataset::glitches`]): what
+    /// `cta analyze --drop-glitches` fits, with what was left out. `None` when nothing is
+    /// flagged. The file is not changed.
+    pub fn without_glitches(&self) -> Option<WithoutGlitches> {
+        let g = self.glitches();
+        if g.samples == 0 {
+            return None;
+        }
+        let flagged: std::collections::BTreeSet<usize> = g.rows.iter().copied().collect();
+        let data = Dataset {
+            path: self.path.clone(),
+            samples: (self.samples.iter().enumerate())
+                .filter(|(i, _)| !flagged.contains(i))
+                .map(|(_, s)| *s)
+                .collect(),
+        };
+        let mut lines: Vec<usize> = g.rows.iter().map(|&r| self.samples[r].line).collect();
+        lines.sort_unstable();
+        Some(WithoutGlitches {
+            data,
+            samples: g.samples,
+            lines,
+        })
+    }
+
     /// The file's separation nearest to `want`, when one lies within [`SEP_MATCH_IN`]: a
     /// swept file records the measured mean of the four corner readings (`10.0125` for a
     /// nominal 10 in), so a requested `10` must find it.
@@ -1268,6 +1293,41 @@ impl Glitches {
             self.threshold_sigma,
             if self.samples == 1 { "its" } else { "their" },
         ))
+    }
+}
+
+/// A dataset without its glitches ([`Dataset::without_glitches`]).
+#[derive(Debug, Clone)]
+pub struct WithoutGlitches {
+    /// The rows that are not flagged, in file order.
+    pub data: Dataset,
+    /// How many samples were left out.
+    pub samples: usize,
+    /// Their 1-based lines, ascending.
+    pub lines: Vec<usize>,
+}
+
+impl WithoutGlitches {
+    /// Where they are, for messages: `line 4242`, `lines 9, 402`, the first five then `...`.
+    pub fn where_(&self) -> String {
+        let shown: Vec<String> = self.lines.iter().take(5).map(|l| l.to_string()).collect();
+        format!(
+            "line{} {}{}",
+            if self.samples == 1 { "" } else { "s" },
+            shown.join(", "),
+            if self.lines.len() > 5 { ", ..." } else { "" }
+        )
+    }
+
+    /// The note printed when `--drop-glitches` left them out: `3 glitched
+    /// samples left out (--drop-glitches; lines 9, 402, 977); the file is unchanged`.
+    pub fn note(&self) -> String {
+        format!(
+            "{} glitched sample{} left out (--drop-glitches; {}); the file is unchanged",
+            self.samples,
+            if self.samples == 1 { "" } else { "s" },
+            self.where_()
+        )
     }
 }
 

@@ -1543,37 +1543,16 @@ fn data_notes<'d>(
 ) -> Result<(std::borrow::Cow<'d, Dataset>, Vec<String>), String> {
     let mut notes = Vec::new();
     let mut used = std::borrow::Cow::Borrowed(ds);
-    let g = ds.glitches();
-    if g.samples > 0 {
-        let flagged: std::collections::BTreeSet<usize> = g.rows.iter().copied().collect();
-        let clean = Dataset {
-            path: ds.path.clone(),
-            samples: (ds.samples.iter().enumerate())
-                .filter(|(i, _)| !flagged.contains(i))
-                .map(|(_, s)| *s)
-                .collect(),
-        };
-        let mut lines: Vec<usize> = g.rows.iter().map(|&r| ds.samples[r].line).collect();
-        lines.sort_unstable();
-        let shown: Vec<String> = lines.iter().take(5).map(|l| l.to_string()).collect();
-        let one = g.samples == 1;
-        let where_ = format!(
-            "line{} {}{}",
-            if one { "" } else { "s" },
-            shown.join(", "),
-            if lines.len() > 5 { ", ..." } else { "" }
-        );
+    if let Some(clean) = ds.without_glitches() {
+        let one = clean.samples == 1;
+        let where_ = clean.where_();
         if opts.drop_glitches {
-            notes.push(format!(
-                "{} glitched sample{} left out (--drop-glitches; {where_}); the file is unchanged",
-                g.samples,
-                if one { "" } else { "s" }
-            ));
-            used = std::borrow::Cow::Owned(clean);
+            notes.push(clean.note());
+            used = std::borrow::Cow::Owned(clean.data);
         } else if opts.noise.is_none() {
             // The noise per separation and axis the fits weight by, with and without them.
             let with = Data::from_dataset(ds, opts.weights, None)?;
-            let without = Data::from_dataset(&clean, opts.weights, None)?;
+            let without = Data::from_dataset(&clean.data, opts.weights, None)?;
             if with.noise_measured {
                 let (mut worst, mut at, mut axis) = (1.0, f64::NAN, 0);
                 for (k, sep) in with.seps.iter().enumerate() {
