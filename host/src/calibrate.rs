@@ -398,6 +398,12 @@ pub struct CalibrateArgs {
     /// the near-field model pays on this sensor, and where it still misses.
     #[arg(long, value_name = "FILE.svg")]
     pub plot: Option<PathBuf>,
+    /// Leave out the samples the glitch check flags (more than 8 robust sigma from their
+    /// point's median; the warning names their lines), as `cta analyze --drop-glitches`
+    /// does. The file is not changed; the output (and the calibration's `fitted`) says how
+    /// many were left out.
+    #[arg(long)]
+    pub drop_glitches: bool,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -437,6 +443,10 @@ pub struct Provenance {
     pub points: usize,
     /// Points left out because an output was pinned.
     pub pinned_points: usize,
+    /// Samples the glitch check flagged that `--drop-glitches` left out (0 without it, and
+    /// in files written before it).
+    #[serde(default)]
+    pub glitches_left_out: usize,
     /// Near-field parameters whose estimates correlate at 0.8 or more in magnitude:
     /// `[a, b, rho]` (absent in files written before it).
     #[serde(default)]
@@ -490,6 +500,9 @@ pub struct CalibrationReport {
     pub by_separation: Vec<SeparationRms>,
     /// Things the user should know.
     pub warnings: Vec<String>,
+    /// Notes on the data fitted: the glitched samples `--drop-glitches` left out, as `cta
+    /// analyze`'s `data_notes`.
+    pub data_notes: Vec<String>,
 }
 
 /// The pooled one-sample noise per separation ([`fit::pooled_noise`], the rule `cta fit
@@ -921,6 +934,7 @@ pub fn calibrate(
                 rms_counts: rms,
                 points: pts.len(),
                 pinned_points: pinned,
+                glitches_left_out: 0,
                 correlations: nf.correlations.clone(),
             },
         },
@@ -932,6 +946,7 @@ pub fn calibrate(
         condition: nf.condition,
         by_separation,
         warnings,
+        data_notes: Vec::new(),
     })
 }
 
@@ -968,9 +983,18 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
             bail!("--noise {v}: a positive number of counts");
         }
     }
-    let (all, warnings) = Dataset::read_warned(&a.file).map_err(|e| anyhow!("{e}"))?;
+    let (mut all, warnings) = Dataset::read_warned(&a.file).map_err(|e| anyhow!("{e}"))?;
     for w in warnings {
         eprintln!("warning: {w}");
+    }
+    // `cta analyze --drop-glitches`'s rule, on the whole file: the pinhole stage may take
+    // separations --separations leaves out.
+    let mut dropped = None;
+    if a.drop_glitches {
+        if let Some(clean) = all.without_glitches() {
+            dropped = Some((clean.samples, clean.note()));
+            all = clean.data;
+        }
     }
     let ds = match &a.separations {
         None => all.clone(),
@@ -984,7 +1008,11 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
         None => None,
         Some(s) => Some(parse_separations(s).map_err(|e| anyhow!("--pinhole-separations: {e}"))?),
     };
-    let rep = calibrate(&ds, &all, ph.as_deref(), a.noise, a.pattern_m)?;
+    let mut rep = calibrate(&ds, &all, ph.as_deref(), a.noise, a.pattern_m)?;
+    if let Some((n, note)) = dropped {
+        rep.file.fitted.glitches_left_out = n;
+        rep.data_notes.push(note);
+    }
     // Written as every `cta` output is (missing folders created); the report is printed
     // whether or not the writes succeed, and a failed write is the error after it.
     let saved = match &a.out {
@@ -1071,6 +1099,9 @@ fn print_report(rep: &CalibrationReport, out: Option<Option<&Path>>) {
         "Sensor calibration from {} ({} points at {seps}; {} left out)",
         f.source, f.points, f.pinned_points
     );
+    for n in &rep.data_notes {
+        println!("  note: {n}");
+    }
     // Each estimate to the digits its 1-sigma resolves (`cta analyze`'s convention).
     let pm = |v: f32, n: &str| crate::analyze::digits::pm_parts(f64::from(v), f.sigma[n]);
     let (h, hs) = crate::analyze::digits::pm_parts(rep.pinhole_h, f.sigma["H"]);

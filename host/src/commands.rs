@@ -832,6 +832,11 @@ pub struct FitArgs {
     /// Let --save replace a file that is not an earlier saved fit.
     #[arg(long)]
     pub force: bool,
+    /// Leave out the samples the glitch check flags (more than 8 robust sigma from their
+    /// point's median; the warning names their lines), as `cta analyze --drop-glitches`
+    /// does. The file is not changed; the output says how many were left out.
+    #[arg(long)]
+    pub drop_glitches: bool,
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -872,9 +877,18 @@ pub fn fit_cmd(a: &FitArgs) -> Result<()> {
     if let Some(p) = &a.save {
         check_fit_save(p, &a.file, a.force)?;
     }
-    let ds = load(&a.file, a.separations.as_deref())?;
+    let mut ds = load(&a.file, a.separations.as_deref())?;
+    // `cta analyze --drop-glitches`'s rule, on the separations fitted.
+    let mut notes = Vec::new();
+    if a.drop_glitches {
+        if let Some(clean) = ds.without_glitches() {
+            notes.push(clean.note());
+            ds = clean.data;
+        }
+    }
     let mut rep =
         fit::fit(&ds, a.weights).map_err(|e| anyhow!(crate::analyze::wiring::explain(&ds, e)))?;
+    rep.data_notes = notes;
     rep.warnings
         .extend(crate::analyze::wiring::h_warning(&ds, rep.params["H"]));
     rep.warnings.extend(fit::chi2_warning(
@@ -922,6 +936,9 @@ fn print_fit(rep: &FitReport, file: &Path) {
         fmt_list(&rep.separations),
         rep.weights.describe()
     );
+    for n in &rep.data_notes {
+        println!("  note: {n}");
+    }
     let (truth, truth_warning) = Truth::load_for_fit(file);
     if let Some(w) = truth_warning {
         eprintln!("warning: {w}");

@@ -184,6 +184,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         weights: Weights::Pooled,
         save: Some(fit.clone()),
         force: false,
+        drop_glitches: false,
         json: false,
     })?;
     println!("\n== 5. Figure 57: error in angle of that calibration at every separation");

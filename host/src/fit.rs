@@ -129,6 +129,10 @@ pub struct FitReport {
     pub observations: usize,
     /// Things the user should know.
     pub warnings: Vec<String>,
+    /// Notes on the data fitted: the glitched samples `--drop-glitches` left out, as `cta
+    /// analyze`'s `data_notes` (empty in files written before it).
+    #[serde(default)]
+    pub data_notes: Vec<String>,
 }
 
 impl FitReport {
@@ -594,6 +598,7 @@ pub fn fit_observations(
         stop: format!("{:?}", sol.stop),
         observations: obs.len(),
         warnings,
+        data_notes: Vec::new(),
     })
 }
 
@@ -780,6 +785,7 @@ mod tests {
             stop: "Converged".into(),
             observations: 200,
             warnings: Vec::new(),
+            data_notes: Vec::new(),
         }
     }
 
