@@ -23,7 +23,7 @@ use cta_core::wire::beacon::{
 };
 use cta_core::wire::{
     encode_frame, BoardKind, DecoderStats, ErrorReply, FrameDecoder, Header, Identity, Reply,
-    Request, Response, MAX_FRAME, PROTOCOL_VERSION,
+    Request, ResetCause, Response, MAX_FRAME, PROTOCOL_VERSION,
 };
 
 /// The reply type of the beacon board.
@@ -51,13 +51,14 @@ pub struct Board {
     refused: u32,
     uart_errors: u32,
     simulated: bool,
-    watchdog_reset: bool,
+    reset_cause: ResetCause,
 }
 
 impl Board {
     /// Board with every LED off, the NorthStar table and default limits. Call
     /// [`Board::start`] once to push that state to the outputs.
-    pub fn new(simulated: bool, watchdog_reset: bool) -> Self {
+    /// `reset_cause`: what started the board, reported in its status.
+    pub fn new(simulated: bool, reset_cause: ResetCause) -> Self {
         let mut table = heapless::Vec::new();
         // NORTHSTAR_TABLE_MHZ has 20 <= MAX_FREQS entries.
         let _ = table.extend_from_slice(&NORTHSTAR_TABLE_MHZ);
@@ -71,7 +72,7 @@ impl Board {
             refused: 0,
             uart_errors: 0,
             simulated,
-            watchdog_reset,
+            reset_cause,
         }
     }
 
@@ -80,8 +81,12 @@ impl Board {
     /// `main`'s stack frame, which `firmware-beacon/ci.sh` reads from the disassembly.
     /// Requests are handled in [`Self::feed`]'s own frame (never inlined), whose peak the
     /// QEMU program `tests/qemu/src/bin/beacon_board.rs` measures.
-    pub fn init(slot: &mut MaybeUninit<Self>, simulated: bool, watchdog_reset: bool) -> &mut Self {
-        slot.write(Self::new(simulated, watchdog_reset))
+    pub fn init(
+        slot: &mut MaybeUninit<Self>,
+        simulated: bool,
+        reset_cause: ResetCause,
+    ) -> &mut Self {
+        slot.write(Self::new(simulated, reset_cause))
     }
 
     /// Push the boot state (table, all LEDs off) to the outputs.
@@ -292,7 +297,7 @@ impl Board {
             uart_errors: self.uart_errors,
             tick_hz: TICK_HZ,
             table_len: self.table.len() as u8,
-            watchdog_reset: self.watchdog_reset,
+            reset_cause: self.reset_cause,
         }
     }
 }
@@ -322,7 +327,7 @@ mod tests {
 
     fn setup() -> (Board, Modulator) {
         let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
-        let mut b = Board::new(true, false);
+        let mut b = Board::new(true, ResetCause::PowerOn);
         b.start(&mut m);
         (b, m)
     }

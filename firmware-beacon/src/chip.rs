@@ -39,7 +39,7 @@ use cta_core::schedule::{
     lost_ticks, Gpio, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS, TICK_HZ,
 };
 use cta_core::wire::beacon::{LedMode, LED_COUNT};
-use cta_core::wire::MAX_FRAME;
+use cta_core::wire::{ResetCause, MAX_FRAME};
 use cta_firmware_beacon::board::{Board, Outputs};
 
 /// Core clock, Hz (8 MHz crystal x 9).
@@ -278,8 +278,9 @@ fn main() -> ! {
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();
 
-    // Reset cause, then clear the flags.
-    let watchdog_reset = dp.RCC.csr().read().iwdgrstf().bit_is_set();
+    // Reset cause, then clear the flags (RMVF) so that the next reset is told apart. Read
+    // before the crystal check, whose retries are software resets.
+    let reset_cause = ResetCause::from_rcc_csr(dp.RCC.csr().read().bits());
     dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
 
     if !crystal_starts(&dp.RCC) {
@@ -350,7 +351,7 @@ fn main() -> ! {
     static mut BOARD: MaybeUninit<Board> = MaybeUninit::uninit();
     // SAFETY: main runs once and is the only user of BOARD.
     let slot = unsafe { &mut *core::ptr::addr_of_mut!(BOARD) };
-    let board = Board::init(slot, false, watchdog_reset);
+    let board = Board::init(slot, false, reset_cause);
     board.start(&mut out);
 
     // Tick timer: TIM2 at exactly TICK_HZ.
@@ -373,9 +374,9 @@ fn main() -> ! {
         NVIC::unmask(Interrupt::USART1);
     }
     defmt::info!(
-        "beacon board up: {} Hz tick, watchdog reset: {}",
+        "beacon board up: {} Hz tick, reset cause: {=str}",
         TICK_HZ,
-        watchdog_reset
+        reset_cause.name()
     );
 
     let mut tx_buf = [0u8; MAX_FRAME];

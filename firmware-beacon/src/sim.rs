@@ -15,7 +15,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use cta_core::schedule::{Levels, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS, TICK_HZ};
-use cta_core::wire::MAX_FRAME;
+use cta_core::wire::{ResetCause, MAX_FRAME};
 use serialport::{SerialPort, TTYPort};
 
 use crate::board::Board;
@@ -106,7 +106,7 @@ fn run(port: &mut TTYPort, stop: &AtomicBool, snapshot: &Mutex<Snapshot>) -> io:
     // Every table in NORTHSTAR_TABLE_MHZ is valid.
     let mut modulator = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS)
         .map_err(|e| io::Error::other(format!("{e:?}")))?;
-    let mut board = Board::new(true, false);
+    let mut board = Board::new(true, ResetCause::PowerOn);
     board.start(&mut modulator);
     let t0 = Instant::now();
     let mut ticks: u64 = 0;

@@ -11,8 +11,8 @@ use cta_core::wire::sensor::{
     SensorStatus, SpotReport, RATE_RANGE, SENSITIVITY_RANGE,
 };
 use cta_core::wire::{
-    encode_frame, BoardKind, ErrorReply, FrameDecoder, Header, Identity, Reply, Request, Response,
-    PROTOCOL_VERSION, SEQ_NONE,
+    encode_frame, BoardKind, ErrorReply, FrameDecoder, Header, Identity, Reply, Request,
+    ResetCause, Response, PROTOCOL_VERSION, SEQ_NONE,
 };
 use serde::{Deserialize, Serialize};
 
@@ -111,6 +111,8 @@ pub struct Board<F: FlashPages> {
     /// Frames in a row whose sensitivity differs from the board's, modulo `RESEND_EVERY`
     /// (see `on_frame`).
     mismatched: u8,
+    /// What started the board (reported in its status).
+    reset_cause: ResetCause,
 }
 
 /// While the detector's frames show another sensitivity than the board set, the settings
@@ -118,8 +120,9 @@ pub struct Board<F: FlashPages> {
 const RESEND_EVERY: u8 = 10;
 
 impl<F: FlashPages> Board<F> {
-    /// Start the board: load the stored configuration (if any) from `flash`.
-    pub fn new(flash: F, simulated: bool) -> Self {
+    /// Start the board: load the stored configuration (if any) from `flash`. `reset_cause`:
+    /// what started it, reported in its status.
+    pub fn new(flash: F, simulated: bool, reset_cause: ResetCause) -> Self {
         let (generation, stored) = storage::load::<Stored, F>(&flash).unwrap_or_default();
         Board {
             flash,
@@ -139,6 +142,7 @@ impl<F: FlashPages> Board<F> {
             last_host_us: 0,
             last_pose: None,
             mismatched: 0,
+            reset_cause,
         }
     }
 
@@ -147,8 +151,13 @@ impl<F: FlashPages> Board<F> {
     /// and the QEMU harness that measures the board's stack (tests/qemu/src/bin/board.rs)
     /// run the same function with its own frame.
     #[inline(never)]
-    pub fn init(slot: &mut MaybeUninit<Self>, flash: F, simulated: bool) -> &mut Self {
-        slot.write(Self::new(flash, simulated))
+    pub fn init(
+        slot: &mut MaybeUninit<Self>,
+        flash: F,
+        simulated: bool,
+        reset_cause: ResetCause,
+    ) -> &mut Self {
+        slot.write(Self::new(flash, simulated, reset_cause))
     }
 
     /// One pass of the main loop: the bytes received from the PC, then those from the
@@ -357,6 +366,7 @@ impl<F: FlashPages> Board<F> {
             since_host_ms: us_to_ms(now.saturating_sub(self.last_host_us)).min(u32::MAX as u64)
                 as u32,
             last_pose: self.last_pose,
+            reset_cause: self.reset_cause,
         }
     }
 
@@ -458,14 +468,14 @@ mod tests {
         assert_eq!(back.calibration, Some(cal));
         assert_eq!(back.constellation, Some(wide));
         // Through the board: the widest calibration and a 20-beacon constellation.
-        let mut b = Board::new(RamFlash::default(), false);
+        let mut b = Board::new(RamFlash::default(), false, ResetCause::PowerOn);
         let mut io = FakeIo::default();
         let load = SensorRequest::LoadCalibration(cal);
         assert_eq!(request(&mut b, &mut io, 1, load), Ok(Response::Ack));
         let con = cta_core::pose::four_array_constellation();
         let load = SensorRequest::LoadConstellation(con.clone());
         assert_eq!(request(&mut b, &mut io, 2, load), Ok(Response::Ack));
-        let b = Board::new(b.flash.clone(), false);
+        let b = Board::new(b.flash.clone(), false, ResetCause::PowerOn);
         assert_eq!(b.stored().calibration, Some(cal));
         assert_eq!(b.stored().constellation.as_ref(), Some(&con));
     }
@@ -556,6 +566,7 @@ mod tests {
             refused: m,
             since_host_ms: m,
             last_pose: Some(PoseStatus::IllConditioned),
+            reset_cause: ResetCause::Unknown,
         });
         let mut buf = [0u8; TX_FRAME];
         for reply in [config, stream, status] {
@@ -639,7 +650,7 @@ mod tests {
 
     #[test]
     fn refuses_bad_configurations_by_name() {
-        let mut b = Board::new(RamFlash::default(), false);
+        let mut b = Board::new(RamFlash::default(), false, ResetCause::PowerOn);
         let mut io = FakeIo::default();
         let mut con = cta_constellation();
         con.beacons[2].id = con.beacons[0].id;
@@ -692,7 +703,7 @@ mod tests {
 
     #[test]
     fn configuration_survives_a_reset_and_poses_are_reported() {
-        let mut b = Board::new(RamFlash::default(), false);
+        let mut b = Board::new(RamFlash::default(), false, ResetCause::PowerOn);
         let mut io = FakeIo::default();
         let con = cta_constellation();
         assert_eq!(
@@ -713,17 +724,32 @@ mod tests {
             ),
             Ok(Response::Ack)
         );
-        // Reset: a new board on the same flash.
+        let set = SensorRequest::SetSensitivity(2);
+        assert_eq!(request(&mut b, &mut io, 3, set), Ok(Response::Ack));
+        assert_eq!(
+            request(&mut b, &mut io, 4, SensorRequest::SetRate(20)),
+            Ok(Response::Ack)
+        );
+        // Reset (by the watchdog): a new board on the same flash.
         let flash = b.flash.clone();
-        let mut b = Board::new(flash, false);
+        let mut b = Board::new(flash, false, ResetCause::Watchdog);
         // Saved from borrowed parts, read back whole (see `save`).
         assert_eq!(b.stored().constellation.as_ref(), Some(&con));
         assert_eq!(b.stored().calibration, Some(Calibration::table3()));
+        // The status says why it started, and that the settings are the start-up ones.
+        match request(&mut b, &mut io, 5, SensorRequest::Status) {
+            Ok(Response::Board(SensorResponse::Status(s))) => {
+                assert_eq!(s.reset_cause, ResetCause::Watchdog);
+                assert_eq!((s.sensitivity, s.rate_hz, s.mode), (4, 10, Mode::Idle));
+                assert!(s.calibrated && s.constellation, "{s:?}");
+            }
+            other => panic!("expected the status, got {other:?}"),
+        }
         assert_eq!(
             request(
                 &mut b,
                 &mut io,
-                3,
+                6,
                 SensorRequest::SetMode(Mode::Pose(ModelKind::Pinhole))
             ),
             Ok(Response::Ack)
@@ -781,7 +807,7 @@ mod tests {
     /// the new type.
     #[test]
     fn pinhole_head_survives_a_reset_and_an_older_record_is_ignored() {
-        let mut b = Board::new(RamFlash::default(), false);
+        let mut b = Board::new(RamFlash::default(), false, ResetCause::PowerOn);
         let mut io = FakeIo::default();
         let cal = widest_calibration();
         let con = cta_constellation();
@@ -789,7 +815,7 @@ mod tests {
         assert_eq!(request(&mut b, &mut io, 1, load), Ok(Response::Ack));
         let load = SensorRequest::LoadConstellation(con.clone());
         assert_eq!(request(&mut b, &mut io, 2, load), Ok(Response::Ack));
-        let b = Board::new(b.flash.clone(), false);
+        let b = Board::new(b.flash.clone(), false, ResetCause::PowerOn);
         assert_eq!(b.stored().calibration, Some(cal));
 
         // Format 3's calibration: the same fields without the pinhole head.
@@ -823,7 +849,7 @@ mod tests {
         page[12 + n..16 + n].copy_from_slice(&crc.to_le_bytes());
         // Refused by its version, even to a reader of its own layout.
         assert!(storage::load::<StoredV3, _>(&flash).is_none());
-        let mut b = Board::new(flash, false);
+        let mut b = Board::new(flash, false, ResetCause::PowerOn);
         assert_eq!(b.stored(), &Stored::default());
         let pose = SensorRequest::SetMode(Mode::Pose(ModelKind::Pinhole));
         assert_eq!(
@@ -840,7 +866,7 @@ mod tests {
     /// tenth after it, and stops once the frames agree.
     #[test]
     fn settings_are_sent_again_while_the_detector_disagrees() {
-        let mut b = Board::new(RamFlash::default(), false);
+        let mut b = Board::new(RamFlash::default(), false, ResetCause::PowerOn);
         let mut io = FakeIo::default();
         b.start(&mut io);
         let sent = |io: &mut FakeIo| -> Vec<NsCommand> {
@@ -898,7 +924,7 @@ mod tests {
 
     #[test]
     fn bad_frames_are_answered_and_counted() {
-        let mut b = Board::new(RamFlash::default(), false);
+        let mut b = Board::new(RamFlash::default(), false, ResetCause::PowerOn);
         let mut io = FakeIo::default();
         b.on_pc_bytes(&[0, 1, 2, 3, 4, 5, 6, 0], &mut io);
         let got = replies(&mut io);

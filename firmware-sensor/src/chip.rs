@@ -12,7 +12,8 @@
 //!   (`dropped` in the status). The few bytes of NorthStar commands are sent blocking.
 //! * Flash pages 62 and 63 (the last 2 KiB of the 64 KiB) hold the A/B configuration
 //!   records ([`crate::storage`]); the firmware itself is budgeted to 48 KiB.
-//! * Independent watchdog (~1 s), fed by the main loop.
+//! * Independent watchdog (~1 s), fed by the main loop. What reset the chip (RCC_CSR's
+//!   flags, [`ResetCause`]) is read at boot, then cleared, and the status reports it.
 //! * Boot: the 8 MHz crystal (HSE) must start and measure 8 MHz against the internal RC
 //!   oscillator ([`crystal_khz`]), or the board logs why and resets to try again.
 
@@ -20,6 +21,7 @@ use core::cell::RefCell;
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
 use cta_core::crystal;
+use cta_core::wire::ResetCause;
 
 use cortex_m::peripheral::NVIC;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
@@ -200,6 +202,11 @@ fn main() -> ! {
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();
 
+    // Reset cause, then clear the flags (RMVF) so that the next reset is told apart. Read
+    // before the crystal check, whose retries are software resets.
+    let reset_cause = ResetCause::from_rcc_csr(dp.RCC.csr().read().bits());
+    dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
+
     if !crystal_starts(&dp.RCC) {
         // Retry from reset: a crystal that is slow to start (cold) gets another chance, and
         // a probe shows this line each time.
@@ -279,7 +286,7 @@ fn main() -> ! {
     static mut BOARD: MaybeUninit<Board<ChipFlash>> = MaybeUninit::uninit();
     // SAFETY: main runs once and is the only user of BOARD.
     let slot = unsafe { &mut *core::ptr::addr_of_mut!(BOARD) };
-    let board = Board::init(slot, ChipFlash { parts: flash }, false);
+    let board = Board::init(slot, ChipFlash { parts: flash }, false, reset_cause);
     // SAFETY: the handlers only use the statics above.
     unsafe {
         cp.NVIC.set_priority(Interrupt::USART1, 0x40);
@@ -288,7 +295,7 @@ fn main() -> ! {
         NVIC::unmask(Interrupt::USART2);
     }
     board.start(&mut io);
-    defmt::info!("sensor board up");
+    defmt::info!("sensor board up, reset cause: {=str}", reset_cause.name());
 
     let mut pc = [0u8; 64];
     let mut ns = [0u8; 64];

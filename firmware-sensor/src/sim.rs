@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 
 use cta_core::emulator::{Effects, Emulator, Head, Pose as HeadPose};
 use cta_core::pose::{simulate_spots, Calibration, Constellation};
+use cta_core::wire::ResetCause;
 use nalgebra::Vector3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -215,7 +216,7 @@ fn run(
     ns: Arc<Mutex<SimNorthStar>>,
     stop: Arc<AtomicBool>,
 ) {
-    let mut board = Board::new(flash, true);
+    let mut board = Board::new(flash, true, ResetCause::PowerOn);
     let start = Instant::now();
     let mut next_frame = Instant::now();
     let mut buf = [0u8; 256];

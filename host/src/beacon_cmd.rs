@@ -380,6 +380,7 @@ fn board_command<S: std::io::Read + std::io::Write>(
         BeaconCommand::Status { .. } => match link.call(BeaconRequest::Status)? {
             Some(BeaconResponse::Status(s)) => {
                 writeln!(out, "uptime          {:.1} s", s.uptime_ms as f64 / 1000.0)?;
+                writeln!(out, "last reset      {}", s.reset_cause)?;
                 writeln!(out, "lit LEDs        {} (cap {})", s.lit, s.limits.max_lit)?;
                 writeln!(
                     out,
@@ -405,7 +406,6 @@ fn board_command<S: std::io::Read + std::io::Write>(
                     "tick            {} Hz, table of {} frequencies",
                     s.tick_hz, s.table_len
                 )?;
-                writeln!(out, "watchdog reset  {}", s.watchdog_reset)?;
             }
             other => bail!("unexpected reply to Status: {other:?}"),
         },

@@ -1326,6 +1326,7 @@ fn print_spots(s: &SpotReport) {
 
 fn print_status(s: &SensorStatus) {
     println!("uptime          {:.1} s", s.uptime_ms as f64 / 1000.0);
+    println!("last reset      {}", s.reset_cause);
     println!("mode            {}", describe_mode(&s.mode));
     println!(
         "northstar       sensitivity {}, {} Hz",

@@ -102,6 +102,7 @@ fn sensor_status_says_the_last_pose_in_words() {
         "last pose       none (no pose solved since the board started)"
     );
     assert_eq!(line(&out, "mode"), "mode            Idle");
+    assert_eq!(line(&out, "last reset"), "last reset      power-on");
     // Killed when dropped, also when an assert below fails.
     let sim = common::Sim::start(&["sensor", "sim", "--configured"]);
     let port = sim.path.clone();

@@ -63,6 +63,8 @@ fn beacon_limits_keep_the_value_not_given() {
     assert!(out.contains("cap 3 LEDs, dead-man 20000 ms"), "{out}");
     let out = ok(&cta(&["beacon", "--port", p, "status"]));
     assert!(out.contains("(cap 3)") && out.contains("20000 ms"), "{out}");
+    // The simulated board was started, not reset: its reset cause says so.
+    assert!(out.contains("\nlast reset      power-on\n"), "{out}");
     // Neither: refused before talking to the board.
     fails_with(
         &cta(&["beacon", "--port", p, "limits"]),

@@ -4,7 +4,9 @@
 
 use cta_core::pose::{cta_constellation, Calibration, Spot};
 use cta_core::wire::sensor::{SensorError, SensorRequest, SensorResponse};
-use cta_core::wire::{encode_frame, FrameDecoder, Header, Reply, Request, Response, MAX_FRAME};
+use cta_core::wire::{
+    encode_frame, FrameDecoder, Header, Reply, Request, ResetCause, Response, MAX_FRAME,
+};
 use cta_host::sensor_cmd::firmware::board::{Board, Io};
 use cta_host::sensor_cmd::firmware::northstar::{self, NsDecoder, NsEvent, SpotFrame};
 use cta_host::sensor_cmd::firmware::storage::RamFlash;
@@ -119,7 +121,7 @@ fn request(seq: u16, r: &Request<SensorRequest>) -> Vec<u8> {
 #[test]
 fn pc_link_survives_anything_and_resyncs() {
     let mut rng = StdRng::seed_from_u64(2);
-    let mut board = Board::new(RamFlash::default(), true);
+    let mut board = Board::new(RamFlash::default(), true, ResetCause::PowerOn);
     let mut io = Capture::default();
     let valid = [
         Request::Identify,

@@ -10,7 +10,7 @@ use core::fmt;
 
 use serde::{Deserialize, Serialize};
 
-use super::{BoardKind, DecoderStats, Protocol};
+use super::{BoardKind, DecoderStats, Protocol, ResetCause};
 
 /// Number of LEDs on the board (10 x 10).
 pub const LED_COUNT: usize = 100;
@@ -140,8 +140,9 @@ pub struct BeaconStatus {
     pub tick_hz: u32,
     /// Entries in the frequency table.
     pub table_len: u8,
-    /// The last reset was caused by the independent watchdog.
-    pub watchdog_reset: bool,
+    /// What started the board last ([`ResetCause::Watchdog`]: its watchdog, which it feeds
+    /// only while the modulator ticks).
+    pub reset_cause: ResetCause,
 }
 
 /// Beacon-board responses (wrapped in [`super::Response::Board`]).

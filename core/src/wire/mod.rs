@@ -60,8 +60,9 @@ pub mod beacon;
 pub mod sensor;
 
 /// Version of this wire protocol; bumped on any incompatible change of the framing,
-/// the envelope or a board's messages.
-pub const PROTOCOL_VERSION: u16 = 5;
+/// the envelope or a board's messages. 6: both boards' status carries its [`ResetCause`]
+/// (the beacon board's had a watchdog flag, the sensor board's nothing).
+pub const PROTOCOL_VERSION: u16 = 6;
 
 /// Sequence number meaning "unknown": used in replies to frames whose header could not be
 /// read. Hosts never use it for a request.
@@ -190,6 +191,82 @@ pub struct Identity {
     pub simulated: bool,
     /// Largest frame the board accepts, delimiters included.
     pub max_frame: u16,
+}
+
+/// Why a board last started, as both boards report it in their status: read from the
+/// STM32F1's reset flags (RCC_CSR, RM0008 7.3.10) at boot, which then clears them (RMVF) so
+/// that the next reset is told apart. A simulated board says what started it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ResetCause {
+    /// Power-on or power-down reset (PORRSTF): the board was powered up, or its supply
+    /// dipped below the POR/PDR threshold (a brown-out).
+    PowerOn,
+    /// The NRST pin (PINRSTF alone): the reset button, or a probe's hardware reset.
+    Pin,
+    /// The independent or the window watchdog (IWDGRSTF, WWDGRSTF): the main loop stopped
+    /// feeding it (stuck, or a fault handler waiting for it).
+    Watchdog,
+    /// A software reset (SFTRSTF, SYSRESETREQ): the firmware's own retry at start-up (the
+    /// crystal check), or a probe's reset.
+    Software,
+    /// A low-power management reset (LPWRRSTF: Standby or Stop entered while the option
+    /// bytes forbid it).
+    LowPower,
+    /// No flag set (not expected after a reset).
+    Unknown,
+}
+
+impl ResetCause {
+    /// RCC_CSR's reset flags (STM32F1).
+    pub const CSR_LPWRRSTF: u32 = 1 << 31;
+    /// Window watchdog reset flag.
+    pub const CSR_WWDGRSTF: u32 = 1 << 30;
+    /// Independent watchdog reset flag.
+    pub const CSR_IWDGRSTF: u32 = 1 << 29;
+    /// Software reset flag.
+    pub const CSR_SFTRSTF: u32 = 1 << 28;
+    /// Power-on/power-down reset flag.
+    pub const CSR_PORRSTF: u32 = 1 << 27;
+    /// NRST pin reset flag.
+    pub const CSR_PINRSTF: u32 = 1 << 26;
+
+    /// The cause a value of RCC_CSR read at boot names. An internal reset drives the NRST
+    /// pin low too (PINRSTF may be set with its own flag), and a power-on reset sets
+    /// PINRSTF with PORRSTF (the register's power-on value), so the pin counts only alone;
+    /// the other flags are taken in the order low-power, watchdog, software, power-on.
+    pub fn from_rcc_csr(csr: u32) -> ResetCause {
+        if csr & Self::CSR_LPWRRSTF != 0 {
+            ResetCause::LowPower
+        } else if csr & (Self::CSR_IWDGRSTF | Self::CSR_WWDGRSTF) != 0 {
+            ResetCause::Watchdog
+        } else if csr & Self::CSR_SFTRSTF != 0 {
+            ResetCause::Software
+        } else if csr & Self::CSR_PORRSTF != 0 {
+            ResetCause::PowerOn
+        } else if csr & Self::CSR_PINRSTF != 0 {
+            ResetCause::Pin
+        } else {
+            ResetCause::Unknown
+        }
+    }
+
+    /// In words, as `cta beacon status` and `cta sensor status` print it.
+    pub fn name(self) -> &'static str {
+        match self {
+            ResetCause::PowerOn => "power-on",
+            ResetCause::Pin => "reset pin",
+            ResetCause::Watchdog => "watchdog",
+            ResetCause::Software => "software",
+            ResetCause::LowPower => "low-power",
+            ResetCause::Unknown => "unknown",
+        }
+    }
+}
+
+impl fmt::Display for ResetCause {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// Host-to-board message: the common requests plus the board's own (`B`).
@@ -613,16 +690,46 @@ mod tests {
     /// frame = [0] + cobs(payload + crc32c(payload).to_bytes(4, 'little')) + [0]
     /// ```
     ///
-    /// Frame 1: header (version 5, seq 7) = 05 07, `Request::Board` = variant 2 = 02,
-    /// 0xdeadbeef = varint ef fd b6 f5 0d; CRC-32C 0xf7a405f5 = f5 05 a4 f7 (LE); no zero,
+    /// Frame 1: header (version 6, seq 7) = 06 07, `Request::Board` = variant 2 = 02,
+    /// 0xdeadbeef = varint ef fd b6 f5 0d; CRC-32C 0x2ce0829c = 9c 82 e0 2c (LE); no zero,
     /// so COBS is one run of 12: 0d then the 12 bytes.
-    /// Frame 2: header (5, seq 300 = varint ac 02), `Request::Board` 02,
-    /// `SensorRequest::Status` = variant 0 = 00; CRC 0xfdef4a6b = 6b 4a ef fd; COBS splits at
-    /// the zero: 05 | 05 ac 02 02, 05 | 6b 4a ef fd.
+    /// Frame 2: header (6, seq 300 = varint ac 02), `Request::Board` 02,
+    /// `SensorRequest::Status` = variant 0 = 00; CRC 0xb5dcfa9f = 9f fa dc b5; COBS splits at
+    /// the zero: 05 | 06 ac 02 02, 05 | 9f fa dc b5. (Protocol 5's were the same with 05 for
+    /// the version and the CRCs 0xf7a405f5, 0xfdef4a6b: the script reproduces them too.)
+    /// RCC_CSR values as the STM32F1 leaves them (RM0008 7.3.10; bits 0-1 are LSION and
+    /// LSIRDY, bit 24 RMVF): each cause on its own, with the NRST flag an internal reset may
+    /// set along, and the power-on value.
+    #[test]
+    fn reset_cause_from_the_csr_flags() {
+        use ResetCause::*;
+        let pin = ResetCause::CSR_PINRSTF;
+        for (csr, cause) in [
+            (0x0C00_0000, PowerOn),
+            (0x0C00_0003, PowerOn),
+            (pin, Pin),
+            (pin | 0x3, Pin),
+            (ResetCause::CSR_IWDGRSTF | pin, Watchdog),
+            (ResetCause::CSR_IWDGRSTF, Watchdog),
+            (ResetCause::CSR_WWDGRSTF | pin, Watchdog),
+            (ResetCause::CSR_SFTRSTF | pin, Software),
+            (ResetCause::CSR_LPWRRSTF | pin, LowPower),
+            (0, Unknown),
+            (0x0100_0003, Unknown),
+        ] {
+            assert_eq!(ResetCause::from_rcc_csr(csr), cause, "{csr:#010x}");
+        }
+        assert_eq!(
+            ResetCause::from_rcc_csr(ResetCause::CSR_IWDGRSTF | ResetCause::CSR_SFTRSTF),
+            Watchdog
+        );
+        assert_eq!(Watchdog.to_string(), "watchdog");
+    }
+
     #[test]
     fn golden_frames() {
         assert_eq!(
-            PROTOCOL_VERSION, 5,
+            PROTOCOL_VERSION, 6,
             "a protocol version bump changes the golden frames: recompute them (see above)"
         );
         let mut buf = [0u8; 64];
@@ -635,7 +742,7 @@ mod tests {
         assert_eq!(
             f,
             [
-                0x00, 0x0d, 0x05, 0x07, 0x02, 0xef, 0xfd, 0xb6, 0xf5, 0x0d, 0xf5, 0x05, 0xa4, 0xf7,
+                0x00, 0x0d, 0x06, 0x07, 0x02, 0xef, 0xfd, 0xb6, 0xf5, 0x0d, 0x9c, 0x82, 0xe0, 0x2c,
                 0x00
             ]
         );
@@ -649,7 +756,7 @@ mod tests {
         let f = encode_frame(Header::new(300), &status, &mut buf).unwrap();
         assert_eq!(
             f,
-            [0x00, 0x05, 0x05, 0xac, 0x02, 0x02, 0x05, 0x6b, 0x4a, 0xef, 0xfd, 0x00]
+            [0x00, 0x05, 0x06, 0xac, 0x02, 0x02, 0x05, 0x9f, 0xfa, 0xdc, 0xb5, 0x00]
         );
         let mut d = FrameDecoder::<64>::new();
         let got = f

@@ -16,7 +16,7 @@ use core::fmt;
 
 use serde::{Deserialize, Serialize};
 
-use super::{BoardKind, DecoderStats, Protocol};
+use super::{BoardKind, DecoderStats, Protocol, ResetCause};
 use crate::pose::{
     Calibration, ConfigError, Constellation, ModelKind, PoseStatus, Spot, MAX_BEACONS,
 };
@@ -154,6 +154,9 @@ pub struct SensorStatus {
     pub since_host_ms: u32,
     /// Status of the last pose solve, if any.
     pub last_pose: Option<PoseStatus>,
+    /// What started the board last: after a reset its sensitivity and rate are back at 4
+    /// and 10 Hz, its mode idle.
+    pub reset_cause: ResetCause,
 }
 
 /// Stored configuration.

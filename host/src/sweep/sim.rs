@@ -40,6 +40,7 @@ use cta_core::emulator::{grid_position, saturate_i16, Emulator};
 use cta_core::pose::Spot;
 use cta_core::wire::beacon::{LedMode, LED_COUNT};
 use cta_core::wire::sensor::Mode;
+use cta_core::wire::ResetCause;
 use cta_firmware_beacon::board::{Board as BeaconBoard, Outputs};
 use cta_firmware_sensor::board::{Board as SensorBoard, Io};
 use cta_firmware_sensor::northstar::{self, SpotFrame};
@@ -84,7 +85,8 @@ pub enum FaultKind {
     Silent,
     /// The NorthStar stops sending frames (the sensor board still answers requests).
     Stall,
-    /// The board restarts behind the host's back (a watchdog or a brown-out; the port stays):
+    /// The board restarts behind the host's back (its status then says by its watchdog; a
+    /// brown-out would say power-on; the port stays):
     /// the beacon board at the `at`-th stream start, so the point's LED goes dark and its
     /// uptime starts again; the sensor board when the `at`-th stream ends, between points, so
     /// it comes back idle at sensitivity 4.
@@ -493,7 +495,7 @@ impl Outputs for LedOutputs<'_> {
 }
 
 fn beacon_loop(world: Arc<World>, mut ep: Endpoint) {
-    let mut board = BeaconBoard::new(!world.posing.beacon_hardware, false);
+    let mut board = BeaconBoard::new(!world.posing.beacon_hardware, ResetCause::PowerOn);
     board.start(&mut LedOutputs(&world));
     let mut t0 = Instant::now();
     let mut resets = 0;
@@ -521,7 +523,7 @@ fn beacon_loop(world: Arc<World>, mut ep: Endpoint) {
         let due = world.beacon_resets.load(Ordering::Relaxed);
         if resets < due {
             resets = due;
-            board = BeaconBoard::new(!world.posing.beacon_hardware, false);
+            board = BeaconBoard::new(!world.posing.beacon_hardware, ResetCause::Watchdog);
             board.start(&mut LedOutputs(&world));
             t0 = Instant::now();
         }
@@ -574,7 +576,11 @@ impl Detector {
 }
 
 fn sensor_loop(world: Arc<World>, mut ep: Endpoint) {
-    let mut board = SensorBoard::new(RamFlash::default(), !world.posing.sensor_hardware);
+    let mut board = SensorBoard::new(
+        RamFlash::default(),
+        !world.posing.sensor_hardware,
+        ResetCause::PowerOn,
+    );
     let mut t0 = Instant::now();
     let mut det = Detector {
         sensitivity: 4,
@@ -646,7 +652,11 @@ fn sensor_loop(world: Arc<World>, mut ep: Endpoint) {
                 if world.resets_due(Which::Sensor, ends) {
                     // A new board (a new flash too: the sweep stores nothing) that sends the
                     // detector its start-up settings, as on power-up.
-                    board = SensorBoard::new(RamFlash::default(), !world.posing.sensor_hardware);
+                    board = SensorBoard::new(
+                        RamFlash::default(),
+                        !world.posing.sensor_hardware,
+                        ResetCause::Watchdog,
+                    );
                     t0 = Instant::now();
                     io.t0 = t0;
                     board.start(&mut io);

@@ -34,7 +34,9 @@ use cta_core::schedule::{lost_ticks, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ
 use cta_core::wire::beacon::{
     BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting, Limits, LED_COUNT,
 };
-use cta_core::wire::{encode_frame, FrameDecoder, Header, Request, Response, MAX_FRAME};
+use cta_core::wire::{
+    encode_frame, FrameDecoder, Header, Request, ResetCause, Response, MAX_FRAME,
+};
 use cta_firmware_beacon::board::{BeaconReply, Board, Outputs};
 use cta_qemu::{done, end, fail, mark, paint_stack, stack_used};
 
@@ -192,7 +194,7 @@ fn main() -> ! {
             fail("table")
         }
     });
-    let board = Board::init(BOARD, false, false);
+    let board = Board::init(BOARD, false, ResetCause::PowerOn);
     board.start(&mut out);
     let init_used = stack_used(lo, sp);
 

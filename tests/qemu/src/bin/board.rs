@@ -24,7 +24,9 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use cta_core::pose::{benchmark_frames_of, four_array_constellation, Calibration, ModelKind};
 use cta_core::wire::sensor::{Mode, SensorRequest, SensorResponse};
-use cta_core::wire::{encode_frame, FrameDecoder, Header, Reply, Request, MAX_FRAME};
+use cta_core::wire::{
+    encode_frame, FrameDecoder, Header, Reply, Request, ResetCause, MAX_FRAME,
+};
 use cta_firmware_sensor::board::{Board, Io};
 use cta_firmware_sensor::northstar::{self, SpotFrame};
 use cta_firmware_sensor::storage::RamFlash;
@@ -79,7 +81,7 @@ fn main() -> ! {
         last_len: 0,
     };
     let (lo, sp) = paint_stack(PAINT);
-    let board = Board::init(BOARD, RamFlash::default(), false);
+    let board = Board::init(BOARD, RamFlash::default(), false, ResetCause::PowerOn);
     let init_used = stack_used(lo, sp);
     let (lo, sp) = paint_stack(PAINT);
     board.start(&mut io);
