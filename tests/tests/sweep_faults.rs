@@ -151,9 +151,10 @@ fn giving_up_names_the_board_that_stayed_away() {
 /// Boards that restart behind the sweep's back, the port staying up (a watchdog, a
 /// brown-out): the beacon board as a point starts (its LED goes dark: without a check the
 /// point would be committed as "no signal" and never measured again), the sensor board
-/// between points (it comes back at sensitivity 4: without a check the next points of the
-/// sensitivity-2 group would be recorded as sensitivity 2). Each is found, journalled and
-/// the point measured again: the data equal a run without resets.
+/// between points (it comes back at sensitivity 4 and 10 Hz: without a check the next points
+/// of the sensitivity-2 group would be recorded as sensitivity 2). Each is found, journalled
+/// with the board's reset cause and the point measured again: the data equal a run without
+/// resets.
 #[test]
 fn boards_reset_behind_the_sweep_are_measured_again() {
     let d = dir("reset");
@@ -170,22 +171,155 @@ fn boards_reset_behind_the_sweep_are_measured_again() {
         .lines()
         .filter(|l| l.contains("\"event\":\"fault\""))
         .collect();
-    let led_off = faults
-        .iter()
-        .filter(|l| l.contains("\"board\":\"beacon\"") && l.contains("LED is off"))
-        .count();
-    assert_eq!(led_off, 2, "{faults:#?}");
-    let sens = faults
+    // The beacon board's uptime went back since the restore before the point (it used to be
+    // found by its dark LED only: the uptime check left 1 s of slack).
+    let beacon = faults
         .iter()
         .filter(|l| {
-            l.contains("\"board\":\"sensor\"")
-                && l.contains(
-                    "the detector reports sensitivity 4 in 3 reports in a row, the point's is 2",
-                )
+            l.contains("\"board\":\"beacon\"")
+                && l.contains("the board was reset behind the sweep (up ")
+                && l.contains("last reset: watchdog): its LEDs went dark")
         })
         .count();
-    assert_eq!(sens, 1, "{faults:#?}");
-    assert_eq!(s.stats.faults, 3, "{:?}", s.stats);
+    assert_eq!(beacon, 2, "{faults:#?}");
+    // Both sensor resets, the one in the sensitivity-4 group too, by the board's counters
+    // at the next point's first report: before its sensitivity is looked at. (Streams 3 and
+    // 4 are point 2's first two attempts, so the 7th stream is point 4's.)
+    let sensor: Vec<&&str> = faults
+        .iter()
+        .filter(|l| l.contains("\"board\":\"sensor\""))
+        .collect();
+    assert_eq!(sensor.len(), 2, "{faults:#?}");
+    for (l, point) in sensor.iter().zip([2, 5]) {
+        assert!(
+            l.contains("the board was reset behind the sweep (its report counter went from ")
+                && l.contains(
+                    "last reset: watchdog): it is at sensitivity 4, 10 Hz, the point's are "
+                )
+                && journal_field(l, "point") == point,
+            "{l}"
+        );
+    }
+    assert_eq!(s.stats.faults, 4, "{:?}", s.stats);
+}
+
+/// A plan at 20 Hz and sensitivity 4, the sensor board's start-up sensitivity.
+const PLAN_20HZ: &str = r#"
+name = "20 Hz"
+separations_in = [10]
+beacons = [0, 19, 45, 80, 99]
+frequencies_hz = [4050]
+power_levels = [2]
+sensitivities = [4]
+samples = 6
+settle_ms = 0
+rate_hz = 20
+[timing]
+request_timeout_ms = 60
+retries = 2
+report_timeout_ms = 150
+no_signal_reports = 5
+backoff_max_s = 0.2
+give_up_s = 30
+"#;
+
+/// A sensor board reset between two points of a sensitivity-4 group: its reports carry the
+/// point's sensitivity, so nothing in them but its report counter and clock, which start
+/// again, tells the reset; and it comes back at 10 Hz, not the plan's 20 Hz, for the rest of
+/// the run (the sweep used to notice neither). It is found at the next point's first report,
+/// before anything of it is recorded, journalled with the board's reset cause, the board's
+/// settings restored and the point measured again: the data equal a run without the reset,
+/// and the board ends the run at the plan's rate.
+#[test]
+fn a_sensor_reset_at_its_start_up_sensitivity_is_found_and_its_rate_restored() {
+    use cta_core::wire::sensor::{SensorProtocol, SensorRequest, SensorResponse};
+    use cta_core::wire::ResetCause;
+    use cta_host::link::{open_serial, Link, LinkConfig};
+    let d = TestDir::new("sweep-faults-sensor-reset");
+    write_plan(&d, PLAN_20HZ);
+    let plan = Plan::parse("plan.toml", PLAN_20HZ).unwrap();
+    // On ports, to ask the sensor board for its status after the run.
+    let run = |out: &str, faults: &str| {
+        let settings = SimSettings {
+            faults: cta_host::sweep::sim::Faults::parse(faults).unwrap(),
+            ..SimSettings::default()
+        };
+        let sim = SimCta::spawn(&plan, &settings).unwrap();
+        let a = SweepArgs {
+            no_sync: true,
+            yes: true,
+            beacon: Some(sim.beacon_path().display().to_string()),
+            sensor: Some(sim.sensor_path().display().to_string()),
+            ..sweep_args(&d.join("plan.toml"), &d.join(out))
+        };
+        let s = sweep::sweep(&a).unwrap();
+        let port = open_serial(&sim.sensor_path().display().to_string()).unwrap();
+        let mut link = Link::<SensorProtocol, _>::new(port, LinkConfig::default());
+        let status = match link.call(SensorRequest::Status).unwrap() {
+            Some(SensorResponse::Status(st)) => st,
+            other => panic!("{other:?}"),
+        };
+        (s, status)
+    };
+    let (clean, _) = run("clean", "");
+    assert_eq!(clean.ending, Ending::Complete);
+    // The 2nd point's stream ends with the reset: the 3rd point (index 2) meets it.
+    let (s, status) = run("reset", "reset=sensor@2");
+    assert_eq!(s.ending, Ending::Complete);
+    points_once(&d.join("reset"), clean.points);
+    assert_eq!(data_rows(&d.join("clean")), data_rows(&d.join("reset")));
+    let j = journal(&d.join("reset"));
+    let faults: Vec<&str> = j
+        .lines()
+        .filter(|l| l.contains("\"event\":\"fault\""))
+        .collect();
+    assert_eq!(faults.len(), 1, "{faults:#?}");
+    let f = faults[0];
+    assert!(
+        f.contains("\"board\":\"sensor\"")
+            && f.contains("the board was reset behind the sweep (its report counter went from ")
+            && f.contains(
+                "last reset: watchdog): it is at sensitivity 4, 10 Hz, the point's are 4, 20 Hz"
+            )
+            && journal_field(f, "point") == 2,
+        "{f}"
+    );
+    assert_eq!(s.stats.faults, 1, "{:?}", s.stats);
+    // The board the run ended on is the reset one, set to the plan's rate again.
+    assert_eq!(status.reset_cause, ResetCause::Watchdog, "{status:?}");
+    assert_eq!((status.rate_hz, status.sensitivity), (20, 4), "{status:?}");
+}
+
+/// A sensor board reset mid-point comes back idle and sends nothing: the silence that
+/// follows is not a stalled NorthStar but the reset, which its status shows (the report
+/// counter started again) and the fault names. The simulated board resets only between
+/// points, so this is a reset as the 2nd point ends with the NorthStar silent from the 2nd
+/// point's first frames (which complete it) on, for 1.5 s: to the sweep the 3rd point's
+/// stream never comes, as after a reset mid-point.
+#[test]
+fn a_sensor_reset_that_silences_a_point_is_named_as_a_reset() {
+    let d = dir("reset-silent");
+    let clean = sweep::sweep(&args(&d, "clean", None)).unwrap();
+    let spec = "reset=sensor@2,stall=sensor@2:1500";
+    let s = sweep::sweep(&args(&d, "run", Some(spec))).unwrap();
+    assert_eq!(s.ending, Ending::Complete);
+    points_once(&d.join("run"), clean.points);
+    assert_eq!(data_rows(&d.join("clean")), data_rows(&d.join("run")));
+    let j = journal(&d.join("run"));
+    let first = j
+        .lines()
+        .find(|l| l.contains("\"event\":\"fault\""))
+        .expect("a fault");
+    assert!(
+        first.contains("\"board\":\"sensor\"")
+            && first.contains(
+                "the board was reset behind the sweep (no spot report for 150 ms while \
+                 streaming, and its report counter went from "
+            )
+            && first.contains("last reset: watchdog)")
+            && journal_field(first, "point") == 2,
+        "{first}"
+    );
 }
 
 /// A beacon board whose dead-man timeout is shorter than twice the plan's heartbeat would

@@ -11,7 +11,10 @@
 //! that stops reporting pauses the run: the point in progress is abandoned (nothing of it is
 //! written), the board is reopened and re-identified and its state restored, with a backoff
 //! that doubles up to `backoff_max_s`, and the point is measured again from the start. After
-//! `give_up_s` without success the run stops cleanly, resumable. Every fault and what was done
+//! `give_up_s` without success the run stops cleanly, resumable. A board that restarts
+//! behind the sweep, its port staying up, is found by its counters and clock going back (the
+//! sensor board's spot reports; the beacon board's status after a point short of samples)
+//! and handled the same way, its reset cause journalled. Every fault and what was done
 //! is journalled. A refusal by a board (a plan the board cannot do) stops the run with the
 //! board's message.
 
@@ -25,7 +28,9 @@ use anyhow::{anyhow, Result};
 use cta_core::wire::beacon::{
     Beacon, BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting, DEADMAN_DEFAULT_MS,
 };
-use cta_core::wire::sensor::{Mode, SensorProtocol, SensorRequest, SensorResponse, SpotReport};
+use cta_core::wire::sensor::{
+    Mode, SensorProtocol, SensorRequest, SensorResponse, SensorStatus, SpotReport,
+};
 use cta_core::wire::{Identity, Protocol, Response};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serialport::SerialPort;
@@ -390,6 +395,17 @@ struct BeaconSeen {
     deadman_trips: u32,
 }
 
+/// The sensor board's counters as last seen in this board's life: its next spot report
+/// carries at least this report number and board time. Both restart at 0 when the board
+/// restarts, and a restarted board streams nothing until told to, so a report below either
+/// is from a board that was reset after the last one seen ([`Engine::collect`]), when its
+/// sensitivity and rate went back to their start-up values (4, 10 Hz).
+#[derive(Debug, Clone, Copy)]
+struct SensorSeen {
+    seq: u32,
+    t_us: u64,
+}
+
 /// The engine.
 pub struct Engine<'a> {
     plan: &'a Plan,
@@ -406,6 +422,9 @@ pub struct Engine<'a> {
     pub table_mhz: Vec<u32>,
     /// The beacon board's status at the last reading.
     beacon_seen: Option<BeaconSeen>,
+    /// The sensor board's report counter and clock as last seen (from its status at the
+    /// last restore, then from each spot report); `None` until read.
+    sensor_seen: Option<SensorSeen>,
 }
 
 impl<'a> Engine<'a> {
@@ -435,6 +454,7 @@ impl<'a> Engine<'a> {
             stats: Stats::default(),
             table_mhz: Vec::new(),
             beacon_seen: None,
+            sensor_seen: None,
         }
     }
 
@@ -507,18 +527,20 @@ impl<'a> Engine<'a> {
             deadman_trips: s.deadman_trips,
         });
         if let Some(prev) = prev {
-            // The board's uptime must have grown with the host's clock (1 s and 1 % slack).
+            // The board's uptime must have grown with the host's clock (1 s and 1 % slack),
+            // and can never go back without a reset.
             let elapsed = now.duration_since(prev.at).as_millis() as u64;
             let least = (prev.uptime_ms + elapsed).saturating_sub(1000 + elapsed / 100);
-            if s.uptime_ms < least {
+            if s.uptime_ms < least || s.uptime_ms < prev.uptime_ms {
                 return Err(Fault::Lost(
                     "beacon",
                     format!(
                         "the board was reset behind the sweep (up {:.1} s, where {:.1} s had \
-                         passed since it was up {:.1} s): its LEDs went dark",
+                         passed since it was up {:.1} s; last reset: {}): its LEDs went dark",
                         s.uptime_ms as f64 / 1e3,
                         elapsed as f64 / 1e3,
-                        prev.uptime_ms as f64 / 1e3
+                        prev.uptime_ms as f64 / 1e3,
+                        s.reset_cause
                     ),
                 ));
             }
@@ -536,9 +558,12 @@ impl<'a> Engine<'a> {
         if lit && s.lit == 0 {
             return Err(Fault::Lost(
                 "beacon",
-                "the point's LED is off on the board (nothing lit: reset, or switched off by \
-                 another program)"
-                    .into(),
+                format!(
+                    "the point's LED is off on the board (nothing lit: reset, or switched off \
+                     by another program; the board is up {:.1} s, last reset: {})",
+                    s.uptime_ms as f64 / 1e3,
+                    s.reset_cause
+                ),
             ));
         }
         Ok(())
@@ -605,7 +630,52 @@ impl<'a> Engine<'a> {
         s.call(SensorRequest::SetRate(rate))
             .map_err(|e| link_fault("sensor", e))?;
         self.sensitivity = None;
+        // Whatever happened to the sensor board before (a reset during the pause) is put
+        // right: its counters from now on tell a reset after this restore.
+        let s = self.sensor_status()?;
+        self.sensor_seen = Some(SensorSeen {
+            seq: s.reports,
+            t_us: s.uptime_ms * 1000,
+        });
         Ok(())
+    }
+
+    fn sensor_status(&mut self) -> Result<SensorStatus, Fault> {
+        match self
+            .sensor
+            .link()?
+            .call(SensorRequest::Status)
+            .map_err(|e| link_fault("sensor", e))?
+        {
+            Some(SensorResponse::Status(s)) => Ok(s),
+            other => Err(Fault::Lost(
+                "sensor",
+                format!("unexpected reply to Status: {other:?}"),
+            )),
+        }
+    }
+
+    /// The fault of a sensor board found reset behind the sweep at point `p` (`how`: what
+    /// showed it), with the cause and the settings its status gives (they are restored and
+    /// the point measured again, as after any lost board).
+    fn sensor_reset(&mut self, p: &Point, how: String) -> Fault {
+        let what = match self.sensor_status() {
+            Ok(s) => format!(
+                "up {:.1} s, last reset: {}): it is at sensitivity {}, {} Hz, the point's are \
+                 {}, {} Hz",
+                s.uptime_ms as f64 / 1e3,
+                s.reset_cause,
+                s.sensitivity,
+                s.rate_hz,
+                p.sensitivity,
+                self.plan.rate_hz
+            ),
+            Err(_) => "its status could not be read)".into(),
+        };
+        Fault::Lost(
+            "sensor",
+            format!("the board was reset behind the sweep ({how}; {what}"),
+        )
     }
 
     /// Measure points `from..` of the plan, committing each to `store`.
@@ -1087,6 +1157,26 @@ impl<'a> Engine<'a> {
                 .next_unsolicited(Duration::from_millis(10))
                 .map_err(|e| Fault::Lost("sensor", format!("port lost: {e}")))?;
             if let Some(Response::Board(SensorResponse::Spots(r))) = next {
+                // Before anything of it is recorded: is it from a board reset since the last
+                // report (or the restore)? Its settings are then the start-up ones, whatever
+                // the point's sensitivity.
+                if let Some(seen) = self.sensor_seen {
+                    if r.seq < seen.seq || r.t_us < seen.t_us {
+                        let how = format!(
+                            "its report counter went from {} to {}, its clock from {:.3} s to \
+                             {:.3} s",
+                            seen.seq,
+                            r.seq,
+                            seen.t_us as f64 / 1e6,
+                            r.t_us as f64 / 1e6
+                        );
+                        return Err(self.sensor_reset(p, how));
+                    }
+                }
+                self.sensor_seen = Some(SensorSeen {
+                    seq: r.seq.saturating_add(1),
+                    t_us: r.t_us,
+                });
                 wrong_sensitivity = match absorb(r, m) {
                     Some(s) => (wrong_sensitivity.0 + 1, s),
                     None => (0, 0),
@@ -1103,6 +1193,23 @@ impl<'a> Engine<'a> {
                     ));
                 }
             } else if last_report.elapsed() > timeout {
+                // A board reset mid-point comes back idle and sends nothing: its status then
+                // shows the counters restarted. Otherwise (or unread: a silent board) the
+                // NorthStar stalled.
+                if let (Some(seen), Ok(s)) = (self.sensor_seen, self.sensor_status()) {
+                    if s.reports < seen.seq || s.uptime_ms < seen.t_us / 1000 {
+                        let how = format!(
+                            "no spot report for {} ms while streaming, and its report counter \
+                             went from {} to {}, its clock from {:.3} s to {:.3} s",
+                            plan.report_timeout_ms,
+                            seen.seq,
+                            s.reports,
+                            seen.t_us as f64 / 1e6,
+                            s.uptime_ms as f64 / 1e3
+                        );
+                        return Err(self.sensor_reset(p, how));
+                    }
+                }
                 return Err(Fault::Stalled(format!(
                     "no spot report for {} ms while streaming",
                     plan.report_timeout_ms
