@@ -526,7 +526,7 @@ pub struct SimHead {
 
 /// Whether an effect acts on the sensor head (and so on `cta sensor sim`'s NorthStar), not on
 /// the CTA's beacon plate (its tilt, lateral offsets and separation errors).
-fn acts_on_the_head(e: &crate::effects::Effect) -> bool {
+pub(crate) fn acts_on_the_head(e: &crate::effects::Effect) -> bool {
     use crate::effects::Effect;
     !matches!(
         e,

@@ -41,7 +41,7 @@ use std::path::PathBuf;
 pub const UNEXPLAINED_CHI2_DOF: f64 = 1.2;
 
 /// Fewest usable points at every separation for the per-separation corrections
-/// (`plate_offset`, `separation_error`) to be tried.
+/// (`plate_offset`, `separation_error`, `plate_tilt`) to be tried.
 pub const MIN_POINTS_PER_SEPARATION: usize = 8;
 
 /// A starting-model chi2/dof below this says the noise the fits weight by is far larger than
@@ -63,7 +63,7 @@ METHOD (host/ANALYZE.md has the details):
   the search rerun without it.
 
   Candidates: proximity (from pinhole), intensity (from pinhole), beacon_pattern, beacon_tilt,
-  cell_gain, cell_bias, face_angle, saturation, plate_offset, separation_error.
+  cell_gain, cell_bias, face_angle, saturation, plate_offset, separation_error, plate_tilt.
 
 VERDICTS:
   named causes        the extended model brings chi2/dof near 1 (<= 1.2)
