@@ -227,10 +227,6 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     Ok(())
 }
 
-/// The demo's closing instructions: rehearse the sensor board with its calibration on `cta
-/// sensor sim`, whose head must be the sweep's (its truth sidecar: the hidden effect included),
-/// with the calibration's spot noise. Each command line is indented by two spaces, starts with
-/// `cta ` and holds `PTY` where the pseudo-terminal goes.
 /// What the rehearsal's simulated board does with the demo's hidden effect: a head effect is
 /// included (the truth sidecar carries it); an effect of the plate (its tilt, offsets,
 /// separation errors, LED boresights) is no part of the head, and `cta sensor sim` leaves it
@@ -253,6 +249,10 @@ fn hidden_effect_words(effect: &str) -> String {
     }
 }
 
+/// The demo's closing instructions: rehearse the sensor board with its calibration on `cta
+/// sensor sim`, whose head must be the sweep's (its truth sidecar: a hidden effect of the head included),
+/// with the calibration's spot noise. Each command line is indented by two spaces, starts with
+/// `cta ` and holds `PTY` where the pseudo-terminal goes.
 fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> Result<String> {
     let text = std::fs::read_to_string(cal).with_context(|| format!("{}", cal.display()))?;
     let noise = serde_json::from_str::<cta_core::pose::Calibration>(&text)

@@ -1295,13 +1295,7 @@ pub fn analyze(
             }
         }
     }
-    let n_constraints = |m: &Model| {
-        m.effects
-            .iter()
-            .filter(|e| e.zero_mean())
-            .map(|e| e.local_names().len())
-            .sum::<usize>()
-    };
+    let n_constraints = |m: &Model| m.n_constraints();
     let dof_chi2 = |m: &Model, f: &FitResult| f.chi2 / f.dof(n_constraints(m));
     let base_chi2 = dof_chi2(&sel.base_model, &sel.base_fit);
     let (fm, ff, fcv) = sel.last();

@@ -88,9 +88,12 @@ pub enum Cand {
     SeparationError,
     /// `plate_tilt`: one tilt vector (tx, ty) of the plate per separation, deg (the plate
     /// turned about its centre, its LEDs' boresights with it; see
-    /// [`crate::simulate::Placement`]). Their mean is free: a tilt common to every
-    /// separation moves the beacons by an amount that grows with their distance from the
-    /// plate's centre, which no head pose or offset does.
+    /// [`crate::simulate::Placement`]). A plate turned about its centre `c = (0, 0, z)` is
+    /// the whole scene turned about the head (which the head attitude absorbs) plus the plate
+    /// moved sideways by about `z T`: a tilt common to every separation is a head rotation
+    /// plus lateral offsets in proportion to the separation. Alone it is told by those
+    /// offsets, so its mean is free; with `plate_offset`, whose offsets absorb them, its mean
+    /// is held at zero ([`Model::zero_mean`]).
     PlateTilt,
 }
 
@@ -161,13 +164,6 @@ impl Cand {
             Cand::PlateTilt => &["tx_deg", "ty_deg"],
             _ => &[],
         }
-    }
-
-    /// Whether the mean of each per-separation parameter over the separations is held at
-    /// zero (a common lateral offset is the head offset d1, d2; a common separation error is
-    /// d3). False for global effects.
-    pub fn zero_mean(self) -> bool {
-        matches!(self, Cand::PlateOffset | Cand::SeparationError)
     }
 
     /// Name of the summary of the per-separation values (their RMS), with its unit.
@@ -353,6 +349,28 @@ impl Model {
             at += w * self.nsep;
         }
         None
+    }
+
+    /// Whether the mean over the separations of each of effect `c`'s per-separation
+    /// parameters is held at zero in this model: always for `plate_offset` (a common lateral
+    /// offset is the head offset d1, d2) and `separation_error` (a common error is d3);
+    /// for `plate_tilt` when `plate_offset` is in the model too (a common tilt is then a head
+    /// rotation plus offsets, see [`Cand::PlateTilt`]). False for global effects.
+    pub fn zero_mean(&self, c: Cand) -> bool {
+        match c {
+            Cand::PlateOffset | Cand::SeparationError => true,
+            Cand::PlateTilt => self.effects.contains(&Cand::PlateOffset),
+            _ => false,
+        }
+    }
+
+    /// Number of zero-mean constraints (one per per-separation parameter held at zero mean).
+    pub fn n_constraints(&self) -> usize {
+        self.effects
+            .iter()
+            .filter(|&&e| self.zero_mean(e))
+            .map(|e| e.local_names().len())
+            .sum()
     }
 
     /// Total number of parameters.
@@ -774,7 +792,7 @@ pub fn fit(
     }
     let mut constraints = Vec::new();
     if constrain {
-        for &e in model.effects.iter().filter(|e| e.zero_mean()) {
+        for &e in model.effects.iter().filter(|&&e| model.zero_mean(e)) {
             for c in 0..e.local_names().len() {
                 let idx: Vec<usize> = (0..model.nsep)
                     .filter(|&k| present[k])

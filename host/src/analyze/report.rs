@@ -89,15 +89,22 @@ fn cause_rows(s: &mut String, causes: &[Cause]) {
             })
             .collect();
         if !locals.is_empty() {
-            let relative = super::model::Cand::from_name(&c.effect).is_some_and(|c| c.zero_mean());
+            // Held at zero mean as in `Model::zero_mean`: the plate's offsets and separation
+            // errors always, its tilts when the offsets are named too.
+            let relative = match c.effect.as_str() {
+                "plate_offset" | "separation_error" => {
+                    " (relative to their mean; the common part is in the head offset d)"
+                }
+                "plate_tilt" if causes.iter().any(|o| o.effect == "plate_offset") => {
+                    " (relative to their mean; the common part is in the head pose and the \
+                     plate offsets)"
+                }
+                _ => "",
+            };
             let _ = write!(
                 s,
                 "<tr><td></td><td colspan=6><details><summary>per-separation values{}</summary>{}</details></td></tr>",
-                if relative {
-                    " (relative to their mean; the common part is in the head offset d)"
-                } else {
-                    ""
-                },
+                relative,
                 locals.join(", ")
             );
         }

@@ -397,15 +397,12 @@ pub fn cross_validate(
     })
 }
 
-/// Added parameters of `cand` (per-separation blocks minus their zero-mean constraints).
+/// Added parameters of `cand`: the free parameters (minus zero-mean constraints) of the
+/// model with it against those of the model without it (`plate_offset` on top of
+/// `plate_tilt` also holds the tilts' mean).
 fn added_params(model: &Model, cand: Cand) -> usize {
-    let w = cand.local_names().len();
-    let per_block = if cand.zero_mean() {
-        model.nsep.saturating_sub(1)
-    } else {
-        model.nsep
-    };
-    cand.global_names(model.base).len() + w * per_block
+    let free = |m: &Model| m.n_params() - m.n_constraints();
+    free(&model.with(cand)).saturating_sub(free(model))
 }
 
 /// Start values for `cand` on top of `model`'s fit `prev`: neutral values, except for
@@ -515,7 +512,7 @@ pub fn select_with_folds(
                 c,
                 format!(
                     "one correction per separation needs at least 3 separations to be told apart \
-                     from the head offset and cross-validated; the file has {nsep}"
+                     from the head pose and cross-validated; the file has {nsep}"
                 ),
             ));
             continue;

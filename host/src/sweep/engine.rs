@@ -406,6 +406,12 @@ struct SensorSeen {
     t_us: u64,
 }
 
+/// Whether the sensor board's wrapping report counter went back from `seen` to `now` (a
+/// step of more than half its range counts as back, so a wrap after 2^32 reports does not).
+fn went_back(now: u32, seen: u32) -> bool {
+    now.wrapping_sub(seen) > u32::MAX / 2
+}
+
 /// The engine.
 pub struct Engine<'a> {
     plan: &'a Plan,
@@ -1161,7 +1167,7 @@ impl<'a> Engine<'a> {
                 // report (or the restore)? Its settings are then the start-up ones, whatever
                 // the point's sensitivity.
                 if let Some(seen) = self.sensor_seen {
-                    if r.seq < seen.seq || r.t_us < seen.t_us {
+                    if went_back(r.seq, seen.seq) || r.t_us < seen.t_us {
                         let how = format!(
                             "its report counter went from {} to {}, its clock from {:.3} s to \
                              {:.3} s",
@@ -1174,7 +1180,7 @@ impl<'a> Engine<'a> {
                     }
                 }
                 self.sensor_seen = Some(SensorSeen {
-                    seq: r.seq.saturating_add(1),
+                    seq: r.seq.wrapping_add(1),
                     t_us: r.t_us,
                 });
                 wrong_sensitivity = match absorb(r, m) {
@@ -1197,7 +1203,7 @@ impl<'a> Engine<'a> {
                 // shows the counters restarted. Otherwise (or unread: a silent board) the
                 // NorthStar stalled.
                 if let (Some(seen), Ok(s)) = (self.sensor_seen, self.sensor_status()) {
-                    if s.reports < seen.seq || s.uptime_ms < seen.t_us / 1000 {
+                    if went_back(s.reports, seen.seq) || s.uptime_ms < seen.t_us / 1000 {
                         let how = format!(
                             "no spot report for {} ms while streaming, and its report counter \
                              went from {} to {}, its clock from {:.3} s to {:.3} s",
@@ -1449,6 +1455,15 @@ impl Bars {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_report_counter_went_back_only_when_it_did() {
+        assert!(went_back(3, 10));
+        assert!(!went_back(10, 10) && !went_back(11, 10));
+        // The counter wrapping after 2^32 reports is no reset.
+        assert!(!went_back(2, u32::MAX - 1));
+        assert!(went_back(0, 1 << 31));
+    }
 
     /// In log mode a line comes at each separation's end, and in between at least every
     /// [`PROGRESS_EVERY`], each with the points done of all, the rate and the ETA (but at
