@@ -581,13 +581,19 @@ const BOM: &[u8] = b"\xEF\xBB\xBF";
 impl Dataset {
     /// Read a measurement file.
     pub fn read(path: &Path) -> Result<Dataset, ReadError> {
-        Self::read_warned(path).map(|(ds, _)| ds)
+        Self::from_reader(path, Self::open(path)?)
     }
 
     /// Read a measurement file, with every warning an analysis command prints on load
     /// (without `warning: `): what reading noticed of the file itself (a last value that may
     /// be cut short, [`Dataset::from_reader_warned`]), then [`Dataset::warnings`].
     pub fn read_warned(path: &Path) -> Result<(Dataset, Vec<String>), ReadError> {
+        Self::from_reader_warned(path, Self::open(path)?)
+    }
+
+    /// Open a measurement file (a folder given instead is refused, naming the run's data
+    /// file when it is one).
+    fn open(path: &Path) -> Result<std::fs::File, ReadError> {
         if path.is_dir() {
             let data = crate::sweep::data_path(path);
             return Err(ReadError::Folder {
@@ -595,8 +601,7 @@ impl Dataset {
                 data: data.is_file().then_some(data),
             });
         }
-        let f = std::fs::File::open(path).map_err(|e| ReadError::Io(path.to_path_buf(), e))?;
-        Self::from_reader_warned(path, f)
+        std::fs::File::open(path).map_err(|e| ReadError::Io(path.to_path_buf(), e))
     }
 
     /// Read from any reader; `path` is used in messages.

@@ -85,8 +85,8 @@ pub enum FaultKind {
     Silent,
     /// The NorthStar stops sending frames (the sensor board still answers requests).
     Stall,
-    /// The board restarts behind the host's back (its status then says by its watchdog; a
-    /// brown-out would say power-on; the port stays):
+    /// The board restarts behind the host's back (its status then gives the reset cause
+    /// `watchdog`; a brown-out would give power-on; the port stays):
     /// the beacon board at the `at`-th stream start, so the point's LED goes dark and its
     /// uptime starts again; the sensor board when the `at`-th stream ends, between points, so
     /// it comes back idle at sensitivity 4.
