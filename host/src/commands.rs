@@ -11,7 +11,7 @@ use cta_core::nearfield2d::{Crossing, Effect as NfEffect, Model2d, CROSSING_MAX_
 use cta_core::pattern::{Pattern, QUARTIC_VALID_DEG};
 use cta_core::real::rad;
 use cta_core::uncertainty::{self, Item};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -1030,6 +1030,12 @@ pub struct EvaluateArgs {
     /// says how many; their error in angle is that of a clipped output, not a measurement.
     #[arg(long)]
     pub without_rail: bool,
+    /// Leave out the samples the glitch check flags (more than 8 robust sigma from their
+    /// point's median; the warning names their lines), as `cta fit --drop-glitches` does, on
+    /// the separations evaluated. The file is not changed; the output says how many were
+    /// left out.
+    #[arg(long)]
+    pub drop_glitches: bool,
     /// Draw Figure 57 (angle-error std and CTA uncertainty vs separation) to this SVG file.
     #[arg(long)]
     pub plot: Option<PathBuf>,
@@ -1064,6 +1070,16 @@ fn parse_xyz(s: &str) -> std::result::Result<[f64; 3], String> {
     parse_floats(s, "x,y,z", "0.6,0.1,0.06")
 }
 
+/// `cta evaluate --json`: the evaluation's fields, with what `--drop-glitches` left out (as
+/// `cta calibrate`'s `glitches_left_out` and `cta fit`'s `data_notes`; 0 and empty without it).
+#[derive(Serialize)]
+struct EvaluationOutput<'a> {
+    #[serde(flatten)]
+    evaluation: &'a fit::Evaluation,
+    glitches_left_out: usize,
+    data_notes: &'a [String],
+}
+
 /// Run `cta evaluate`. The table (or JSON) is printed before `--plot` is written.
 pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
     // A measurement file where the fit belongs: the arguments swapped, or no fit saved yet.
@@ -1086,7 +1102,17 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
         );
     }
     let rep = FitReport::load(&a.fit).map_err(|e| anyhow!(e))?;
-    let ds = load(&a.file, a.separations.as_deref())?;
+    let mut ds = load(&a.file, a.separations.as_deref())?;
+    // `cta fit --drop-glitches`'s rule, on the separations evaluated.
+    let mut data_notes = Vec::new();
+    let mut glitches_left_out = 0;
+    if a.drop_glitches {
+        if let Some(clean) = ds.without_glitches() {
+            data_notes.push(clean.note());
+            glitches_left_out = clean.samples;
+            ds = clean.data;
+        }
+    }
     let truth = match Truth::load_for(&a.file) {
         Some(Ok(t)) => Some(t),
         Some(Err(e)) => bail!("{e}"),
@@ -1149,9 +1175,14 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
         crate::plot::check_plot_path(p)?;
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&ev)?);
+        let out = EvaluationOutput {
+            evaluation: &ev,
+            glitches_left_out,
+            data_notes: &data_notes,
+        };
+        println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        print_evaluation(&rep, &ev);
+        print_evaluation(&rep, &ev, &data_notes);
     }
     if let Some(p) = &a.plot {
         let pts = |v: &Vec<f64>| {
@@ -1209,7 +1240,7 @@ pub fn evaluate_cmd(a: &EvaluateArgs) -> Result<()> {
 
 /// The text table of `cta evaluate`: the mean error with its standard error (to the digits
 /// that resolves), the standard deviation and the CTA uncertainty to 3 significant digits.
-fn print_evaluation(rep: &FitReport, ev: &fit::Evaluation) {
+fn print_evaluation(rep: &FitReport, ev: &fit::Evaluation, data_notes: &[String]) {
     println!(
         "Error in angle (eq 67) of the fit on {} in, against the {}:",
         fmt_list(&rep.separations),
@@ -1247,6 +1278,9 @@ fn print_evaluation(rep: &FitReport, ev: &fit::Evaluation) {
             sig(ev.cta_uncertainty_deg[i], 3),
             n
         );
+    }
+    for n in data_notes {
+        println!("note: {n}");
     }
     let mut railed: Vec<String> = (0..ev.separation_in.len())
         .filter(|&i| ev.at_rail[i] > 0)

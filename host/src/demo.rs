@@ -195,6 +195,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         head: None,
         budget: None,
         without_rail: false,
+        drop_glitches: false,
         plot: Some(p("figure57.svg")),
         json: false,
     })?;

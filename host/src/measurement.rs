@@ -1001,8 +1001,9 @@ impl Dataset {
     }
 
     /// The dataset without the samples the glitch check flags ([`Dataset::glitches`]): what
-    /// `--drop-glitches` fits (`cta analyze`, `cta fit`, `cta calibrate`), with what was left
-    /// out. `None` when nothing is flagged. The file is not changed.
+    /// `--drop-glitches` fits (`cta analyze`, `cta fit`, `cta calibrate`) and evaluates
+    /// (`cta evaluate`), with what was left out. `None` when nothing is flagged. The file is
+    /// not changed.
     pub fn without_glitches(&self) -> Option<WithoutGlitches> {
         let g = self.glitches();
         if g.samples == 0 {
@@ -1289,8 +1290,8 @@ impl Glitches {
             "{}: {} sample{} ({share} of the rows) lie{} more than {} robust sigma from {} point's \
              median ({lines}): glitches (an ID mix-up, a corrupted report?) that inflate the noise \
              pooled {inflate}; every fit weights by that noise. Remove those lines, or re-measure \
-             (`--drop-glitches` leaves them out of `cta fit`, `cta calibrate` and `cta analyze`, \
-             the file unchanged; `cta evaluate` needs them removed)",
+             (`--drop-glitches` leaves them out of `cta fit`, `cta evaluate`, `cta calibrate` \
+             and `cta analyze`, the file unchanged)",
             path.display(),
             self.samples,
             if self.samples == 1 { "" } else { "s" },
@@ -1324,9 +1325,9 @@ impl WithoutGlitches {
         )
     }
 
-    /// The note `cta analyze`, `cta fit` and `cta calibrate` print when `--drop-glitches`
-    /// left them out: `3 glitched samples left out (--drop-glitches; lines 9, 402, 977); the
-    /// file is unchanged`.
+    /// The note `cta analyze`, `cta fit`, `cta evaluate` and `cta calibrate` print when
+    /// `--drop-glitches` left them out: `3 glitched samples left out (--drop-glitches; lines
+    /// 9, 402, 977); the file is unchanged`.
     pub fn note(&self) -> String {
         format!(
             "{} glitched sample{} left out (--drop-glitches; {}); the file is unchanged",

@@ -329,16 +329,109 @@ fn fit_drop_glitches_fits_as_if_the_line_were_deleted() {
         out.contains(&format!("\n  note: {}\n", one_left_out(line))),
         "{out}"
     );
-    // The load warning names the option for fit, calibrate and analyze.
+    // The load warning names the option for fit, evaluate, calibrate and analyze.
     let err = common::stderr(&o);
     assert!(
         err.contains(&format!("median (X at line {line})"))
             && err.contains(
-                "(`--drop-glitches` leaves them out of `cta fit`, `cta calibrate` and `cta \
-                 analyze`, the file unchanged; `cta evaluate` needs them removed)"
+                "(`--drop-glitches` leaves them out of `cta fit`, `cta evaluate`, `cta \
+                 calibrate` and `cta analyze`, the file unchanged)"
             ),
         "{err}"
     );
+}
+
+/// `cta evaluate --drop-glitches`, the same rule: one X sample moved by 6,000 counts at 20 in
+/// inflates the error in angle's std there several-fold; with the flag the evaluation (of a
+/// fit on the clean file's 25 and 30 in) is that of the file without the line, and the output
+/// (text and JSON, `glitches_left_out` and `data_notes`) says how many samples were left out.
+#[test]
+fn evaluate_drop_glitches_evaluates_as_if_the_line_were_deleted() {
+    let d = tmpdir("evaluate-drop");
+    let base = d.join("base.csv");
+    common::simulate_at(&base, "8,20,25,30", "4", "23", &[]);
+    let (bad, clean) = (d.join("bad.csv"), d.join("clean.csv"));
+    let line = glitch_one(&base, &bad, &clean, "20", 6000.0);
+    // The same truth sidecar for both, so the angle is measured from the true head.
+    for f in [&bad, &clean] {
+        std::fs::copy(
+            base.with_extension("truth.json"),
+            f.with_extension("truth.json"),
+        )
+        .unwrap();
+    }
+    let fit_file = d.join("fit.json");
+    let o = cta(&[
+        "fit",
+        s(&clean),
+        "--separations",
+        "25,30",
+        "--save",
+        s(&fit_file),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let ev = |f: &Path, extra: &[&str]| {
+        let mut args = vec!["evaluate", s(&fit_file), s(f), "--json"];
+        args.extend_from_slice(extra);
+        json(&cta(&args))
+    };
+    let (with, without, dropped) = (
+        ev(&bad, &[]),
+        ev(&clean, &[]),
+        ev(&bad, &["--drop-glitches"]),
+    );
+    let at20 = |r: &serde_json::Value, k: &str| {
+        let i = r["separation_in"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .position(|v| v == 20.0)
+            .unwrap();
+        r[k][i].as_f64().unwrap()
+    };
+    // The glitch moves the evaluation at 20 in.
+    assert!(
+        at20(&with, "angle_std_deg") > 3.0 * at20(&without, "angle_std_deg"),
+        "{with} {without}"
+    );
+    // Left out, it is the evaluation of the file without it, field by field.
+    let fields = without.as_object().unwrap();
+    assert!(
+        fields.contains_key("angle_std_deg") && fields.len() >= 10,
+        "{without}"
+    );
+    for (k, v) in fields {
+        if k == "glitches_left_out" || k == "data_notes" {
+            continue;
+        }
+        assert_eq!(&dropped[k], v, "{k}");
+    }
+    assert_eq!(dropped["glitches_left_out"], 1);
+    assert_eq!(with["glitches_left_out"], 0);
+    assert_eq!(without["glitches_left_out"], 0);
+    assert_eq!(
+        dropped["data_notes"],
+        serde_json::json!([one_left_out(line)])
+    );
+    assert_eq!(with["data_notes"], serde_json::json!([]));
+    // The text says so; the load warning names the option for evaluate.
+    let o = cta(&["evaluate", s(&fit_file), s(&bad), "--drop-glitches"]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains(&format!("\nnote: {}\n", one_left_out(line))),
+        "{out}"
+    );
+    let err = common::stderr(&o);
+    assert!(
+        err.contains(&format!("median (X at line {line})"))
+            && err.contains("`--drop-glitches` leaves them out of `cta fit`, `cta evaluate`"),
+        "{err}"
+    );
+    // Without the flag the text has no such note.
+    let o = cta(&["evaluate", s(&fit_file), s(&bad)]);
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("glitched sample"));
 }
 
 /// `cta calibrate --drop-glitches`, the same: one X sample moved by 6,000 counts at 12 in
