@@ -7,6 +7,7 @@
 //! cta beacon --port /dev/ttyUSB0 set 46 0,5      # LED 46 at entries 0 and 5 at once
 //! cta beacon --port /dev/ttyUSB0 set-many 0=on 1=2 2=off
 //! cta beacon --port /dev/ttyUSB0 status
+//! cta beacon --sim status --json          # the same as one JSON object
 //! cta beacon --port /dev/ttyUSB0 heartbeat --every-ms 2000   # keep LEDs lit (dead-man)
 //! cta beacon --port /dev/ttyUSB0 all-off
 //! cta beacon --port /dev/ttyUSB0 limits --deadman-ms 30000   # the cap stays as it is
@@ -34,11 +35,12 @@ use cta_core::schedule::{
     grid_position, BEACON_PINS, NORTHSTAR_TABLE_MHZ, RESERVED_PINS, SPARE_PIN,
 };
 use cta_core::wire::beacon::{
-    Beacon, BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting, Limits, LED_COUNT,
-    MAX_FREQS,
+    Beacon, BeaconRequest, BeaconResponse, BeaconStatus, FreqSet, LedMode, LedSetting, Limits,
+    LED_COUNT, MAX_FREQS,
 };
-use cta_core::wire::Identity;
+use cta_core::wire::{DecoderStats, Identity};
 use cta_firmware_beacon::sim::SimBoard;
+use serde::Serialize;
 
 use crate::link::{on_board, open_serial, Link, LinkConfig};
 
@@ -142,6 +144,10 @@ pub enum BeaconCommand {
     },
     /// Lit LEDs, limits, uptime, link counters.
     Status {
+        /// Print one JSON object instead of text: every field the text prints, the last
+        /// reset in its words (`power-on`, `watchdog`, ...), times in ms.
+        #[arg(long)]
+        json: bool,
         #[command(flatten)]
         conn: BeaconConn,
     },
@@ -229,6 +235,70 @@ pub enum BeaconCommand {
     },
 }
 
+/// A board's frame-decoder counters in the JSON of `cta beacon status` and `cta sensor
+/// status`: good frames, the bad ones in all, then by kind, as the text's line has them.
+#[derive(Debug, Serialize)]
+pub(crate) struct FrameCounts {
+    ok: u32,
+    bad: u32,
+    oversized: u32,
+    encoding: u32,
+    truncated: u32,
+    crc: u32,
+    malformed: u32,
+    version: u32,
+}
+
+impl From<&DecoderStats> for FrameCounts {
+    fn from(d: &DecoderStats) -> Self {
+        FrameCounts {
+            ok: d.ok,
+            bad: d.bad(),
+            oversized: d.oversized,
+            encoding: d.encoding,
+            truncated: d.truncated,
+            crc: d.crc,
+            malformed: d.malformed,
+            version: d.version,
+        }
+    }
+}
+
+/// `cta beacon status --json`: every field of the text, under the names of the board's
+/// status reply ([`BeaconStatus`]), the reset cause in the text's words.
+#[derive(Debug, Serialize)]
+struct StatusJson {
+    uptime_ms: u64,
+    reset_cause: &'static str,
+    lit: u8,
+    limits: Limits,
+    since_host_ms: u32,
+    deadman_trips: u32,
+    decoder: FrameCounts,
+    refused: u32,
+    uart_errors: u32,
+    tick_hz: u32,
+    table_len: u8,
+}
+
+impl From<&BeaconStatus> for StatusJson {
+    fn from(s: &BeaconStatus) -> Self {
+        StatusJson {
+            uptime_ms: s.uptime_ms,
+            reset_cause: s.reset_cause.name(),
+            lit: s.lit,
+            limits: s.limits,
+            since_host_ms: s.since_host_ms,
+            deadman_trips: s.deadman_trips,
+            decoder: FrameCounts::from(&s.decoder),
+            refused: s.refused,
+            uart_errors: s.uart_errors,
+            tick_hz: s.tick_hz,
+            table_len: s.table_len,
+        }
+    }
+}
+
 /// Parse an LED mode: `off`, `on`, or comma-separated table indices.
 pub fn parse_mode(s: &str) -> Result<LedMode> {
     match s.trim() {
@@ -282,7 +352,7 @@ impl BeaconCommand {
     fn conn(&self) -> Option<&BeaconConn> {
         match self {
             BeaconCommand::Identify { conn }
-            | BeaconCommand::Status { conn }
+            | BeaconCommand::Status { conn, .. }
             | BeaconCommand::Set { conn, .. }
             | BeaconCommand::SetMany { conn, .. }
             | BeaconCommand::AllOff { conn }
@@ -377,7 +447,14 @@ fn board_command<S: std::io::Read + std::io::Write>(
             if id.simulated { " (simulated)" } else { "" },
             id.max_frame
         )?,
-        BeaconCommand::Status { .. } => match link.call(BeaconRequest::Status)? {
+        BeaconCommand::Status { json, .. } => match link.call(BeaconRequest::Status)? {
+            Some(BeaconResponse::Status(s)) if *json => {
+                writeln!(
+                    out,
+                    "{}",
+                    serde_json::to_string_pretty(&StatusJson::from(&s))?
+                )?;
+            }
             Some(BeaconResponse::Status(s)) => {
                 writeln!(out, "uptime          {:.1} s", s.uptime_ms as f64 / 1000.0)?;
                 writeln!(out, "last reset      {}", s.reset_cause)?;

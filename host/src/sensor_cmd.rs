@@ -9,6 +9,7 @@
 //! cta sensor --port P load-calibration cal.json
 //! cta sensor --port P load-constellation con.json
 //! cta sensor --port P config                              # what the board has in flash
+//! cta sensor --port P status --json                       # mode, settings, counters as JSON
 //! cta sensor --port P sensitivity 3
 //! cta sensor --port P stream --count 5                    # raw spot reports
 //! cta sensor --port P pose --model near-field --count 10  # 6-dof poses
@@ -32,8 +33,8 @@ use cta_core::pose::{
 };
 use cta_core::real::rad;
 use cta_core::wire::sensor::{
-    Mode, PoseReport, SensorError, SensorProtocol, SensorRequest, SensorResponse, SensorStatus,
-    SpotReport,
+    Mode, NorthStarStats, PoseReport, SensorError, SensorProtocol, SensorRequest, SensorResponse,
+    SensorStatus, SpotReport,
 };
 use cta_core::wire::{Identity, Response};
 use rand::rngs::StdRng;
@@ -47,7 +48,7 @@ use cta_firmware_sensor::sim::{SimBoard, SimNorthStar};
 /// The vector type of the pose API (for callers without their own nalgebra dependency).
 pub use nalgebra::Vector3;
 
-use crate::beacon_cmd::one_of;
+use crate::beacon_cmd::{one_of, FrameCounts};
 use crate::link::{on_board, open_serial, Link, LinkConfig, LinkError};
 use crate::plate::{built_in_constellation, Plate, SceneArgs};
 
@@ -163,6 +164,11 @@ pub enum SensorCommand {
     },
     /// Mode, NorthStar settings, stored configuration, link counters.
     Status {
+        /// Print one JSON object instead of text: every field the text prints, the last
+        /// reset and the mode in the text's words, the last pose's status by its name as
+        /// `pose` prints it (null: none yet), times in ms.
+        #[arg(long)]
+        json: bool,
         #[command(flatten)]
         conn: SensorConn,
     },
@@ -704,7 +710,7 @@ impl SensorCommand {
     fn conn(&self) -> Option<&SensorConn> {
         match self {
             SensorCommand::Identify { conn }
-            | SensorCommand::Status { conn }
+            | SensorCommand::Status { conn, .. }
             | SensorCommand::Heartbeat { conn }
             | SensorCommand::LoadCalibration { conn, .. }
             | SensorCommand::LoadConstellation { conn, .. }
@@ -846,7 +852,10 @@ fn board_command<S: std::io::Read + std::io::Write>(
             if id.simulated { " (simulated)" } else { "" },
             id.max_frame
         ),
-        SensorCommand::Status { .. } => match link.call(SensorRequest::Status)? {
+        SensorCommand::Status { json, .. } => match link.call(SensorRequest::Status)? {
+            Some(SensorResponse::Status(s)) if *json => {
+                println!("{}", serde_json::to_string_pretty(&StatusJson::from(&s))?)
+            }
             Some(SensorResponse::Status(s)) => print_status(&s),
             other => bail!("unexpected reply to Status: {other:?}"),
         },
@@ -1357,6 +1366,49 @@ fn print_status(s: &SensorStatus) {
     );
     println!("host silent     {} ms", s.since_host_ms);
     println!("last pose       {}", describe_last_pose(s.last_pose));
+}
+
+/// `cta sensor status --json`: every field of the text, under the names of the board's
+/// status reply ([`SensorStatus`]), the reset cause and mode in the text's words.
+#[derive(Debug, Serialize)]
+struct StatusJson {
+    uptime_ms: u64,
+    reset_cause: &'static str,
+    mode: &'static str,
+    sensitivity: u8,
+    rate_hz: u8,
+    calibrated: bool,
+    constellation: bool,
+    config_generation: u32,
+    pc: FrameCounts,
+    northstar: NorthStarStats,
+    reports: u32,
+    dropped: u32,
+    refused: u32,
+    since_host_ms: u32,
+    last_pose: Option<PoseStatus>,
+}
+
+impl From<&SensorStatus> for StatusJson {
+    fn from(s: &SensorStatus) -> Self {
+        StatusJson {
+            uptime_ms: s.uptime_ms,
+            reset_cause: s.reset_cause.name(),
+            mode: describe_mode(&s.mode),
+            sensitivity: s.sensitivity,
+            rate_hz: s.rate_hz,
+            calibrated: s.calibrated,
+            constellation: s.constellation,
+            config_generation: s.config_generation,
+            pc: FrameCounts::from(&s.pc),
+            northstar: s.northstar,
+            reports: s.reports,
+            dropped: s.dropped,
+            refused: s.refused,
+            since_host_ms: s.since_host_ms,
+            last_pose: s.last_pose,
+        }
+    }
 }
 
 /// The board's mode in words (the status line `mode`).

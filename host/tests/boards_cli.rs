@@ -719,3 +719,270 @@ fn the_other_board_on_the_port_suggests_swapped_ports() {
         ],
     );
 }
+
+/// A status text's lines as (label, value): the label in the first 16 columns, as both
+/// boards print it.
+fn status_lines(text: &str) -> Vec<(String, String)> {
+    text.lines()
+        .map(|l| {
+            assert!(
+                l.len() > 16 && l.as_bytes()[15] == b' ' && l.as_bytes()[16] != b' ',
+                "not a 16-column label: {l:?}"
+            );
+            (l[..16].trim_end().to_string(), l[16..].to_string())
+        })
+        .collect()
+}
+
+/// The numbers of a status value, in order (`8 good, 0 bad (crc 0, ...)` -> 8, 0, 0, ...).
+fn numbers(v: &str) -> Vec<f64> {
+    v.split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .filter_map(|w| w.trim_end_matches('.').parse().ok())
+        .collect()
+}
+
+/// The unsigned integers of a JSON array of values, in order.
+fn u64s(v: &[&serde_json::Value]) -> Vec<f64> {
+    v.iter()
+        .map(|x| x.as_u64().unwrap_or_else(|| panic!("not a count: {x}")) as f64)
+        .collect()
+}
+
+/// `cta sensor status` prints the same lines as ever, and with `--json` one JSON object with
+/// every field of them: after two poses on a pty board the text and then the JSON agree
+/// (the counters that move with each command only up), the reset cause and mode in words.
+#[test]
+fn sensor_status_text_and_json() {
+    let sim = Sim::start(&["sensor", "sim", "--configured"]);
+    let p = sim.path.as_str();
+    ok(&cta(&["sensor", "--port", p, "pose", "--count", "2"]));
+    let text = ok(&cta(&["sensor", "--port", p, "status"]));
+    let lines = status_lines(&text);
+    let labels: Vec<&str> = lines.iter().map(|(l, _)| l.as_str()).collect();
+    assert_eq!(
+        labels,
+        [
+            "uptime",
+            "last reset",
+            "mode",
+            "northstar",
+            "stored",
+            "pc frames",
+            "northstar link",
+            "reports",
+            "host silent",
+            "last pose"
+        ],
+        "{text}"
+    );
+    let value = |label: &str| &lines.iter().find(|(l, _)| l == label).unwrap().1;
+    for (label, v) in [
+        ("last reset", "power-on"),
+        ("mode", "Idle"),
+        ("northstar", "sensitivity 4, 10 Hz"),
+        (
+            "stored",
+            "calibration: true, constellation: true (flash generation 2)",
+        ),
+        ("last pose", "Ok (converged)"),
+    ] {
+        assert_eq!(value(label), v, "{text}");
+    }
+    assert!(value("uptime").ends_with(" s"), "{text}");
+    assert!(
+        value("pc frames").contains(
+            " good, 0 bad (oversized 0, encoding 0, truncated 0, crc 0, malformed 0, version 0)"
+        ) && value("northstar link").ends_with(" CRC errors, 0 bytes discarded")
+            && value("reports").ends_with(" sent, 0 dropped; 0 requests refused")
+            && value("host silent").ends_with(" ms"),
+        "{text}"
+    );
+
+    // The connection options after the subcommand, as the text's before it.
+    let out = ok(&cta(&["sensor", "status", "--port", p, "--json"]));
+    let j: serde_json::Value = serde_json::from_str(&out).expect("one JSON object");
+    let keys: Vec<&str> = j.as_object().unwrap().keys().map(String::as_str).collect();
+    let mut want = [
+        "uptime_ms",
+        "reset_cause",
+        "mode",
+        "sensitivity",
+        "rate_hz",
+        "calibrated",
+        "constellation",
+        "config_generation",
+        "pc",
+        "northstar",
+        "reports",
+        "dropped",
+        "refused",
+        "since_host_ms",
+        "last_pose",
+    ];
+    want.sort_unstable();
+    let mut keys = keys;
+    keys.sort_unstable();
+    assert_eq!(keys, want, "{out}");
+    assert_eq!(j["reset_cause"], "power-on", "{out}");
+    assert_eq!(j["mode"], "Idle", "{out}");
+    assert_eq!(j["last_pose"], "Ok", "{out}");
+    assert_eq!(
+        (&j["sensitivity"], &j["rate_hz"]),
+        (&4.into(), &10.into()),
+        "{out}"
+    );
+    assert_eq!(
+        (
+            &j["calibrated"],
+            &j["constellation"],
+            &j["config_generation"]
+        ),
+        (&true.into(), &true.into(), &2.into()),
+        "{out}"
+    );
+    // Uptime: ms, from the text's second (to 0.1 s) on.
+    let up_text = numbers(value("uptime"))[0];
+    let up = j["uptime_ms"].as_u64().unwrap() as f64;
+    assert!(
+        up >= 1000.0 * up_text - 50.0 && up < 1000.0 * up_text + 10_000.0,
+        "{up} ms after {up_text} s"
+    );
+    // Counters: every number of the text's lines, in their order; the frames received only
+    // grow with the commands since.
+    let pc = &j["pc"];
+    let pc_json = u64s(&[
+        &pc["ok"],
+        &pc["bad"],
+        &pc["oversized"],
+        &pc["encoding"],
+        &pc["truncated"],
+        &pc["crc"],
+        &pc["malformed"],
+        &pc["version"],
+    ]);
+    let pc_text = numbers(value("pc frames"));
+    assert_eq!(pc_json.len(), pc_text.len(), "{out}");
+    assert!(pc_json[0] > pc_text[0], "{out}");
+    assert_eq!(pc_json[1..], pc_text[1..], "{out}");
+    let ns = &j["northstar"];
+    let ns_json = u64s(&[&ns["frames"], &ns["crc_errors"], &ns["discarded"]]);
+    let ns_text = numbers(value("northstar link"));
+    assert!(ns_json[0] >= ns_text[0] && ns_json[0] > 0.0, "{out}");
+    assert_eq!(ns_json[1..], ns_text[1..], "{out}");
+    let reports = u64s(&[&j["reports"], &j["dropped"], &j["refused"]]);
+    assert_eq!(reports, numbers(value("reports")), "{out}");
+    assert!(reports[0] >= 2.0, "{out}");
+    assert!(j["since_host_ms"].as_u64().unwrap() < 5_000, "{out}");
+
+    // The in-process board: nothing solved yet.
+    let j = common::json(&cta(&["sensor", "--sim", "status", "--json"]));
+    assert_eq!(j["last_pose"], serde_json::Value::Null, "{j}");
+    assert_eq!(j["reports"], 0, "{j}");
+    assert_eq!(j["reset_cause"], "power-on", "{j}");
+}
+
+/// `cta beacon status` prints the same lines as ever, and with `--json` one JSON object with
+/// every field of them: with the cap at 1, one LED lit and a second refused, the text and
+/// then the JSON agree (the frames received only up), the reset cause in words.
+#[test]
+fn beacon_status_text_and_json() {
+    let sim = Sim::start(&["beacon", "sim"]);
+    let p = sim.path.as_str();
+    ok(&cta(&["beacon", "--port", p, "limits", "--max-lit", "1"]));
+    ok(&cta(&["beacon", "--port", p, "set", "45", "3"]));
+    fails_with(
+        &cta(&["beacon", "--port", p, "set", "46", "3"]),
+        &["the cap is 1"],
+    );
+    let text = ok(&cta(&["beacon", "--port", p, "status"]));
+    let lines = status_lines(&text);
+    let labels: Vec<&str> = lines.iter().map(|(l, _)| l.as_str()).collect();
+    assert_eq!(
+        labels,
+        [
+            "uptime",
+            "last reset",
+            "lit LEDs",
+            "dead-man",
+            "frames",
+            "refused",
+            "uart errors",
+            "tick"
+        ],
+        "{text}"
+    );
+    let value = |label: &str| &lines.iter().find(|(l, _)| l == label).unwrap().1;
+    for (label, v) in [
+        ("last reset", "power-on"),
+        ("lit LEDs", "1 (cap 1)"),
+        ("refused", "1"),
+        ("uart errors", "0"),
+        ("tick", "125000 Hz, table of 20 frequencies"),
+    ] {
+        assert_eq!(value(label), v, "{text}");
+    }
+    assert!(value("uptime").ends_with(" s"), "{text}");
+    assert!(
+        value("dead-man").starts_with("10000 ms, host silent for ")
+            && value("dead-man").ends_with(" ms, tripped 0 time(s)")
+            && value("frames").contains(" good, 0 bad (oversized 0, encoding 0, truncated 0, crc 0, malformed 0, version 0)"),
+        "{text}"
+    );
+
+    let out = ok(&cta(&["beacon", "status", "--port", p, "--json"]));
+    let j: serde_json::Value = serde_json::from_str(&out).expect("one JSON object");
+    let mut keys: Vec<&str> = j.as_object().unwrap().keys().map(String::as_str).collect();
+    keys.sort_unstable();
+    let mut want = [
+        "uptime_ms",
+        "reset_cause",
+        "lit",
+        "limits",
+        "since_host_ms",
+        "deadman_trips",
+        "decoder",
+        "refused",
+        "uart_errors",
+        "tick_hz",
+        "table_len",
+    ];
+    want.sort_unstable();
+    assert_eq!(keys, want, "{out}");
+    assert_eq!(j["reset_cause"], "power-on", "{out}");
+    assert_eq!(
+        u64s(&[
+            &j["lit"],
+            &j["limits"]["max_lit"],
+            &j["limits"]["deadman_ms"],
+            &j["deadman_trips"],
+            &j["refused"],
+            &j["uart_errors"],
+            &j["tick_hz"],
+            &j["table_len"],
+        ]),
+        [1.0, 1.0, 10_000.0, 0.0, 1.0, 0.0, 125_000.0, 20.0],
+        "{out}"
+    );
+    let up_text = numbers(value("uptime"))[0];
+    let up = j["uptime_ms"].as_u64().unwrap() as f64;
+    assert!(
+        up >= 1000.0 * up_text - 50.0 && up < 1000.0 * up_text + 10_000.0,
+        "{up} ms after {up_text} s"
+    );
+    let d = &j["decoder"];
+    let d_json = u64s(&[
+        &d["ok"],
+        &d["bad"],
+        &d["oversized"],
+        &d["encoding"],
+        &d["truncated"],
+        &d["crc"],
+        &d["malformed"],
+        &d["version"],
+    ]);
+    let d_text = numbers(value("frames"));
+    assert_eq!(d_json.len(), d_text.len(), "{out}");
+    assert!(d_json[0] > d_text[0], "{out}");
+    assert_eq!(d_json[1..], d_text[1..], "{out}");
+    assert!(j["since_host_ms"].as_u64().unwrap() < 5_000, "{out}");
+}
