@@ -288,8 +288,11 @@ impl Operator for Prompt {
         loop {
             let a = self.ask(&format!(
                 "\nMove the plate to {} in (all LEDs are off). Enter the four corner \
-                 separations in inches (e.g. `{0} {0} {0} {0}`): ",
-                p.separation
+                 separations in inches, at the rods x, y = +/-{} in of the sensor board's frame, \
+                 in the order {} (e.g. `{0} {0} {0} {0}`; the order gives the plate's tilt): ",
+                p.separation,
+                super::corners::ROD_XY_IN,
+                super::corners::CORNER_ORDER_TEXT
             ))?;
             let v: Result<Vec<f64>, _> = a
                 .split([' ', ',', '\t'])

@@ -4,6 +4,7 @@
 //! * [`plan`]: the plan file (TOML), validated with errors naming file, line and key.
 //! * [`engine`]: the run: both boards over the shared wire protocol ([`crate::link`]),
 //!   operator prompts, faults, retries with backoff, progress bars.
+//! * [`corners`]: the plate's tilt from the operator's corner readings.
 //! * [`store`]: the run directory: measurement CSV appended and synced per point, journal,
 //!   manifest, exact resume.
 //! * [`sim`]: the simulated CTA (both boards' firmware logic behind pseudo-terminals,
@@ -11,6 +12,7 @@
 //!
 //! The user documentation is `host/SWEEP.md`.
 
+pub mod corners;
 pub mod engine;
 pub mod plan;
 pub mod sim;

@@ -51,6 +51,7 @@ use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 use serialport::{SerialPort, TTYPort};
 
+use super::corners::{CORNER_ORDER, ROD_XY_IN};
 use super::plan::{Layout, Plan};
 use super::store::{corner_mean, corner_uncertainty, SeparationEntry};
 use crate::effects::Effect;
@@ -831,16 +832,17 @@ impl SimCta {
     }
 
     /// Move the plate to separation `sep_idx` of the plan, the array in `quadrant`; returns
-    /// the simulated operator's corner readings, read to 1 mil (the plate sits slightly tilted,
-    /// as leveled by Ch IV's machinist's level: the corners differ from their mean by at most
-    /// 5 mils, [`super::store::LEVEL_BOUND_IN`], and their mean is the nominal separation).
+    /// the simulated operator's corner readings ([`plate_corners`]): the plate's true heights
+    /// at the rods, read to 1 mil. The simulated plate is level unless a `plate_tilt` is
+    /// simulated; then the corners show that tilt, as a real plate's would.
     pub fn move_plate(&self, sep_idx: usize, nominal: f64, quadrant: usize) -> SeparationEntry {
         {
             let mut st = self.world.state();
             st.sep_idx = Some(sep_idx);
             st.quadrant = quadrant;
         }
-        let corners = plate_corners(self.world.settings.seed, sep_idx, nominal);
+        let place = self.world.geometry[sep_idx];
+        let corners = plate_corners(self.world.settings.seed, sep_idx, nominal, &place);
         separation_entry(sep_idx, nominal, corners, "simulated plate".into())
     }
 
@@ -898,17 +900,22 @@ impl Drop for SimCta {
 }
 
 /// The simulated operator's corner readings of the plate at separation `sep_idx` (nominal
-/// `nominal` in), for the simulation's `seed` ([`SimCta::move_plate`]).
-fn plate_corners(seed: u64, sep_idx: usize, nominal: f64) -> Vec<f64> {
+/// `nominal` in, placed by `place`), for the simulation's `seed` ([`SimCta::move_plate`]):
+/// at each rod ([`CORNER_ORDER`], [`ROD_XY_IN`]) the height of the plate's surface turned by
+/// the placement's tilt about its centre, with a reading error of up to 1 mil, read to 1
+/// mil (so a reading is within 1.5 mil of the true height, a level plate's within 1 mil of
+/// the nominal). The separation error (`separation_error`) is a misreading of the whole plate, not
+/// of one corner: the corners average to the nominal, as the operator recorded it.
+fn plate_corners(seed: u64, sep_idx: usize, nominal: f64, place: &Placement) -> Vec<f64> {
     let mut rng = StdRng::seed_from_u64(mix(&[seed, 0x7117, sep_idx as u64]));
-    // Tilt of the plate along x and y, as a fraction of the largest; at most 2 mils each at
-    // the corners, so a corner is within 4 mils of the nominal, within 5 of the readings'
-    // mean after rounding to 1 mil.
-    let (a, b): (f64, f64) = (rng.random_range(-1.0..=1.0), rng.random_range(-1.0..=1.0));
-    let l = 0.002;
-    [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
+    let n = place.rotation() * nalgebra::Vector3::z();
+    CORNER_ORDER
         .iter()
-        .map(|(x, y)| round3(nominal + l * (a * x + b * y)))
+        .map(|(sx, sy)| {
+            let (x, y) = (sx * ROD_XY_IN, sy * ROD_XY_IN);
+            let height = nominal - (n.x * x + n.y * y) / n.z;
+            round3(height + rng.random_range(-0.001..=0.001))
+        })
         .collect()
 }
 
@@ -918,14 +925,16 @@ fn round3(x: f64) -> f64 {
 
 /// A separation entry from corner readings: their mean (rounded to 0.1 mil) and its Ch IV
 /// uncertainty, the largest difference between a reading and the mean
-/// ([`corner_uncertainty`]).
+/// ([`corner_uncertainty`]). Readings are taken in [`CORNER_ORDER`] at the rods
+/// [`ROD_XY_IN`] from the centre, and the entry says so.
 pub fn separation_entry(
     sep_idx: usize,
     nominal: f64,
     corners: Vec<f64>,
     source: String,
 ) -> SeparationEntry {
-    let (mean, uncertainty) = if corners.is_empty() {
+    let corners_empty = corners.is_empty();
+    let (mean, uncertainty) = if corners_empty {
         (nominal, 0.0)
     } else {
         let m = corner_mean(&corners);
@@ -938,12 +947,14 @@ pub fn separation_entry(
         mean,
         uncertainty,
         source,
+        rods_xy_in: (!corners_empty).then_some(ROD_XY_IN),
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sweep::corners::corner_tilt;
 
     /// Thesis Ch IV: the corners are averaged to the centre height, whose uncertainty is "the
     /// difference between the center height and the maximum and minimum measurements". One
@@ -981,24 +992,58 @@ mod tests {
         assert_eq!((e.mean, e.uncertainty), (12.0, 0.0));
     }
 
-    /// The simulated plate is as level as Ch IV's: the operator's question about corners
-    /// beyond +/-5 mils never comes up, and the mean is the nominal to within a mil.
+    /// The simulated plate is level unless a tilt is simulated: its corners are within the
+    /// reading's 1 mil of the nominal (the operator's question about corners beyond +/-5
+    /// mils never comes up) and say no tilt beyond what a mil gives. A tilted plate's
+    /// corners give its tilt back to within that, and their mean is still the nominal (to
+    /// the readings' 1.5 mil).
     #[test]
-    fn simulated_plate_is_level_within_ch_iv() {
-        let mut widest = 0.0f64;
+    fn simulated_corners_read_the_plate_as_placed() {
+        // The most readings within 1.5 mil of the truth turn a slope: 4 x 1.5 mils over 4 rod
+        // distances (the four readings all wrong the same way for one slope).
+        let mil_deg = (0.0015 / ROD_XY_IN).atan().to_degrees();
         for seed in 0..200 {
             for (i, nominal) in [1.0, 2.0, 7.5, 15.0, 30.0].into_iter().enumerate() {
-                let c = plate_corners(seed, i, nominal);
+                let level = plate_corners(seed, i, nominal, &Placement::default());
                 assert!(
-                    super::super::store::levelness_question(&c).is_none(),
-                    "{c:?}"
+                    super::super::store::levelness_question(&level).is_none(),
+                    "{level:?}"
                 );
+                assert!(level.iter().all(|c| (c - nominal).abs() <= 0.001 + 1e-12));
+                let t = corner_tilt(&level, ROD_XY_IN).unwrap();
+                assert!(t.tilt_deg.iter().all(|v| v.abs() <= mil_deg), "{t:?}");
+                let tilt = [0.3 * (seed as f64 / 100.0 - 1.0), 0.2];
+                let place = Placement {
+                    tilt_deg: tilt,
+                    sep_error: 0.05,
+                    ..Placement::default()
+                };
+                let c = plate_corners(seed, i, nominal, &place);
+                let t = corner_tilt(&c, ROD_XY_IN).unwrap();
+                for j in 0..2 {
+                    assert!(
+                        (t.tilt_deg[j] - tilt[j]).abs() <= mil_deg,
+                        "{tilt:?}: {t:?}"
+                    );
+                }
                 let e = separation_entry(i, nominal, c, "test".into());
-                assert!((e.mean - nominal).abs() <= 0.001, "{e:?}");
-                widest = widest.max(e.uncertainty);
+                assert!((e.mean - nominal).abs() <= 0.0016, "{e:?}");
+                assert_eq!(e.rods_xy_in, Some(ROD_XY_IN));
             }
         }
-        // Tilted at all: corners differ by several mils somewhere.
-        assert!(widest > 0.003, "{widest}");
+        // A 0.2 deg tilt is ~30 mils across the rods: the operator would be asked.
+        let c = plate_corners(
+            1,
+            0,
+            10.0,
+            &Placement {
+                tilt_deg: [0.2, 0.0],
+                ..Placement::default()
+            },
+        );
+        assert!(
+            super::super::store::levelness_question(&c).is_some(),
+            "{c:?}"
+        );
     }
 }

@@ -321,7 +321,7 @@ fn status_held(dir: &Path, holder: Holder) -> Result<Status> {
 
 /// The journal's events, and the length of a last line without its newline (left out: being
 /// written, or torn by a session that died mid-write).
-fn parse_journal(path: &Path, bytes: &[u8]) -> Result<(Vec<Event>, Option<usize>)> {
+pub(crate) fn parse_journal(path: &Path, bytes: &[u8]) -> Result<(Vec<Event>, Option<usize>)> {
     let mut events = Vec::new();
     let mut rest = bytes;
     let mut lineno = 0;

@@ -77,6 +77,12 @@ pub struct SeparationEntry {
     pub uncertainty: f64,
     /// Who entered it: "operator", "scripted (--yes, not measured)", "simulated plate".
     pub source: String,
+    /// Where the corners were read: at x, y = +/-this (in) in frame N, in the order
+    /// [`super::corners::CORNER_ORDER`], which gives the plate's tilt
+    /// ([`super::corners::corner_tilt`]). `None` without readings, and in journals of
+    /// versions that did not ask for the corners in an order.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rods_xy_in: Option<f64>,
 }
 
 /// A `separation` event as journalled by any version: `spread` (the corners' standard
@@ -90,6 +96,8 @@ struct SeparationRecord {
     #[serde(alias = "spread", default)]
     uncertainty: f64,
     source: String,
+    #[serde(default)]
+    rods_xy_in: Option<f64>,
 }
 
 impl From<SeparationRecord> for SeparationEntry {
@@ -108,6 +116,7 @@ impl From<SeparationRecord> for SeparationEntry {
             mean: r.mean,
             uncertainty,
             source: r.source,
+            rods_xy_in: r.rods_xy_in,
         }
     }
 }
