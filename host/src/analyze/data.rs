@@ -93,6 +93,10 @@ pub struct Data {
     pub noise_note: String,
     /// True when the noise came from repeated samples, false when assumed.
     pub noise_measured: bool,
+    /// Per separation, the plate's tilt (tx, ty) as measured by the corner readings, deg
+    /// (set by `cta analyze` from the run's journal, [`crate::sweep::corners`]); empty when
+    /// none were read: the plates are taken as level.
+    pub measured_tilts_deg: Vec<[f64; 2]>,
 }
 
 impl Data {
@@ -285,6 +289,7 @@ impl Data {
             noise_by_sep,
             noise_note,
             noise_measured,
+            measured_tilts_deg: Vec::new(),
         })
     }
 

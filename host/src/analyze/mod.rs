@@ -28,6 +28,7 @@ pub mod select;
 pub mod wiring;
 
 use crate::measurement::{parse_separations, Dataset};
+use crate::sweep::corners::RunCorners;
 use data::{Data, Weights};
 pub use digits::{pm, pm_parts};
 use model::{Base, Cand, FitResult, Model};
@@ -126,6 +127,12 @@ pub struct AnalyzeArgs {
     /// says how many were left out.
     #[arg(long)]
     pub drop_glitches: bool,
+    /// Take every plate as level. By default, when the file sits in a sweep's run directory,
+    /// each separation's plate is placed with the tilt the operator's four corner readings
+    /// in its journal.jsonl measured (far finer than the fit can tell: 1 mil over the
+    /// rods is 0.007 deg), and `plate_tilt` is the tilt beyond them.
+    #[arg(long)]
+    pub ignore_corners: bool,
     /// Write a self-contained HTML report (index.html, inline SVG plots) into this folder.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
@@ -156,6 +163,9 @@ pub struct Options {
     pub max_effects: usize,
     /// Leave out the samples the glitch check flags ([`Dataset::glitches`]).
     pub drop_glitches: bool,
+    /// The run's corner readings: each separation's plate is placed with the tilt they
+    /// measured ([`crate::sweep::corners`]); `None`: level plates.
+    pub corners: Option<RunCorners>,
 }
 
 impl Default for Options {
@@ -169,6 +179,7 @@ impl Default for Options {
             candidates: model::ALL.to_vec(),
             max_effects: 5,
             drop_glitches: false,
+            corners: None,
         }
     }
 }
@@ -684,6 +695,9 @@ pub struct Analysis {
     /// weight by (or were left out), settings whose noise differs under weights that pool
     /// them, a noise far larger than the residuals.
     pub data_notes: Vec<String>,
+    /// The plate tilts the run's corner readings measured, applied to every model
+    /// (`--ignore-corners` or no journal beside the file: `None`).
+    pub corners: Option<CornersOut>,
     /// One-sample noise per separation (X, Y), counts.
     pub noise_by_sep: Vec<[f64; 2]>,
     /// Samples read, points fitted, points left out.
@@ -773,6 +787,7 @@ impl AnalyzeArgs {
             candidates,
             max_effects: self.max_effects,
             drop_glitches: self.drop_glitches,
+            corners: None,
         })
     }
 }
@@ -1192,7 +1207,11 @@ pub fn analyze(
 ) -> Result<Analysis, String> {
     let (ds, mut data_notes) = data_notes(ds, opts)?;
     let ds = ds.as_ref();
-    let data = Data::from_dataset(ds, opts.weights, opts.noise)?;
+    let mut data = Data::from_dataset(ds, opts.weights, opts.noise)?;
+    let mut corners = opts
+        .corners
+        .as_ref()
+        .map(|rc| place_by_corners(rc, &mut data));
     let nsep = data.seps.len();
     let file = ds.path.display().to_string();
     if nsep < 2 {
@@ -1298,6 +1317,24 @@ pub fn analyze(
     let n_constraints = |m: &Model| m.n_constraints();
     let dof_chi2 = |m: &Model, f: &FitResult| f.chi2 / f.dof(n_constraints(m));
     let base_chi2 = dof_chi2(&sel.base_model, &sel.base_fit);
+    if let Some(c) = &mut corners {
+        if !data.measured_tilts_deg.is_empty() {
+            // The gain of placing the plates: the starting model with them level.
+            let level = Data {
+                measured_tilts_deg: Vec::new(),
+                ..data.clone()
+            };
+            progress("starting model with level plates");
+            if let Ok(v) = select::base_chi2_dof(&level, opts.from) {
+                c.chi2_dof_level = Some(v);
+                c.note.push_str(&format!(
+                    "; the starting model's chi2/dof {v:.2} with the plates level, {base_chi2:.2} \
+                     placed by the corners"
+                ));
+            }
+        }
+        data_notes.push(c.note.clone());
+    }
     let (fm, ff, fcv) = sel.last();
     let final_chi2 = dof_chi2(fm, ff);
     let unexplained = final_chi2 > UNEXPLAINED_CHI2_DOF;
@@ -1419,11 +1456,21 @@ pub fn analyze(
             final_chi2, base_chi2
         )
     } else if causes.is_empty() {
-        format!(
-            "no significant effect: the `{}` model explains the data (chi2/dof {:.2})",
-            opts.from.name(),
-            base_chi2
-        )
+        match corners.as_ref().and_then(|c| c.chi2_dof_level) {
+            Some(level) if level > UNEXPLAINED_CHI2_DOF => format!(
+                "no significant effect beyond the plate tilts the corner readings measured: the \
+                 `{}` model, its plates placed by them, explains the data (chi2/dof {:.2}; {:.2} \
+                 with the plates level)",
+                opts.from.name(),
+                base_chi2,
+                level
+            ),
+            _ => format!(
+                "no significant effect: the `{}` model explains the data (chi2/dof {:.2})",
+                opts.from.name(),
+                base_chi2
+            ),
+        }
     } else {
         format!(
             "named: {} (chi2/dof {:.2} -> {:.2}, held-out RMS {:.1} -> {:.1} counts)",
@@ -1504,6 +1551,7 @@ pub fn analyze(
         params_after: params_of(fm, ff, &data.seps, true),
         noise: data.noise_note.clone(),
         data_notes,
+        corners,
         noise_by_sep: data.noise_by_sep.clone(),
         samples: data.samples,
         points: data.points.len(),
@@ -1526,6 +1574,118 @@ pub fn analyze(
             angle_after: aa,
         })),
     })
+}
+
+/// The corner readings' tilts applied to an analysis ([`Analysis::corners`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct CornersOut {
+    /// The journal they were read from.
+    pub journal: String,
+    /// Per analyzed separation (in the order of [`Analysis::separations`]): the tilt (tx,
+    /// ty) applied, deg; `None` where no readings with a known order were journalled (the
+    /// plate taken as level).
+    pub tilt_deg: Vec<Option<[f64; 2]>>,
+    /// Per separation, the corners' twist, in ([`crate::sweep::corners::CornerTilt`]).
+    pub twist_in: Vec<Option<f64>>,
+    /// The starting model's chi2/dof with every plate taken as level (the gain of placing
+    /// them: against [`Analysis::chi2_dof_before`]); `None` when no tilt was applied.
+    pub chi2_dof_level: Option<f64>,
+    /// What was applied, in words (also among the data notes).
+    pub note: String,
+}
+
+/// A twist (in) above this says a corner was misread or the plate is not flat: the note
+/// warns, naming the separation.
+pub const CORNER_TWIST_WARN_IN: f64 = 0.002;
+
+/// Place each separation's plate of `data` with the tilt its corner readings in `rc`
+/// measured ([`Data::measured_tilts_deg`]), and say what was applied.
+fn place_by_corners(rc: &RunCorners, data: &mut Data) -> CornersOut {
+    let journal = rc.journal.display().to_string();
+    let found: Vec<Option<crate::sweep::corners::CornerTilt>> = data
+        .seps
+        .iter()
+        .map(|s| rc.at(*s).and_then(|p| p.tilt))
+        .collect();
+    let n = found.iter().flatten().count();
+    let unordered = data
+        .seps
+        .iter()
+        .filter(|s| rc.at(**s).is_some_and(|p| p.tilt.is_none()))
+        .count();
+    let tilt_deg: Vec<Option<[f64; 2]>> = found.iter().map(|t| t.map(|t| t.tilt_deg)).collect();
+    let twist_in: Vec<Option<f64>> = found.iter().map(|t| t.map(|t| t.twist_in)).collect();
+    let note = if n == 0 {
+        format!(
+            "{journal} records no corner readings {} for the file's separations: the plates are \
+             taken as level",
+            if unordered > 0 {
+                "with a known order (journalled by an older version)"
+            } else {
+                "(a --yes run, or the file is not this run's)"
+            }
+        )
+    } else {
+        data.measured_tilts_deg = tilt_deg.iter().map(|t| t.unwrap_or_default()).collect();
+        let mags: Vec<(f64, f64)> = data
+            .seps
+            .iter()
+            .zip(&tilt_deg)
+            .filter_map(|(s, t)| t.map(|t| (*s, t[0].hypot(t[1]))))
+            .collect();
+        let (at, most) = mags
+            .iter()
+            .copied()
+            .fold((f64::NAN, 0.0), |m, v| if v.1 > m.1 { v } else { m });
+        let rms = (mags.iter().map(|m| m.1 * m.1).sum::<f64>() / mags.len() as f64).sqrt();
+        let missing: Vec<String> = data
+            .seps
+            .iter()
+            .zip(&tilt_deg)
+            .filter(|(_, t)| t.is_none())
+            .map(|(s, _)| format!("{s}"))
+            .collect();
+        let (twist_at, twist) = data
+            .seps
+            .iter()
+            .zip(&twist_in)
+            .filter_map(|(s, t)| t.map(|t| (*s, t.abs())))
+            .fold((f64::NAN, 0.0), |m, v| if v.1 > m.1 { v } else { m });
+        let mut note = format!(
+            "plates placed as their corner readings in {journal} tilt them, at {n} of {} \
+             separations: |tilt| up to {most:.3} deg (at {at} in), RMS {rms:.3} deg; any \
+             plate_tilt named below is the tilt beyond the corners' (--ignore-corners takes \
+             the plates as level)",
+            data.seps.len()
+        );
+        if !missing.is_empty() {
+            note.push_str(&format!(
+                "; level at {} in (no corner readings{})",
+                missing.join(", "),
+                if unordered > 0 {
+                    " with a known order"
+                } else {
+                    ""
+                }
+            ));
+        }
+        if twist > CORNER_TWIST_WARN_IN {
+            note.push_str(&format!(
+                "; the corners at {twist_at} in twist by {:.1} mils (a flat plate read to 1 mil: \
+                 under 1): a corner misread or a plate not flat, and its tilt uncertain by about \
+                 that over the rods",
+                twist * 1000.0
+            ));
+        }
+        note
+    };
+    CornersOut {
+        journal,
+        tilt_deg,
+        twist_in,
+        chi2_dof_level: None,
+        note,
+    }
 }
 
 /// The dataset the analysis uses (without the flagged glitches with `--drop-glitches`) and
@@ -1933,6 +2093,19 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<()> {
         let seps = parse_separations(s).map_err(anyhow::Error::msg)?;
         ds = ds.select(&seps).map_err(anyhow::Error::msg)?;
     }
+    let mut opts = opts;
+    if !args.ignore_corners {
+        match RunCorners::beside(&args.file) {
+            Some(Ok(rc)) => opts.corners = Some(rc),
+            Some(Err(e)) => bar.suspend(|| {
+                eprintln!(
+                    "warning: {e}: the run's corner readings cannot be used, so the plates are \
+                     taken as level (--ignore-corners says so without this warning)"
+                )
+            }),
+            None => {}
+        }
+    }
     bar.set_message(format!("{} samples read; fitting", ds.samples.len()));
     let progress = |m: &str| {
         bar.inc(1);
@@ -1962,6 +2135,81 @@ mod tests {
     use crate::effects::Effect;
     use crate::simulate::SimConfig;
     use nalgebra::DMatrix;
+
+    /// What the corner readings' note says: which separations were placed and which not
+    /// (no readings, or readings of a journal that did not record their order), and a warning
+    /// when the corners twist beyond what 1 mil readings of a flat plate give.
+    #[test]
+    fn corner_readings_are_applied_where_known_and_their_twist_is_checked() {
+        use crate::sweep::corners::{corner_tilt, PlateCorners, RunCorners, ROD_XY_IN};
+        let (ds, _) = SimConfig {
+            separations: vec![5.0, 10.0, 20.0],
+            grid: (3, 3),
+            ..Default::default()
+        }
+        .run();
+        let plate = |sep: f64, c: [f64; 4], ordered: bool| PlateCorners {
+            separation: sep,
+            corners: c.to_vec(),
+            tilt: ordered.then(|| corner_tilt(&c, ROD_XY_IN).unwrap()),
+        };
+        let rc = |plates: Vec<PlateCorners>| RunCorners {
+            journal: "run/journal.jsonl".into(),
+            plates,
+        };
+        let data = || super::Data::from_dataset(&ds, Weights::Separation, None).unwrap();
+        // 5 in placed (higher on +x), 10 in read by an older version, 20 in not read.
+        let mut d = data();
+        let out = super::place_by_corners(
+            &rc(vec![
+                plate(5.0, [5.003, 5.003, 4.997, 4.997], true),
+                plate(10.0, [10.0; 4], false),
+            ]),
+            &mut d,
+        );
+        assert!(
+            d.measured_tilts_deg[0][0] > 0.01,
+            "{:?}",
+            d.measured_tilts_deg
+        );
+        assert_eq!(&d.measured_tilts_deg[1..], [[0.0; 2]; 2]);
+        assert_eq!(out.tilt_deg[1], None);
+        assert!(out.note.contains("at 1 of 3 separations"), "{}", out.note);
+        assert!(
+            out.note
+                .contains("level at 10, 20 in (no corner readings with a known order)"),
+            "{}",
+            out.note
+        );
+        assert!(!out.note.contains("twist"), "{}", out.note);
+        // One corner misread by 5 mils: a twist of 1.25 mils is within...
+        let mut d = data();
+        let out = super::place_by_corners(
+            &rc(vec![plate(20.0, [20.005, 20.0, 20.0, 20.0], true)]),
+            &mut d,
+        );
+        assert!(!out.note.contains("twist"), "{}", out.note);
+        // ...one misread by 10 mils is not.
+        let out = super::place_by_corners(
+            &rc(vec![plate(20.0, [20.010, 20.0, 20.0, 20.0], true)]),
+            &mut d,
+        );
+        assert!(
+            out.note.contains("the corners at 20 in twist by 2.5 mils"),
+            "{}",
+            out.note
+        );
+        // Only unordered readings: nothing applied, and the note says why.
+        let mut d = data();
+        let out = super::place_by_corners(&rc(vec![plate(5.0, [5.0; 4], false)]), &mut d);
+        assert!(d.measured_tilts_deg.is_empty());
+        assert!(
+            out.note
+                .contains("with a known order (journalled by an older version)"),
+            "{}",
+            out.note
+        );
+    }
 
     /// The hidden-effect setup of tests/tests/hidden_effects.rs: 10 x 10 grid, 13
     /// separations 2-30 in, 4 samples per point, 0.1 % of beta noise.

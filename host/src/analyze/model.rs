@@ -283,6 +283,10 @@ pub struct Model {
     pub effects: Vec<Cand>,
     /// Separations in the dataset (sizes the per-separation blocks).
     pub nsep: usize,
+    /// Each separation's plate tilt (tx, ty) as the corner readings measured it, deg
+    /// ([`Data::measured_tilts_deg`]): where the plate is placed before any `plate_tilt`
+    /// (which is then the tilt beyond the corners'). Empty: level plates.
+    pub measured_tilts_deg: Vec<[f64; 2]>,
 }
 
 /// Where a model's parameters sit in its vector.
@@ -299,6 +303,24 @@ impl Model {
             base,
             effects: Vec::new(),
             nsep,
+            measured_tilts_deg: Vec::new(),
+        }
+    }
+
+    /// The starting model alone for `data`: its separations, its plates placed as their
+    /// corner readings measured them.
+    pub fn for_data(base: Base, data: &Data) -> Self {
+        Model {
+            measured_tilts_deg: data.measured_tilts_deg.clone(),
+            ..Model::new(base, data.seps.len())
+        }
+    }
+
+    /// This model with its effects replaced by `effects` (the same base and plates).
+    pub fn with_effects(&self, effects: Vec<Cand>) -> Model {
+        Model {
+            effects,
+            ..self.clone()
         }
     }
 
@@ -537,16 +559,21 @@ impl Model {
     }
 
     /// Where the plate of separation `k` truly is by the per-separation parameters in `x`
-    /// (plate offset, separation error, plate tilt; none of them in the model: the recorded
-    /// place).
+    /// (plate offset, separation error, plate tilt on top of the corners' tilt; none of them
+    /// in the model: the recorded place, turned by the corners' tilt).
     pub fn placement(&self, x: &[f64], k: usize) -> Placement {
-        let mut pl = Placement::default();
+        let mut pl = Placement {
+            tilt_deg: self.measured_tilts_deg.get(k).copied().unwrap_or_default(),
+            ..Placement::default()
+        };
         for &e in &self.effects {
             let r = self.local_indices(e, k);
             match e {
                 Cand::PlateOffset => pl.offset = [x[r.start], x[r.start + 1]],
                 Cand::SeparationError => pl.sep_error = x[r.start],
-                Cand::PlateTilt => pl.tilt_deg = [x[r.start], x[r.start + 1]],
+                Cand::PlateTilt => {
+                    pl.tilt_deg = [pl.tilt_deg[0] + x[r.start], pl.tilt_deg[1] + x[r.start + 1]]
+                }
                 _ => {}
             }
         }

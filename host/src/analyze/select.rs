@@ -212,6 +212,16 @@ pub fn fit_all_except(
     fit(model, data, subset, x0, &free, true, &data.seps)
 }
 
+/// The starting model's chi2 per degree of freedom on `data`, fitted as the selection fits
+/// it (from the pinhole pose): how well it explains the data before any candidate.
+pub fn base_chi2_dof(data: &Data, base: Base) -> Result<f64, String> {
+    let all: Vec<usize> = (0..data.points.len()).collect();
+    let model = Model::for_data(base, data);
+    let x0 = initial_pose(data, &all, base)?;
+    let f = fit_all(&model, data, &all, &x0).map_err(|e| e.0)?;
+    Ok(f.chi2 / f.dof(model.n_constraints()))
+}
+
 /// The separation folds: separation index `k` goes to fold `k % folds`.
 pub fn folds(nsep: usize, folds: usize) -> Vec<Vec<usize>> {
     let f = folds.min(nsep).max(1);
@@ -479,7 +489,7 @@ pub fn select_with_folds(
 ) -> Result<Selection, String> {
     let all: Vec<usize> = (0..data.points.len()).collect();
     let nsep = data.seps.len();
-    let base_model = Model::new(opts.base, nsep);
+    let base_model = Model::for_data(opts.base, data);
     let x0 = initial_pose(data, &all, opts.base)?;
     let base_fit = fit_all(&base_model, data, &all, &x0).map_err(|e| {
         format!(
@@ -663,8 +673,8 @@ fn redundant(
         .into_par_iter()
         .map(|i| {
             let c = sel.steps[i].cand;
-            let mut without = Model::new(model.base, model.nsep);
-            without.effects = model.effects.iter().copied().filter(|&e| e != c).collect();
+            let without =
+                model.with_effects(model.effects.iter().copied().filter(|&e| e != c).collect());
             let x0 = without.start_from(model, &full.x);
             let f = fit_all(&without, data, &all, x0.as_slice()).ok()?;
             progress(&format!("is {} still needed?", c.name()));
@@ -750,7 +760,7 @@ fn on_top(
 /// advises (a cold near-field fit can fall into a false minimum). For the `thesis` start
 /// the pinhole's virtual-eye d3 is dropped (the near-field model puts the eye on the board).
 fn initial_pose(data: &Data, all: &[usize], base: Base) -> Result<Vec<f64>, String> {
-    let pin = Model::new(Base::Pinhole, data.seps.len());
+    let pin = Model::for_data(Base::Pinhole, data);
     let x0 = vec![
         0.0,
         0.0,
