@@ -794,9 +794,21 @@ pub fn calibrate(
             ConfigError::CalibrationOutOfRange { field: CalField::S } => {
                 format!(" (fitted s = {:.3} +/- {:.3} in)", nf.x[7], nf.sigma[7])
             }
+            ConfigError::CalibrationOutOfRange { field: CalField::H } => {
+                format!(" (the pinhole fit's H = {:.0} counts)", xp.h())
+            }
             _ => String::new(),
         };
-        let cause = far_only.clone().unwrap_or_else(|| {
+        // H out of range: negative when the image is turned half a turn (a head turned
+        // about its boresight, or X and Y read so), or far off with a length unit; the
+        // pinhole fits of [`wiring::diagnose`] name either.
+        let named = match e {
+            ConfigError::CalibrationOutOfRange { field: CalField::H } => {
+                wiring::diagnose(all).map(|d| d.trim_end_matches('.').to_string())
+            }
+            _ => None,
+        };
+        let cause = named.or_else(|| far_only.clone()).unwrap_or_else(|| {
             "The data do not look like a NorthStar on the CTA (check the file's columns and \
              units)"
                 .into()
@@ -893,6 +905,12 @@ pub fn calibrate(
             all.path.display()
         ));
     }
+    // A head turned about its boresight (or X and Y read so) fits as well as a square one:
+    // the head's attitude in the file, with the pinhole H it goes with.
+    warnings.extend(wiring::turned_head_note(
+        cal.p.map(f64::from),
+        Some(f64::from(cal.h)),
+    ));
     // A file with every length in cm or mm fits perfectly, with s and d scaled so.
     if let Some(note) = wiring::s_unit_note(nf.x[7], "s") {
         warnings.push(note);

@@ -891,6 +891,12 @@ pub fn fit_cmd(a: &FitArgs) -> Result<()> {
     rep.data_notes = notes;
     rep.warnings
         .extend(crate::analyze::wiring::h_warning(&ds, rep.params["H"]));
+    // A head turned about its boresight (or X and Y read so) fits as well as a square one.
+    rep.warnings
+        .extend(crate::analyze::wiring::turned_head_note(
+            ["p1", "p2", "p3"].map(|n| rep.params[n]),
+            Some(rep.params["H"]),
+        ));
     rep.warnings.extend(fit::chi2_warning(
         &rep,
         &a.file,

@@ -193,6 +193,112 @@ fn a_turned_head_fits_as_it_is() {
     assert!(!err.contains("pinhole model"), "{err}");
 }
 
+/// The warnings of `cta fit` (text, and `--json`'s `warnings`) and of `cta calibrate`
+/// (text, and `--json`'s `warnings` and `pinhole_warnings`) that hold `needle`, each output
+/// checked to say the same.
+fn warned(file: &Path, needle: &str) -> [Vec<String>; 2] {
+    let fit = ["fit", s(file), "--separations", "25,30"];
+    let cal = ["calibrate", s(file)];
+    [&fit[..], &cal[..]].map(|args| {
+        let o = cta(args);
+        assert!(o.status.success(), "{args:?}: {}", common::stderr(&o));
+        let text: Vec<String> = String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .filter_map(|l| l.strip_prefix("warning: "))
+            .filter(|w| w.contains(needle))
+            .map(str::to_string)
+            .collect();
+        let j = common::json(&cta(&[args, &["--json"]].concat()));
+        let carried: Vec<String> = ["warnings", "pinhole_warnings"]
+            .iter()
+            .filter_map(|k| j[k].as_array())
+            .flatten()
+            .filter_map(|w| w.as_str())
+            .filter(|w| w.contains(needle))
+            .map(str::to_string)
+            .collect();
+        assert_eq!(text, carried, "{args:?}: the text and --json differ");
+        text
+    })
+}
+
+/// A head turned about its boresight fits (eq 65 holds every pose), so `cta fit` and `cta
+/// calibrate` succeed on it: they warn that the head is turned, and name the reading of X
+/// and Y that squares it (host/src/analyze/wiring.rs, `turned_head_note`). Both signs
+/// flipped is a half turn: `cta fit` reaches it as H negative with the head square, and
+/// `cta calibrate` cannot write a negative H, so its error names the turn instead. A head
+/// square, a few degrees off, or turned up to TURNED_DEG (40 deg) gets no such warning.
+#[test]
+fn fits_of_a_turned_head_warn_that_it_is_turned() {
+    let d = tmpdir("turned-warning");
+    let base = d.join("base.csv");
+    simulate(&base);
+    let turn = "deg about its boresight from square to the board";
+
+    let xy = d.join("xyflip.csv");
+    edited(&base, &xy, &|r| {
+        negate(r.f("x"));
+        negate(r.f("y"));
+    });
+    let fit = ["fit", s(&xy), "--separations", "25,30"];
+    let o = cta(&fit);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("warning: the fit has the head turned 180 deg about its boresight")
+            && out.contains("H is negative")
+            && out.contains("If the head is mounted so, the fit is right as it is")
+            && out.contains("the data read with both X's and Y's signs flipped fit as well"),
+        "{out}"
+    );
+    let j = common::json(&cta(&[&fit[..], &["--json"]].concat()));
+    assert!(
+        j["warnings"].as_array().unwrap().iter().any(|w| w
+            .as_str()
+            .unwrap()
+            .contains("turned 180 deg about its boresight")),
+        "{j}"
+    );
+    let o = cta(&["calibrate", s(&xy)]);
+    fails_with(
+        &o,
+        &[
+            "calibration out of range: H",
+            "(the pinhole fit's H = -",
+            "fits the data as given only with the head turned",
+            "with both X's and Y's signs flipped: check how the head is mounted",
+        ],
+    );
+    let err = common::stderr(&o);
+    assert!(
+        err.contains("turned 179 deg") || err.contains("turned 180 deg"),
+        "{err}"
+    );
+
+    // A head mounted turned 80 deg (MRP tan(80/4 deg) about the boresight).
+    let t80 = d.join("turned80.csv");
+    common::simulate_at(&t80, "2..30", "4", "11", &["--p", "0,0,0.36397"]);
+    for (cmd, w) in ["fit", "calibrate"].iter().zip(warned(&t80, turn)) {
+        assert_eq!(w.len(), 1, "{cmd}: {w:?}");
+        assert!(
+            w[0].contains("turned 80 deg about its boresight")
+                && w[0].contains("the data read with X and Y swapped and X's sign flipped"),
+            "{cmd}: {w:?}"
+        );
+    }
+
+    // Square, 5.6 deg off (p = 0.01, -0.01, 0.02), turned 40 deg: nothing said.
+    let small = d.join("small.csv");
+    common::simulate_at(&small, "2..30", "4", "11", &["--p", "0.01,-0.01,0.02"]);
+    let t40 = d.join("turned40.csv");
+    common::simulate_at(&t40, "2..30", "4", "11", &["--p", "0,0,0.17633"]);
+    for file in [&base, &small, &t40] {
+        for (cmd, w) in ["fit", "calibrate"].iter().zip(warned(file, "boresight")) {
+            assert!(w.is_empty(), "{cmd} {}: {w:?}", file.display());
+        }
+    }
+}
+
 /// X and Y swapped with Y's sign flipped is the head turned 90 deg: the pinhole model holds
 /// it, but the `thesis` start (square to the board) does not reach it on 3 separations; the
 /// error says the head is turned, and which reading squares it.

@@ -25,12 +25,20 @@
 //! The fits use the point means (samples at the 16-bit rail left out) at the file's largest
 //! third of separations (at least 2), where the pinhole model holds best: 8 to 10 small
 //! fits (about 0.05 s on 11,600 reports), run only when the file could not be fitted.
+//!
+//! A file that *can* be fitted may still be read turned: a head turned about its boresight
+//! is a pose like any other, so a file with both signs flipped (a half turn), or swapped with
+//! one sign flipped (a quarter turn), fits as well as the file read square, with the head
+//! turned. [`turned_head_note`] says so from a fit's head attitude (`cta fit`, `cta
+//! calibrate`): more than [`TURNED_DEG`] from square, the turn about the boresight, and the
+//! reading of X and Y that squares it.
 
 use crate::fit::{self, Weights};
 use crate::measurement::{any_sample_pinned, fmt_list, Dataset};
 use cta_core::collinearity::{Obs, ParamsExt};
 use cta_core::emulator::Head;
-use nalgebra::Vector3;
+use cta_core::mrp;
+use nalgebra::{Matrix3, Vector3};
 
 /// A transform must fit the pinhole model with an RMS this many times lower than the data as
 /// given (a chi-square 25 times lower) to be named.
@@ -367,5 +375,232 @@ pub fn h_warning(ds: &Dataset, h: f64) -> Option<String> {
              inches (host/MEASUREMENTS.md)"
         )),
         _ => None,
+    }
+}
+
+/// A turn about the boresight within this of a multiple of 90 deg (degrees) is named as the
+/// reading of X and Y that squares it ([`turned_head_note`]).
+pub const QUARTER_TOL_DEG: f64 = 15.0;
+/// [`turned_head_note`] gives the tilt of the boresight from the board's normal when it is at
+/// least this (degrees): below it, an ordinary mounting tolerance.
+pub const TILT_SAID_DEG: f64 = 5.0;
+
+/// How a head attitude `p_mrp` (the MRP of eq 65's `C(p)`, board to head) with scale height
+/// `h` is turned from square to the board, in degrees: `(total, about the boresight, tilt of
+/// the boresight)`. A negative `h` turns the image half a turn about the boresight (eq 65's
+/// `H u1 / u3`, `H u2 / u3`), so it counts as 180 deg more; `None` is a model without `H` (it
+/// is positive). The turn about the boresight is in (-180, 180]: positive when the image of a
+/// beacon on the board's +x axis lies on the head's -y side.
+pub fn head_turn(p_mrp: [f64; 3], h: Option<f64>) -> (f64, f64, f64) {
+    let mut c = mrp::dcm(&Vector3::from(p_mrp));
+    if h.is_some_and(|h| h < 0.0) {
+        c = Matrix3::from_diagonal(&Vector3::new(-1.0, -1.0, 1.0)) * c;
+    }
+    let total = ((c.trace() - 1.0) / 2.0)
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
+    let about = (c[(0, 1)] - c[(1, 0)])
+        .atan2(c[(0, 0)] + c[(1, 1)])
+        .to_degrees();
+    let tilt = c[(2, 2)].clamp(-1.0, 1.0).acos().to_degrees();
+    (total, about, tilt)
+}
+
+/// The reading of X and Y ([`ORIENTATIONS`]) that squares a head turned `quarters` x 90 deg
+/// about its boresight ([`head_turn`]'s sense): the image of a beacon in direction `(a, b)` of
+/// a square head is `(a cos t + b sin t, -a sin t + b cos t)` on the turned head, and the
+/// reading maps it back to `(a, b)`.
+fn squaring(quarters: i64) -> &'static Orientation {
+    let t = (quarters.rem_euclid(4) as f64) * std::f64::consts::FRAC_PI_2;
+    let (s, c) = (t.sin().round(), t.cos().round());
+    let turned = |[a, b]: [f64; 2]| [a * c + b * s, -a * s + b * c];
+    ORIENTATIONS
+        .iter()
+        .find(|o| {
+            [[1.0, 0.0], [0.0, 1.0]]
+                .iter()
+                .all(|&e| (o.map)(turned(e)) == e)
+        })
+        .expect("every quarter turn is one of the readings")
+}
+
+/// A warning when a fit's head attitude `p_mrp` (scale height `h`; `None` for a model without
+/// `H`: see [`head_turn`]) is turned more than [`TURNED_DEG`] from square to the board: the
+/// turn about the boresight (and the boresight's tilt, from [`TILT_SAID_DEG`]), and what it
+/// means. Either the head is mounted so, and the fit is right as it is, or X and Y are read
+/// turned: within [`QUARTER_TOL_DEG`] of a quarter or half turn, the reading that squares it
+/// (the one [`diagnose`] names for a file that cannot be fitted at all).
+pub fn turned_head_note(p_mrp: [f64; 3], h: Option<f64>) -> Option<String> {
+    let (total, about, tilt) = head_turn(p_mrp, h);
+    if !(total > TURNED_DEG) {
+        return None;
+    }
+    if tilt > TURNED_DEG {
+        return Some(format!(
+            "the fit has the head's boresight tilted {tilt:.0} deg from the board's normal \
+             (and the head turned {:.0} deg about it): no swap or sign flip of X and Y squares \
+             that: check how the head is mounted and the file's beacon positions \
+             (host/MEASUREMENTS.md)",
+            about.abs()
+        ));
+    }
+    let half = if h.is_some_and(|h| h < 0.0) {
+        " (H is negative: eq 65 turns the image half a turn with it)"
+    } else {
+        ""
+    };
+    let tilted = if tilt >= TILT_SAID_DEG {
+        format!(", its boresight tilted {tilt:.0} deg from the board's normal")
+    } else {
+        String::new()
+    };
+    let quarters = (about / 90.0).round();
+    let reading = if quarters != 0.0 && (about - 90.0 * quarters).abs() <= QUARTER_TOL_DEG {
+        let o = squaring(quarters as i64);
+        format!(
+            "the data read {} fit as well with the head square: {}",
+            o.what, o.check
+        )
+    } else {
+        "no swap or sign flip of X and Y squares it (those turn it by multiples of 90 deg): \
+         check how the head is mounted (host/MEASUREMENTS.md)"
+            .into()
+    };
+    Some(format!(
+        "the fit has the head turned {:.0} deg about its boresight from square to the \
+         board{half}{tilted}. If the head is mounted so, the fit is right as it is and nothing \
+         needs doing; if not, {reading}",
+        about.abs()
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cta_core::collinearity::{self, Params};
+
+    fn about_z(deg: f64) -> [f64; 3] {
+        mrp::from_axis_angle(&Vector3::z(), deg.to_radians()).into()
+    }
+
+    const H0: Option<f64> = Some(18918.6);
+
+    /// A head square to the board, or a few degrees off it (a mounting tolerance), or turned
+    /// up to TURNED_DEG: nothing is said.
+    #[test]
+    fn square_heads_are_not_warned() {
+        let few = mrp::from_axis_angle(&Vector3::new(1.0, -2.0, 3.0), 5f64.to_radians());
+        for (p, h) in [
+            ([0.001, 0.002, 0.001], H0),
+            ([0.001, 0.002, 0.001], None),
+            (few.into(), H0),
+            (about_z(40.0), H0),
+            (about_z(-40.0), None),
+            // A negative H and a half turn cancel.
+            (about_z(180.0), Some(-18918.6)),
+        ] {
+            assert_eq!(turned_head_note(p, h), None, "{p:?} {h:?}");
+        }
+    }
+
+    /// `head_turn` reads the turn about the boresight and the tilt apart, with a negative H
+    /// half a turn more.
+    #[test]
+    fn head_turn_separates_turn_and_tilt() {
+        let (total, about, tilt) = head_turn(about_z(60.0), H0);
+        assert!((total - 60.0).abs() < 1e-9 && (about - 60.0).abs() < 1e-9 && tilt < 1e-6);
+        let (total, about, tilt) = head_turn([0.0; 3], Some(-1.0));
+        assert!((total - 180.0).abs() < 1e-9 && (about.abs() - 180.0).abs() < 1e-9 && tilt < 1e-6);
+        // Turned 90 deg about the boresight, then tilted 10 deg about the head's x.
+        let tilt10 = mrp::from_axis_angle(&Vector3::x(), 10f64.to_radians());
+        let p = mrp::compose(&tilt10, &Vector3::from(about_z(90.0)));
+        let (_, about, tilt) = head_turn(p.into(), H0);
+        assert!(
+            (about - 90.0).abs() < 1.0 && (tilt - 10.0).abs() < 1e-6,
+            "{about} {tilt}"
+        );
+    }
+
+    /// The reading named for each quarter turn squares eq 65's image: read through it, the
+    /// turned head's outputs are the square head's.
+    #[test]
+    fn the_reading_named_squares_the_image() {
+        let square = Params::from_column_slice(&[0.6, 0.1, 0.062, 0.0, 0.0, 0.0, 18918.6]);
+        for q in 1..4 {
+            let mut turned = square;
+            let p = about_z(90.0 * q as f64);
+            turned.fixed_rows_mut::<3>(3).copy_from_slice(&p);
+            let o = squaring(q);
+            for (x, y) in [(3.0, -2.0), (-4.0, 1.0), (0.5, 4.5)] {
+                let r = Vector3::new(x, y, 25.0);
+                let a = collinearity::predict(&square, &r).unwrap();
+                let b = (o.map)(collinearity::predict(&turned, &r).unwrap());
+                assert!(
+                    (a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6,
+                    "{q}: {} {a:?} {b:?}",
+                    o.what
+                );
+            }
+            let note = turned_head_note(p, H0).unwrap();
+            assert!(
+                note.contains(&format!(
+                    "turned {:.0} deg about its boresight",
+                    90 * (2 - (q - 2).abs())
+                )) && note.contains(&format!("the data read {} fit as well", o.what))
+                    && note.contains("If the head is mounted so, the fit is right as it is"),
+                "{note}"
+            );
+        }
+        assert_eq!(
+            squaring(1).what,
+            "with X and Y swapped and X's sign flipped"
+        );
+        assert_eq!(squaring(2).what, "with both X's and Y's signs flipped");
+        assert_eq!(
+            squaring(-1).what,
+            "with X and Y swapped and Y's sign flipped"
+        );
+    }
+
+    /// Both signs flipped fits eq 65 with H negative and the head square (`cta fit`'s start
+    /// reaches it): said as a half turn.
+    #[test]
+    fn a_negative_h_is_a_half_turn() {
+        let note = turned_head_note([0.001, 0.002, 0.001], Some(-18918.6)).unwrap();
+        assert!(
+            note.contains("turned 180 deg about its boresight")
+                && note.contains("H is negative")
+                && note.contains("with both X's and Y's signs flipped fit as well"),
+            "{note}"
+        );
+        assert!(!note.contains("tilted"), "{note}");
+    }
+
+    /// A turn no reading squares (60 deg), and a tilt worth saying.
+    #[test]
+    fn other_turns_and_tilts_are_said_as_they_are() {
+        let note = turned_head_note(about_z(-60.0), H0).unwrap();
+        assert!(
+            note.contains("turned 60 deg about its boresight")
+                && note.contains("no swap or sign flip of X and Y squares it"),
+            "{note}"
+        );
+        let tilt = mrp::from_axis_angle(&Vector3::y(), 12f64.to_radians());
+        let p = mrp::compose(&tilt, &Vector3::from(about_z(180.0)));
+        let note = turned_head_note(p.into(), H0).unwrap();
+        assert!(
+            note.contains("turned 180 deg about its boresight")
+                && note.contains("its boresight tilted 12 deg from the board's normal.")
+                && note.contains("with both X's and Y's signs flipped"),
+            "{note}"
+        );
+        let p = mrp::from_axis_angle(&Vector3::x(), 70f64.to_radians());
+        let note = turned_head_note(p.into(), H0).unwrap();
+        assert!(
+            note.contains("tilted 70 deg")
+                && note.contains("no swap or sign flip of X and Y squares that"),
+            "{note}"
+        );
     }
 }
