@@ -176,7 +176,8 @@ fn analyze_and_calibrate_name_the_mistake() {
 }
 
 /// Both signs flipped is the head turned 180 deg about its boresight: a pose the models
-/// hold, so the file fits and nothing is said.
+/// hold, so the file fits, without the wiring diagnosis of a file that cannot be fitted; a
+/// data note says the head is turned and which reading squares it.
 #[test]
 fn a_turned_head_fits_as_it_is() {
     let d = tmpdir("turned");
@@ -191,6 +192,16 @@ fn a_turned_head_fits_as_it_is() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(!err.contains("pinhole model"), "{err}");
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("note: the fit has the head turned 180 deg about its boresight")
+            && out.contains("with both X's and Y's signs flipped"),
+        "{out}"
+    );
+    // Read square, nothing is said.
+    let o = cta(&["analyze", s(&base)]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(!out.contains("head turned"), "{out}");
 }
 
 /// The warnings of `cta fit` (text, and `--json`'s `warnings`) and of `cta calibrate`

@@ -1511,6 +1511,14 @@ pub fn analyze(
         })
         .collect();
     let (ruled_out, ruled_out_note) = ruled_out(&trials, &sel, opts.max_effects);
+    // A head turned far from square fits as well as a square one (a pose like any other):
+    // say so, with the reading of X and Y that squares it.
+    let params_after = params_of(fm, ff, &data.seps, true);
+    let value = |n: &str| params_after.iter().find(|q| q.name == n).map(|q| q.value);
+    data_notes.extend(wiring::turned_head_note(
+        ["p1", "p2", "p3"].map(|n| value(n).unwrap_or(0.0)),
+        value("H"),
+    ));
     Ok(Analysis {
         file,
         model_from: opts.from.name().into(),
@@ -1548,7 +1556,7 @@ pub fn analyze(
         heldout_rms_by_sep_before: sel.base_cv.rms_by_sep.clone(),
         heldout_rms_by_sep_after: fcv.rms_by_sep.clone(),
         params_before: params_of(&sel.base_model, &sel.base_fit, &data.seps, true),
-        params_after: params_of(fm, ff, &data.seps, true),
+        params_after,
         noise: data.noise_note.clone(),
         data_notes,
         corners,
