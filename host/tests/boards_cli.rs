@@ -742,6 +742,35 @@ fn numbers(v: &str) -> Vec<f64> {
 }
 
 /// The unsigned integers of a JSON array of values, in order.
+/// The JSON's `uptime_ms` is at or after the text's uptime (read to 0.1 s, the text first).
+fn uptime_agrees(j: &serde_json::Value, text: &str) {
+    let up_text = numbers(text)[0];
+    let up = j["uptime_ms"].as_u64().unwrap() as f64;
+    assert!(
+        up >= 1000.0 * up_text - 50.0 && up < 1000.0 * up_text + 10_000.0,
+        "{up} ms after {up_text} s"
+    );
+}
+
+/// A frame counter object of the JSON (ok, bad, then each kind) against the numbers of the
+/// text's line, in order; the good frames only grow with the status request between them.
+fn frames_agree(c: &serde_json::Value, text: &str, out: &str) {
+    let json = u64s(&[
+        &c["ok"],
+        &c["bad"],
+        &c["oversized"],
+        &c["encoding"],
+        &c["truncated"],
+        &c["crc"],
+        &c["malformed"],
+        &c["version"],
+    ]);
+    let text = numbers(text);
+    assert_eq!(json.len(), text.len(), "{out}");
+    assert!(json[0] > text[0], "{out}");
+    assert_eq!(json[1..], text[1..], "{out}");
+}
+
 fn u64s(v: &[&serde_json::Value]) -> Vec<f64> {
     v.iter()
         .map(|x| x.as_u64().unwrap_or_else(|| panic!("not a count: {x}")) as f64)
@@ -840,30 +869,10 @@ fn sensor_status_text_and_json() {
         (&true.into(), &true.into(), &2.into()),
         "{out}"
     );
-    // Uptime: ms, from the text's second (to 0.1 s) on.
-    let up_text = numbers(value("uptime"))[0];
-    let up = j["uptime_ms"].as_u64().unwrap() as f64;
-    assert!(
-        up >= 1000.0 * up_text - 50.0 && up < 1000.0 * up_text + 10_000.0,
-        "{up} ms after {up_text} s"
-    );
+    uptime_agrees(&j, value("uptime"));
     // Counters: every number of the text's lines, in their order; the frames received only
     // grow with the commands since.
-    let pc = &j["pc"];
-    let pc_json = u64s(&[
-        &pc["ok"],
-        &pc["bad"],
-        &pc["oversized"],
-        &pc["encoding"],
-        &pc["truncated"],
-        &pc["crc"],
-        &pc["malformed"],
-        &pc["version"],
-    ]);
-    let pc_text = numbers(value("pc frames"));
-    assert_eq!(pc_json.len(), pc_text.len(), "{out}");
-    assert!(pc_json[0] > pc_text[0], "{out}");
-    assert_eq!(pc_json[1..], pc_text[1..], "{out}");
+    frames_agree(&j["pc"], value("pc frames"), &out);
     let ns = &j["northstar"];
     let ns_json = u64s(&[&ns["frames"], &ns["crc_errors"], &ns["discarded"]]);
     let ns_text = numbers(value("northstar link"));
@@ -963,26 +972,7 @@ fn beacon_status_text_and_json() {
         [1.0, 1.0, 10_000.0, 0.0, 1.0, 0.0, 125_000.0, 20.0],
         "{out}"
     );
-    let up_text = numbers(value("uptime"))[0];
-    let up = j["uptime_ms"].as_u64().unwrap() as f64;
-    assert!(
-        up >= 1000.0 * up_text - 50.0 && up < 1000.0 * up_text + 10_000.0,
-        "{up} ms after {up_text} s"
-    );
-    let d = &j["decoder"];
-    let d_json = u64s(&[
-        &d["ok"],
-        &d["bad"],
-        &d["oversized"],
-        &d["encoding"],
-        &d["truncated"],
-        &d["crc"],
-        &d["malformed"],
-        &d["version"],
-    ]);
-    let d_text = numbers(value("frames"));
-    assert_eq!(d_json.len(), d_text.len(), "{out}");
-    assert!(d_json[0] > d_text[0], "{out}");
-    assert_eq!(d_json[1..], d_text[1..], "{out}");
+    uptime_agrees(&j, value("uptime"));
+    frames_agree(&j["decoder"], value("frames"), &out);
     assert!(j["since_host_ms"].as_u64().unwrap() < 5_000, "{out}");
 }
