@@ -374,6 +374,39 @@ impl<T: Real> Emulator<T> {
         &self,
         r: &Vector3<T>,
     ) -> Option<([T; 2], [Vector3<T>; 2], [Vector3<T>; 2])> {
+        self.gradients(r, false).map(|(y, dr, de, _)| (y, dr, de))
+    }
+
+    /// [`Self::output_gradient`] and the [`Self::magnitude`] with its gradients:
+    /// `(y, dy/dr, dy/de, (M, dM/dr, dM/de))`, `M = sum_k S_k`, `dM/draw_k` the same
+    /// mixing derivative as the outputs' (gain, 0 when clipped, plus cross-talk). The
+    /// magnitude costs one more combination of the cells' coefficients (no new cell model):
+    /// the pose solver's magnitude rows.
+    #[allow(clippy::type_complexity)]
+    pub fn output_magnitude_gradient(
+        &self,
+        r: &Vector3<T>,
+    ) -> Option<(
+        [T; 2],
+        [Vector3<T>; 2],
+        [Vector3<T>; 2],
+        (T, Vector3<T>, Vector3<T>),
+    )> {
+        self.gradients(r, true)
+            .map(|(y, dr, de, m)| (y, dr, de, m.unwrap_or_default()))
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn gradients(
+        &self,
+        r: &Vector3<T>,
+        magnitude: bool,
+    ) -> Option<(
+        [T; 2],
+        [Vector3<T>; 2],
+        [Vector3<T>; 2],
+        Option<(T, Vector3<T>, Vector3<T>)>,
+    )> {
         let cells: [Cell<T>; 4] = core::array::from_fn(|k| self.cell(k, r, true));
         let (s, ds) = self.mixed(core::array::from_fn(|k| cells[k].s));
         let x = self.effects.crosstalk;
@@ -414,13 +447,39 @@ impl<T: Real> Emulator<T> {
             dr[a] = g + self.bore * eb;
             de[a] = h;
         }
-        Some((y, dr, de))
+        let m = magnitude.then(|| {
+            // dM/draw_k = ds_k, plus x ds_{k^2} with cross-talk (S_{k^2} carries x raw_k).
+            let (mut g, mut eb, mut h) = (Vector3::zeros(), T::zero(), Vector3::zeros());
+            let mut m = T::zero();
+            for k in 0..4 {
+                m += s[k];
+                let alpha = if x == T::zero() {
+                    ds[k]
+                } else {
+                    ds[k] + x * ds[k ^ 2]
+                };
+                let t = term(k, alpha);
+                g += t.0;
+                eb += t.1;
+                h += t.2;
+            }
+            (m, g + self.bore * eb, h)
+        });
+        Some((y, dr, de, m))
     }
 
     /// The output `(X, Y)` of eq 63 in counts, unclipped. `None` when a pair has no signal.
     pub fn output(&self, r: &Vector3<T>) -> Option<[T; 2]> {
+        Self::ratios(self.head.beta, &self.signals(r))
+    }
+
+    /// [`Self::output`] and [`Self::magnitude`] from one evaluation of the cells.
+    pub fn output_magnitude(&self, r: &Vector3<T>) -> Option<([T; 2], T)> {
         let s = self.signals(r);
-        let b = self.head.beta;
+        Self::ratios(self.head.beta, &s).map(|y| (y, s[0] + s[1] + s[2] + s[3]))
+    }
+
+    fn ratios(b: T, s: &[T; 4]) -> Option<[T; 2]> {
         let dx = s[0] + s[1];
         let dy = s[2] + s[3];
         if !(dx > T::zero() && dy > T::zero()) {
@@ -556,6 +615,34 @@ mod tests {
     fn check_gradient(em: &Emulator<f64>, r: &Vector3<f64>, e0: &Vector3<f64>, label: &str) {
         let (y, dr, de) = em.output_gradient(r).unwrap();
         assert_eq!(y, em.output(r).unwrap());
+        // The magnitude's gradient, and the outputs unchanged beside it.
+        let (y2, dr2, de2, (m, dm_r, dm_e)) = em.output_magnitude_gradient(r).unwrap();
+        assert_eq!((y2, dr2, de2), (y, dr, de));
+        assert_eq!(m, em.magnitude(r));
+        let h = 1e-6;
+        for k in 0..3 {
+            let mut rp = *r;
+            rp[k] += h;
+            let mut rm = *r;
+            rm[k] -= h;
+            let fd = (em.magnitude(&rp) - em.magnitude(&rm)) / (2.0 * h);
+            assert!(
+                (fd - dm_r[k]).abs() < 1e-6 * m + 1e-4 * fd.abs(),
+                "{label} dM/dr{k}: {fd} vs {}",
+                dm_r[k]
+            );
+            let mut ep = *e0;
+            ep[k] += h;
+            let mut emm = *e0;
+            emm[k] -= h;
+            let fe = (em.with_boresight(&ep).magnitude(r) - em.with_boresight(&emm).magnitude(r))
+                / (2.0 * h);
+            assert!(
+                (fe - dm_e[k]).abs() < 1e-5 * m + 1e-3 * fe.abs(),
+                "{label} dM/de{k}: {fe} vs {}",
+                dm_e[k]
+            );
+        }
         let h = 1e-6;
         for k in 0..3 {
             let mut rp = *r;
