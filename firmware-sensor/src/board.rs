@@ -28,10 +28,11 @@ pub const TX_FRAME: usize = 512;
 pub const RX_FRAME: usize = 512;
 
 /// Size of the chip's PC-link transmit queue (a `heapless::spsc::Queue`, which holds one
-/// byte less): the widest reply, the configuration read-back (390 bytes framed with a full
-/// constellation and a calibration holding the near-field part and the pinhole head), fits
-/// (a test checks every reply's widest encoding fits).
-pub const TX_QUEUE: usize = 400;
+/// byte less): the widest reply, the configuration read-back (487 bytes framed with a full
+/// constellation with its beacons' brightness and a calibration holding the near-field
+/// part, the pinhole head and the magnitude law), fits (a test checks every reply's widest
+/// encoding fits).
+pub const TX_QUEUE: usize = 496;
 
 /// Save a configuration to flash from borrowed parts; returns the new generation.
 /// `(calibration, constellation)` serialises exactly as [`Stored`] (postcard writes a
@@ -447,6 +448,7 @@ mod tests {
                 d: [0.6, 0.1, 1.1],
                 p: [0.001, 0.002, 0.001],
             }),
+            magnitude: Some(cta_core::pose::Magnitude::simulated(0.07)),
             ..Calibration::table3()
         }
     }
@@ -770,7 +772,7 @@ mod tests {
             sensitivity: 4,
             spots: heapless::Vec::new(),
         };
-        for Beacon { id, r } in &con.beacons {
+        for Beacon { id, r, .. } in &con.beacons {
             let r = nalgebra::Vector3::new(r[0] as f64, r[1] as f64, r[2] as f64);
             let y = solver.predict(&x, &r).unwrap();
             frame

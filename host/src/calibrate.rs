@@ -687,6 +687,7 @@ pub fn calibrate(
             ..NearField::nominal()
         }),
         pinhole: Some(PinholeHead { d, p }),
+        magnitude: None,
     };
 
     // What to say when the near-field fit fails, or ends outside what the board takes, on

@@ -1866,6 +1866,7 @@ pub fn pinhole_calibration(truth: &Calibration, plate: Plate) -> Result<Calibrat
         noise: truth.noise,
         near_field: None,
         pinhole: None,
+        magnitude: None,
     })
 }
 

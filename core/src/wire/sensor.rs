@@ -273,6 +273,7 @@ mod tests {
                 .push(crate::pose::Beacon {
                     id: i,
                     r: [f32::MAX; 3],
+                    brightness: f32::MAX,
                 })
                 .unwrap();
         }
