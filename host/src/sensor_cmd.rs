@@ -28,8 +28,8 @@ use cta_core::emulator::{Emulator, Head, Pose as HeadPose};
 use cta_core::glsdc::{self, Settings};
 use cta_core::mrp;
 use cta_core::pose::{
-    cta_constellation, simulate_spots, Calibration, ModelKind, NearField, PinholeHead, PoseSolver,
-    PoseStatus, SolverSettings, Spot,
+    cta_constellation, simulate_spots, simulate_spots_with, Calibration, Magnitude, ModelKind,
+    NearField, PinholeHead, PoseSolver, PoseStatus, SolverSettings, Spot,
 };
 use cta_core::real::rad;
 use cta_core::wire::sensor::{
@@ -287,6 +287,12 @@ pub enum SensorCommand {
     /// poses without noise) and the design targets with a verdict each (near-field at least 5x
     /// more accurate than pinhole at 2-10 in; both at the noise floor at 30 in). The near-field
     /// calibration is fitted to a simulated CTA sweep first, as the lab would do.
+    ///
+    /// The near-field pose also fits the spot magnitudes (their ratios between beacons carry
+    /// the target's tilt, which the spots show only through perspective at 8-10 in), with the
+    /// scatter `--magnitude-noise` (0.07 % by default: what the spot noise implies; the real
+    /// NorthStar's is to be measured, `cta noise`). Its column "spots only" is the same model
+    /// without them; `--no-magnitudes` leaves them out altogether.
     ///
     /// The target's spread and beacon count decide the attitude figures: compare the
     /// built-ins, e.g. `for c in one-10 one-19 four-10 four-19; do cta sensor accuracy
@@ -652,6 +658,16 @@ pub struct AccuracyArgs {
     /// model-error-free ideal).
     #[arg(long)]
     pub true_calibration: bool,
+    /// Scatter of the simulated NorthStar's spot magnitudes, percent (1-sigma, on top of
+    /// their rounding to counts), 0 to 100. 0.07 % is what the 0.1 % of beta spot noise
+    /// implies if both come from independent noise in the four cells (`cta sensor floor`);
+    /// the real detector's is not known until a sweep of it is measured (`cta noise`).
+    #[arg(long, value_name = "PCT", default_value_t = 0.07)]
+    pub magnitude_noise: f64,
+    /// Solve the near-field pose from the spots alone (the magnitudes are not fitted; the
+    /// "spots only" column is then the near-field one).
+    #[arg(long)]
+    pub no_magnitudes: bool,
     /// Draw the errors against range (near-field, pinhole, noise floor, systematic) to this
     /// SVG file.
     #[arg(long, value_name = "FILE.svg")]
@@ -677,6 +693,8 @@ impl Default for AccuracyArgs {
             scene: SceneArgs::default(),
             cal_samples: 100,
             true_calibration: false,
+            magnitude_noise: 0.07,
+            no_magnitudes: false,
             plot: None,
             json: false,
             check: false,
@@ -1487,13 +1505,28 @@ fn run_sim(args: &SimArgs) -> Result<()> {
     Ok(())
 }
 
-/// One row of the accuracy table (RMS over the trials).
+/// One row of the accuracy table (RMS over the trials). The near-field pose (`nf_*`) fits
+/// the spot magnitudes too unless the table was run without them (`--no-magnitudes`); the
+/// near-field pose from the spots alone is `ns_*` either way.
 #[derive(Debug, Clone, Serialize)]
 pub struct AccuracyRow {
     /// Range (target z), in.
     pub range: f64,
     /// Mean number of beacons seen.
     pub beacons: f64,
+    /// Mean number of spot magnitudes the near-field pose fitted.
+    pub magnitudes: f64,
+    /// Near-field pose from the spots alone: RMS position error, in.
+    pub ns_pos: f64,
+    /// Near-field pose from the spots alone: RMS attitude error, deg.
+    pub ns_att: f64,
+    /// Noise floor of the spots alone: RMS of that solve's predicted position 1-sigma, in
+    /// (what the pinhole pose, which has no magnitudes, is held to at 30 in).
+    pub floor_pos_spots: f64,
+    /// Noise floor of the spots alone: RMS predicted attitude 1-sigma, deg.
+    pub floor_att_spots: f64,
+    /// Trials where the spots-only near-field solve did not return status Ok.
+    pub ns_failures: usize,
     /// Near-field pose: RMS position error, in.
     pub nf_pos: f64,
     /// Pinhole pose: RMS position error, in.
@@ -1550,6 +1583,10 @@ pub struct AccuracyTable {
     pub nearfield_sigma: [f64; 8],
     /// The near-field solver used the true head (`--true-calibration`).
     pub true_calibration: bool,
+    /// The simulated spot magnitudes' scatter, percent (on top of their rounding).
+    pub magnitude_noise_percent: f64,
+    /// The near-field pose fitted the magnitudes (not `--no-magnitudes`).
+    pub magnitudes: bool,
     /// Samples averaged per point of the simulated calibration sweep.
     pub cal_samples: usize,
     /// Trials per range.
@@ -1596,35 +1633,77 @@ impl AccuracyTable {
                 self.cal_samples, nc.d[0], nc.d[1], nc.d[2], sg[2], nn.alpha_deg, sg[6], nn.s, sg[7]
             );
         }
+        if self.magnitudes {
+            s += &format!(
+                "             The near-field pose also fits the spot magnitudes (the simulated NorthStar's law, linear,\n\
+                 \x20            scatter {} % on top of the rounding to counts; `spots only`: the same model without them).\n",
+                self.magnitude_noise_percent
+            );
+        } else {
+            s += "             From the spots alone (--no-magnitudes).\n";
+        }
         s += "floor = RMS of the near-field solver's predicted 1-sigma (the noise floor of one frame). Errors are RMS;\n\
               'not ok' counts solves whose status was not Ok (the pinhole's at 2 in: residual RMS above the\n\
               2000-count limit, i.e. the model cannot fit the frame; the error columns include those solves).\n\
-              seen = beacons in view, mean over the trials.\n\n";
-        s += "range  seen |  position error (in)                    |  attitude error (deg)                  | not ok\n";
-        s += " (in)       |  near-field   pinhole   ratio    floor  |  near-field  pinhole   ratio    floor | nf  ph\n";
-        for r in &self.rows {
-            s += &format!(
-                "{:5.1} {:5.1} |  {:10.5} {:9.5} {:7.1} {:8.5}  |  {:9.4} {:8.4} {:7.1} {:8.4} | {:2} {:3}\n",
-                r.range,
-                r.beacons,
-                r.nf_pos,
-                r.ph_pos,
-                r.ph_pos / r.nf_pos,
-                r.floor_pos,
-                r.nf_att,
-                r.ph_att,
-                r.ph_att / r.nf_att,
-                r.floor_att,
-                r.nf_failures,
-                r.ph_failures
-            );
+              seen = beacons in view, mean over the trials";
+        if self.magnitudes {
+            s += "; mags = magnitudes the near-field pose fitted, mean.\n\n";
+            s += "range  seen  mags |  position error (in)                              |  attitude error (deg)                             | not ok\n";
+            s += " (in)             |  near-field spots only  pinhole   ratio    floor  |  near-field spots only pinhole   ratio    floor | nf  ph\n";
+            for r in &self.rows {
+                s += &format!(
+                    "{:5.1} {:5.1} {:5.1} |  {:10.5} {:10.5} {:8.5} {:7.1} {:8.5}  |  {:9.4} {:10.4} {:8.4} {:7.1} {:8.4} | {:2} {:3}\n",
+                    r.range,
+                    r.beacons,
+                    r.magnitudes,
+                    r.nf_pos,
+                    r.ns_pos,
+                    r.ph_pos,
+                    r.ph_pos / r.nf_pos,
+                    r.floor_pos,
+                    r.nf_att,
+                    r.ns_att,
+                    r.ph_att,
+                    r.ph_att / r.nf_att,
+                    r.floor_att,
+                    r.nf_failures,
+                    r.ph_failures
+                );
+            }
+        } else {
+            s += ".\n\n";
+            s += "range  seen |  position error (in)                    |  attitude error (deg)                  | not ok\n";
+            s += " (in)       |  near-field   pinhole   ratio    floor  |  near-field  pinhole   ratio    floor | nf  ph\n";
+            for r in &self.rows {
+                s += &format!(
+                    "{:5.1} {:5.1} |  {:10.5} {:9.5} {:7.1} {:8.5}  |  {:9.4} {:8.4} {:7.1} {:8.4} | {:2} {:3}\n",
+                    r.range,
+                    r.beacons,
+                    r.nf_pos,
+                    r.ph_pos,
+                    r.ph_pos / r.nf_pos,
+                    r.floor_pos,
+                    r.nf_att,
+                    r.ph_att,
+                    r.ph_att / r.nf_att,
+                    r.floor_att,
+                    r.nf_failures,
+                    r.ph_failures
+                );
+            }
         }
         s += "\nSystematic error: the same poses seen without noise (rounded to counts). This is the part a\n\
-              navigation filter cannot average away; the rows above add the noise of one frame. The near-field\n\
-              column is calibration error, f32 rounding and the solver's stop rule (its last step, worth less\n\
-              than 0.1 chi-square, is taken as predicted: what that leaves is second order). 'not ok' counts\n\
-              noise-free frames whose solve failed (e.g. too few usable coordinates at 1 in); their fallback\n\
-              pose is in the columns.\n\n";
+              navigation filter cannot average away at a standing pose; the rows above add the noise of one frame.\n\
+              The near-field column is calibration error, f32 rounding and the solver's stop rule (its last step,\n\
+              worth less than 0.1 chi-square, is taken as predicted: what that leaves is second order). 'not ok'\n\
+              counts noise-free frames whose solve failed (e.g. too few usable coordinates at 1 in); their\n\
+              fallback pose is in the columns.\n";
+        if self.magnitudes {
+            s += "With the magnitudes it also holds their rounding to whole counts: the simulated NorthStar reads\n\
+                  about 520 counts at 10 in and 58 at 30 in (0.06 % and 0.5 %: as much as their scatter, or more),\n\
+                  which a moving target turns into noise but a standing one keeps.\n";
+        }
+        s += "\n";
         s += "range |  position error (in)              |  attitude error (deg)              | not ok\n";
         s += " (in) |  near-field   pinhole     ratio   |  near-field  pinhole     ratio   | nf  ph\n";
         for r in &self.rows {
@@ -1698,11 +1777,13 @@ impl AccuracyTable {
             ratio_claim("attitude, systematic", &|r| (r.ph_att_sys, r.nf_att_sys)),
         ];
         if let Some(r) = self.rows.iter().find(|r| (r.range - 30.0).abs() < 1e-9) {
+            // Each against the floor of what it measures: the pinhole pose has no magnitudes,
+            // so its floor is the spots'.
             let figures = [
                 ("near-field position", r.nf_pos, r.floor_pos),
-                ("pinhole position", r.ph_pos, r.floor_pos),
+                ("pinhole position", r.ph_pos, r.floor_pos_spots),
                 ("near-field attitude", r.nf_att, r.floor_att),
-                ("pinhole attitude", r.ph_att, r.floor_att),
+                ("pinhole attitude", r.ph_att, r.floor_att_spots),
             ];
             let over: Vec<String> = figures
                 .iter()
@@ -1710,24 +1791,29 @@ impl AccuracyTable {
                 .map(|(n, e, f)| format!("{n} {:.2}x the floor", e / f))
                 .collect();
             out.push(Claim {
-                name: "both at the noise floor at 30 in (error <= 1.5x floor)".into(),
+                name: "both at the noise floor at 30 in (error <= 1.5x floor; the pinhole's: of the spots alone)"
+                    .into(),
                 holds: over.is_empty(),
                 detail: if over.is_empty() {
                     format!(
                         "position {:.2}x / {:.2}x, attitude {:.2}x / {:.2}x the floor (near-field / pinhole)",
                         r.nf_pos / r.floor_pos,
-                        r.ph_pos / r.floor_pos,
+                        r.ph_pos / r.floor_pos_spots,
                         r.nf_att / r.floor_att,
-                        r.ph_att / r.floor_att
+                        r.ph_att / r.floor_att_spots
                     )
                 } else {
                     over.join(", ")
                 },
             });
         }
-        // Where the per-frame attitude ratio fails: is the near-field pose on the floor?
-        // Then the limit is the noise against the pinhole's whole systematic error.
-        for r in near.iter().filter(|r| !(r.ph_att >= 5.0 * r.nf_att)) {
+        // Where the per-frame attitude ratio fails from the spots alone: is the near-field pose
+        // on the floor? Then the limit is the noise against the pinhole's whole systematic
+        // error (the magnitudes, when fitted, bring a floor of their own).
+        for r in near
+            .iter()
+            .filter(|r| !self.magnitudes && !(r.ph_att >= 5.0 * r.nf_att))
+        {
             // No pose can beat the floor, and the pinhole's per-frame error is about
             // sqrt(systematic^2 + floor^2): the best ratio any model could show is this.
             let bound = (1.0 + (r.ph_att_sys / r.floor_att).powi(2)).sqrt();
@@ -1790,6 +1876,12 @@ impl AccuracyTable {
                         Series::new(label, p)
                     }
                 })
+                .chain(self.magnitudes.then(|| {
+                    Series::new(
+                        "near-field, spots only, one frame",
+                        pts(&|r| if att { r.ns_att } else { r.ns_pos }),
+                    )
+                }))
                 .collect(),
         };
         write_svg(
@@ -1929,13 +2021,14 @@ pub fn angle_between_deg(q_est: &Vector3<f64>, q_true: &Vector3<f64>) -> f64 {
 }
 
 /// One solve of the accuracy table: status, position, MRP, 1-sigma position, 1-sigma
-/// attitude (deg).
+/// attitude (deg), magnitudes fitted.
 type Solved = (
     PoseStatus,
     Vector3<f64>,
     Vector3<f64>,
     Vector3<f64>,
     Vector3<f64>,
+    u8,
 );
 
 /// A pose of the accuracy table's distribution at `range`: lateral offset uniform in
@@ -1968,6 +2061,12 @@ impl AccuracyArgs {
         if self.cal_samples == 0 {
             bail!("--cal-samples 0: expected 1 or more samples per calibration point");
         }
+        if !(0.0..=100.0).contains(&self.magnitude_noise) {
+            bail!(
+                "--magnitude-noise {}: expected 0 to 100 percent",
+                self.magnitude_noise
+            );
+        }
         Ok(())
     }
 }
@@ -1985,15 +2084,28 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
     let em: Emulator<f64> = cta_firmware_sensor::sim::physics(&truth);
     let normal = Normal::new(0.0, noise).context("noise")?;
     let mut rng = StdRng::seed_from_u64(args.seed);
-    let (nf_cal, nf_sigma) = if args.true_calibration {
+    let (mut nf_cal, nf_sigma) = if args.true_calibration {
         (truth, [0.0; 8])
     } else {
         nearfield_calibration(&truth, &ph_cal, scene.plate, args.cal_samples, &mut rng)?
     };
+    // The magnitude law the simulated NorthStar follows (linear, no offset), with the scatter
+    // simulated (the validation's floor, 0.001 %, for none).
+    if !args.no_magnitudes {
+        nf_cal.magnitude = Some(Magnitude::simulated(args.magnitude_noise.max(0.001) as f32));
+    }
+    // The magnitudes' scatter is drawn from a stream of its own: the spots' noise, and so
+    // the spots-only and pinhole columns, are those of a run without magnitudes.
+    let mut mag_rng = StdRng::seed_from_u64(args.seed ^ 0x6d61_676e_6974_7564);
+    let mag_normal = Normal::new(0.0, args.magnitude_noise / 100.0).context("magnitude noise")?;
     let mut rows = Vec::new();
     let nf_set = SolverSettings {
         model: ModelKind::NearField,
         ..Default::default()
+    };
+    let ns_set = SolverSettings {
+        magnitudes: false,
+        ..nf_set
     };
     let ph_set = SolverSettings {
         model: ModelKind::Pinhole,
@@ -2002,12 +2114,20 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
     for &range in &args.ranges {
         let (mut nf_p, mut ph_p, mut nf_a, mut ph_a, mut fl_p, mut fl_a, mut seen) =
             (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-        let (mut nf_failures, mut ph_failures) = (0, 0);
+        let (mut nf_failures, mut ph_failures, mut ns_failures) = (0, 0, 0);
         let (mut nf_sys_failures, mut ph_sys_failures) = (0, 0);
+        let (mut ns_p, mut ns_a, mut fs_p, mut fs_a, mut mags) = (0.0, 0.0, 0.0, 0.0, 0.0);
         let mut sys = [0.0f64; 4];
         for _ in 0..args.trials {
             let (t, q) = random_pose(&mut rng, range);
-            let spots = simulate_spots(&em, &con, &t, &q, |_| normal.sample(&mut rng));
+            let spots = simulate_spots_with(
+                &em,
+                &con,
+                &t,
+                &q,
+                |_| normal.sample(&mut rng),
+                |_| mag_normal.sample(&mut mag_rng),
+            );
             seen += spots.len() as f64;
             let solve =
                 |cal: &Calibration, set: SolverSettings, spots: &[Spot]| -> Result<Solved> {
@@ -2021,6 +2141,7 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
                             r.mrp,
                             r.sigma_position,
                             r.sigma_attitude_deg,
+                            r.magnitudes,
                         ))
                     } else {
                         let mut s = PoseSolver::<f32>::new(cal, &con, set)
@@ -2033,11 +2154,25 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
                             c(r.mrp),
                             c(r.sigma_position),
                             c(r.sigma_attitude_deg),
+                            r.magnitudes,
                         ))
                     }
                 };
             let nf = solve(&nf_cal, nf_set, &spots)?;
             let ph = solve(&ph_cal, ph_set, &spots)?;
+            let ns = if args.no_magnitudes {
+                nf
+            } else {
+                solve(&nf_cal, ns_set, &spots)?
+            };
+            mags += f64::from(nf.5);
+            ns_failures += usize::from(ns.0 != PoseStatus::Ok);
+            ns_p += (ns.1 - t).norm_squared();
+            ns_a += angle_between_deg(&ns.2, &q).powi(2);
+            if ns.0 == PoseStatus::Ok {
+                fs_p += ns.3.norm_squared();
+                fs_a += ns.4.norm_squared();
+            }
             // The systematic part: the same pose seen without noise (rounded to counts).
             let clean = simulate_spots(&em, &con, &t, &q, |_| 0.0);
             let nf0 = solve(&nf_cal, nf_set, &clean)?;
@@ -2061,9 +2196,16 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
         }
         let n = args.trials.max(1) as f64;
         let ok = (args.trials - nf_failures).max(1) as f64;
+        let ns_ok = (args.trials - ns_failures).max(1) as f64;
         rows.push(AccuracyRow {
             range,
             beacons: seen / n,
+            magnitudes: mags / n,
+            ns_pos: (ns_p / n).sqrt(),
+            ns_att: (ns_a / n).sqrt(),
+            floor_pos_spots: (fs_p / ns_ok).sqrt(),
+            floor_att_spots: (fs_a / ns_ok).sqrt(),
+            ns_failures,
             nf_pos: (nf_p / n).sqrt(),
             ph_pos: (ph_p / n).sqrt(),
             nf_att: (nf_a / n).sqrt(),
@@ -2088,6 +2230,8 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
         constellation_short: scene.short,
         nearfield_sigma: nf_sigma,
         true_calibration: args.true_calibration,
+        magnitude_noise_percent: args.magnitude_noise,
+        magnitudes: !args.no_magnitudes,
         cal_samples: args.cal_samples,
         trials: args.trials,
         noise_counts: noise,
@@ -2173,6 +2317,7 @@ mod tests {
         let claims = t.claims();
         for name in [
             "position, one frame",
+            "attitude, one frame",
             "position, systematic",
             "attitude, systematic",
             "both at the noise floor",
@@ -2193,6 +2338,13 @@ mod tests {
             (d[2] - 0.062).abs() < 0.001 && (d[0] - 0.6).abs() < 0.001,
             "{d:?}"
         );
+        // The magnitudes make the attitude at 8-10 in: from the spots alone the near-field
+        // pose sits on the spots' floor, several times higher.
+        for r in t.rows.iter().filter(|r| r.range == 8.0 || r.range == 10.0) {
+            assert!(r.magnitudes > 9.0, "{r:?}");
+            assert!(r.ns_att > 2.5 * r.nf_att, "{r:?}");
+            assert!(r.ns_att < 1.5 * r.floor_att_spots, "{r:?}");
+        }
         // At 2 in the pinhole model, with the coordinates near the rail left out (clipped,
         // not measured), fits most frames but is far off: hundreds of times the near-field's
         // error.
@@ -2203,6 +2355,41 @@ mod tests {
             text.contains("Design targets") && text.contains("Systematic error"),
             "{text}"
         );
+    }
+
+    /// From the spots alone (`--no-magnitudes`) the table is the one before the magnitudes:
+    /// the same draws (the magnitudes' scatter has its own stream), the per-frame attitude
+    /// target fails at 10 in, and the claim that says why (the near-field pose on the
+    /// spots' floor, the pinhole's systematic error too small for 5x) holds there.
+    #[test]
+    fn without_magnitudes_the_spots_alone_fall_short_at_10_in() {
+        let args = AccuracyArgs {
+            trials: 20,
+            ranges: vec![10.0],
+            ..AccuracyArgs::default()
+        };
+        let with = accuracy_table(&args).unwrap();
+        let without = accuracy_table(&AccuracyArgs {
+            no_magnitudes: true,
+            ..args
+        })
+        .unwrap();
+        let (a, b) = (&with.rows[0], &without.rows[0]);
+        assert_eq!(b.magnitudes, 0.0);
+        assert_eq!((a.ns_att, a.ph_att), (b.nf_att, b.ph_att));
+        let claims = without.claims();
+        let att = claims
+            .iter()
+            .find(|c| c.name.starts_with("attitude, one frame"))
+            .unwrap();
+        assert!(!att.holds, "{att:?}");
+        let why = claims
+            .iter()
+            .find(|c| c.name.contains("out of reach for any model of the spots"))
+            .unwrap();
+        assert!(why.holds, "{why:?}");
+        assert!(without.render().contains("From the spots alone"));
+        assert!(with.render().contains("spots only"));
     }
 
     /// Claims over 2-10 in are not judged from other ranges: without one they say so (not

@@ -241,6 +241,10 @@ fn sensor_flags_are_checked_up_front() {
         (&["accuracy", "--noise-fraction", "1"], "--noise-fraction 1"),
         (&["accuracy", "--cal-samples", "0"], "--cal-samples 0"),
         (
+            &["accuracy", "--magnitude-noise", "101"],
+            "--magnitude-noise 101: expected 0 to 100 percent",
+        ),
+        (
             &["floor", "--poses", "0"],
             "--poses 0: expected 1 or more poses",
         ),
