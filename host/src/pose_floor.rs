@@ -1,7 +1,9 @@
 //! `cta sensor floor`: the noise floor of one frame's pose, from the spots alone and with
-//! the NorthStar's spot magnitudes as a further measurement. A what-if for issue 5's
-//! per-frame attitude claim, which the spots alone cannot meet at 8-10 in (see
-//! `cta sensor accuracy`).
+//! the NorthStar's spot magnitudes as a further measurement, for several magnitude noise
+//! levels: how well the magnitudes must repeat for issue 5's per-frame attitude claim,
+//! which the spots alone cannot meet at 8-10 in. The chip's near-field solve fits the
+//! magnitudes when its calibration holds their law (`cta_core::pose::Magnitude`), and
+//! reaches this bound (`cta sensor accuracy --magnitude-noise PCT`).
 //!
 //! The floor is the Cramer-Rao bound: the covariance `(J^T W J)^-1` of the pose at the true
 //! pose, `J` the central-difference Jacobian of the measurements through the eq 60-63
