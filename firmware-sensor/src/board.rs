@@ -23,8 +23,9 @@ use crate::storage::{self, FlashPages};
 pub const TX_FRAME: usize = 512;
 
 /// Largest frame the board receives (announced as `max_frame` by identify): the largest
-/// request, a 20-beacon constellation, takes about 290 bytes (a test checks it fits). Half
-/// the protocol's [`MAX_FRAME`]: RAM is the board's tightest budget.
+/// request, a 20-beacon constellation with its beacons' brightness, takes 366 bytes (287
+/// before protocol 7's brightness; a test checks it fits). Half the protocol's
+/// [`MAX_FRAME`]: RAM is the board's tightest budget.
 pub const RX_FRAME: usize = 512;
 
 /// Size of the chip's PC-link transmit queue (a `heapless::spsc::Queue`, which holds one
@@ -399,7 +400,8 @@ impl<F: FlashPages> Board<F> {
                 if !self.solver_ready {
                     return;
                 }
-                let sol = self.solver.solve(&frame.spots);
+                // The magnitudes only at the sensitivity their law was fitted at.
+                let sol = self.solver.solve_frame(&frame.spots, frame.sensitivity);
                 let solve_us = io.now_us().saturating_sub(t_us).min(u32::MAX as u64) as u32;
                 self.last_pose = Some(sol.status);
                 let a = |v: nalgebra::Vector3<f32>| [v.x, v.y, v.z];
@@ -417,6 +419,7 @@ impl<F: FlashPages> Board<F> {
                     condition: sol.condition,
                     iterations: sol.iterations,
                     beacons: sol.beacons,
+                    magnitudes: sol.magnitudes,
                     cold_start: sol.cold_start,
                     solve_us,
                 })
@@ -861,6 +864,128 @@ mod tests {
                 constellation: false
             }))
         );
+    }
+
+    /// With a magnitude law in the calibration the near-field pose fits the spot magnitudes
+    /// of frames at the law's sensitivity, and says so in its report; frames at another
+    /// sensitivity are solved from the spots alone (`magnitudes` 0), as is every pinhole pose.
+    #[test]
+    fn magnitudes_are_fitted_at_the_laws_sensitivity_only() {
+        let mut b = Board::new(RamFlash::default(), false, ResetCause::PowerOn);
+        let mut io = FakeIo::default();
+        let cal = Calibration {
+            magnitude: Some(cta_core::pose::Magnitude::simulated(0.07)),
+            ..Calibration::table3()
+        };
+        assert_eq!(cal.magnitude.unwrap().sensitivity, 4);
+        let load = SensorRequest::LoadCalibration(cal);
+        assert_eq!(request(&mut b, &mut io, 1, load), Ok(Response::Ack));
+        let load = SensorRequest::LoadConstellation(cta_constellation());
+        assert_eq!(request(&mut b, &mut io, 2, load), Ok(Response::Ack));
+        let (f1, f2, t2, _) = cta_core::pose::benchmark_frames();
+        let pose =
+            |b: &mut Board<RamFlash>, io: &mut FakeIo, spots: &heapless::Vec<Spot, 20>, s: u8| {
+                let frame = SpotFrame {
+                    seq: 1,
+                    sensitivity: s,
+                    spots: spots.clone(),
+                };
+                let mut bytes = [0u8; northstar::MAX_FRAME];
+                let n = northstar::encode_report(&frame, &mut bytes);
+                b.on_ns_bytes(&bytes[..n], io);
+                let mut got = replies(io);
+                assert_eq!(got.len(), 1);
+                match got.pop().unwrap().1 {
+                    Ok(Response::Board(SensorResponse::Pose(p))) => p,
+                    other => panic!("expected a pose, got {other:?}"),
+                }
+            };
+        for (model, fitted) in [(ModelKind::NearField, 10), (ModelKind::Pinhole, 0)] {
+            let mode = SensorRequest::SetMode(Mode::Pose(model));
+            assert_eq!(request(&mut b, &mut io, 3, mode), Ok(Response::Ack));
+            for (spots, s, want) in [
+                (&f1, 4, fitted),
+                (&f2, 4, fitted),
+                (&f2, 3, 0),
+                (&f2, 4, fitted),
+            ] {
+                let p = pose(&mut b, &mut io, spots, s);
+                assert_eq!(p.status, PoseStatus::Ok, "{model:?} at {s}: {p:?}");
+                assert_eq!(p.magnitudes, want, "{model:?} at {s}: {p:?}");
+                assert_eq!(p.beacons, 10, "{p:?}");
+                if model == ModelKind::NearField {
+                    assert!((p.position[2] as f64 - t2.z).abs() < 0.1, "{p:?}");
+                }
+            }
+        }
+    }
+
+    /// A record of format 4 (protocol 5 and 6: no magnitude law in the calibration, no
+    /// brightness in the beacons) is ignored: read as format 5's types its bytes would not
+    /// give back what was stored, so the version, not the decoding, has to tell them apart.
+    #[test]
+    fn a_format_4_record_is_ignored() {
+        #[derive(Serialize, Deserialize)]
+        struct CalibrationV4 {
+            d: [f32; 3],
+            p: [f32; 3],
+            h: f32,
+            noise: f32,
+            near_field: Option<cta_core::pose::NearField>,
+            pinhole: Option<cta_core::pose::PinholeHead>,
+        }
+        #[derive(Serialize, Deserialize)]
+        struct BeaconV4 {
+            id: u8,
+            r: [f32; 3],
+        }
+        #[derive(Serialize, Deserialize)]
+        struct ConstellationV4 {
+            beacons: heapless::Vec<BeaconV4, 20>,
+            boresight: [f32; 3],
+        }
+        type StoredV4 = (Option<CalibrationV4>, Option<ConstellationV4>);
+        let t = widest_calibration();
+        let con = cta_constellation();
+        let old: StoredV4 = (
+            Some(CalibrationV4 {
+                d: t.d,
+                p: t.p,
+                h: t.h,
+                noise: t.noise,
+                near_field: t.near_field,
+                pinhole: t.pinhole,
+            }),
+            Some(ConstellationV4 {
+                beacons: con
+                    .beacons
+                    .iter()
+                    .map(|b| BeaconV4 { id: b.id, r: b.r })
+                    .collect(),
+                boresight: con.boresight,
+            }),
+        );
+        let mut flash = RamFlash::default();
+        storage::save(&mut flash, &old).unwrap();
+        let page = &mut flash.pages[0];
+        let n = usize::from(u16::from_le_bytes([page[6], page[7]]));
+        // Format 4's bytes read as format 5's types: not what was stored.
+        let misread = postcard::from_bytes::<Stored>(&page[12..12 + n]);
+        let stored = Stored {
+            calibration: Some(Calibration {
+                magnitude: None,
+                ..t
+            }),
+            constellation: Some(con),
+        };
+        assert!(misread.as_ref() != Ok(&stored), "{misread:?}");
+        // The header as format 4 wrote it: version 4, its CRC.
+        page[4..6].copy_from_slice(&4u16.to_le_bytes());
+        let crc = cta_core::wire::crc32c(&page[..12 + n]);
+        page[12 + n..16 + n].copy_from_slice(&crc.to_le_bytes());
+        assert!(storage::load::<StoredV4, _>(&flash).is_none());
+        let b = Board::new(flash, false, ResetCause::PowerOn);
+        assert_eq!(b.stored(), &Stored::default());
     }
 
     /// A detector that missed the start-up commands (it booted later) reports its own

@@ -22,8 +22,9 @@
 
 use serde::{de::DeserializeOwned, Serialize};
 
-/// Record format version; bump when the stored types change.
-pub const FORMAT_VERSION: u16 = 4;
+/// Record format version; bump when the stored types change. 5 (protocol 7): the
+/// calibration's magnitude law and each beacon's brightness.
+pub const FORMAT_VERSION: u16 = 5;
 /// Largest record (header + payload + CRC), bytes. Fits one 1 KiB page of the F103x8.
 pub const MAX_RECORD: usize = 512;
 const HEADER: usize = 12;

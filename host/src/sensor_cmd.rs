@@ -256,8 +256,10 @@ pub enum SensorCommand {
     /// Columns: board sequence number and time; position (in); attitude as the rotation
     /// vector rx, ry, rz (deg: the axis times the angle, from the MRP; not Euler angles,
     /// though close to them below a few degrees); their 1-sigma ("-" when the board has none);
-    /// residual RMS (counts); GLSDC iterations; beacons used; the solve time on the board
-    /// (us); whether the solve started cold; status.
+    /// residual RMS (counts); GLSDC iterations; beacons used; spot magnitudes fitted (0: the
+    /// spots alone: the calibration has no magnitude law, the model is the pinhole, or the
+    /// NorthStar's sensitivity is not the one the law was fitted at); the solve time on the
+    /// board (us); whether the solve started cold; status.
     Pose {
         /// Measurement model.
         #[arg(long, value_enum, default_value_t = ModelArg::NearField)]
@@ -998,15 +1000,15 @@ fn board_command<S: std::io::Read + std::io::Write>(
 /// The header of `cta sensor pose`'s table (the columns of [`pose_line`]).
 pub fn pose_header() -> String {
     format!(
-        "{:>6} {:>10} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7} {:>8} {:>7} {:>7} {:>7} {:>3} {:>3} {:>8} {:>4} {}",
+        "{:>6} {:>10} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7} {:>8} {:>7} {:>7} {:>7} {:>3} {:>3} {:>3} {:>8} {:>4} {}",
         "seq", "t (ms)", "x (in)", "y (in)", "z (in)", "rx (deg)", "ry", "rz", "sx(in)", "sy", "sz",
-        "srx(deg)", "sry", "srz", "rms", "it", "bcn", "solve us", "cold", "status"
+        "srx(deg)", "sry", "srz", "rms", "it", "bcn", "mag", "solve us", "cold", "status"
     )
 }
 
 /// One row of `cta sensor pose`'s table: position, attitude (rotation vector, deg), their
-/// 1-sigma ("-" where the board has none), residual RMS, iterations, beacons used, solve time
-/// on the board, cold start, status.
+/// 1-sigma ("-" where the board has none), residual RMS, iterations, beacons used, spot
+/// magnitudes fitted, solve time on the board, cold start, status.
 pub fn pose_line(p: &PoseReport) -> String {
     let q = Vector3::new(p.mrp[0] as f64, p.mrp[1] as f64, p.mrp[2] as f64);
     let e = small_angles_deg(&q);
@@ -1019,7 +1021,7 @@ pub fn pose_line(p: &PoseReport) -> String {
         }
     };
     format!(
-        "{:>6} {:>10.1} {:>9.4} {:>9.4} {:>9.4} {:>8.3} {:>8.3} {:>8.3} {} {} {}  {} {} {} {:>7.1} {:>3} {:>3} {:>8} {:>4} {:?}",
+        "{:>6} {:>10.1} {:>9.4} {:>9.4} {:>9.4} {:>8.3} {:>8.3} {:>8.3} {} {} {}  {} {} {} {:>7.1} {:>3} {:>3} {:>3} {:>8} {:>4} {:?}",
         p.seq,
         p.t_us as f64 / 1000.0,
         p.position[0],
@@ -1037,6 +1039,7 @@ pub fn pose_line(p: &PoseReport) -> String {
         p.rms,
         p.iterations,
         p.beacons,
+        p.magnitudes,
         p.solve_us,
         if p.cold_start { "yes" } else { "no" },
         p.status

@@ -147,22 +147,24 @@ fn sensor_pose_prints_every_field_and_json() {
     let lines: Vec<&str> = out.lines().collect();
     assert_eq!(lines.len(), 4, "{out}");
     for col in [
-        "rx (deg)", "sx(in)", "srx(deg)", "rms", "it", "bcn", "solve us", "cold", "status",
+        "rx (deg)", "sx(in)", "srx(deg)", "rms", "it", "bcn", "mag", "solve us", "cold", "status",
     ] {
         assert!(lines[0].contains(col), "header lacks {col}: {}", lines[0]);
     }
-    // The first pose is a cold start, the next warm; every pose uses the 10 beacons.
+    // The first pose is a cold start, the next warm; every pose uses the 10 beacons, and no
+    // magnitude (the simulated CTA's calibration has no magnitude law).
     for (i, row) in lines[1..].iter().enumerate() {
         let f: Vec<&str> = row.split_whitespace().collect();
-        assert_eq!(f.len(), 20, "{row}");
+        assert_eq!(f.len(), 21, "{row}");
         assert_eq!(f[16], "10", "beacons used: {row}");
-        assert!(f[17].parse::<u32>().is_ok(), "solve us: {row}");
+        assert_eq!(f[17], "0", "magnitudes fitted: {row}");
+        assert!(f[18].parse::<u32>().is_ok(), "solve us: {row}");
         assert_eq!(
-            f[18],
+            f[19],
             if i == 0 { "yes" } else { "no" },
             "cold start: {row}"
         );
-        assert_eq!(f[19], "Ok", "{row}");
+        assert_eq!(f[20], "Ok", "{row}");
         let sigma_att: f64 = f[11].parse().unwrap();
         assert!(sigma_att > 0.0 && sigma_att < 5.0, "{row}");
     }
@@ -186,6 +188,7 @@ fn sensor_pose_prints_every_field_and_json() {
             "condition",
             "iterations",
             "beacons",
+            "magnitudes",
             "cold_start",
             "solve_us",
             "attitude_deg",
@@ -193,6 +196,7 @@ fn sensor_pose_prints_every_field_and_json() {
             assert!(v.get(k).is_some(), "no {k}: {l}");
         }
         assert_eq!(v["beacons"], 10);
+        assert_eq!(v["magnitudes"], 0);
         assert_eq!(v["cold_start"], i == 0);
         assert_eq!(v["model"], "NearField");
         assert_eq!(v["sigma_attitude_deg"].as_array().unwrap().len(), 3);

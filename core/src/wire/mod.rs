@@ -61,8 +61,11 @@ pub mod sensor;
 
 /// Version of this wire protocol; bumped on any incompatible change of the framing,
 /// the envelope or a board's messages. 6: both boards' status carries its [`ResetCause`]
-/// (the beacon board's had a watchdog flag, the sensor board's nothing).
-pub const PROTOCOL_VERSION: u16 = 6;
+/// (the beacon board's had a watchdog flag, the sensor board's nothing). 7: the sensor
+/// board's calibration carries the spot magnitude law ([`crate::pose::Magnitude`]), its
+/// constellation each beacon's brightness, and its pose report the magnitudes fitted
+/// ([`sensor::PoseReport::magnitudes`]).
+pub const PROTOCOL_VERSION: u16 = 7;
 
 /// Sequence number meaning "unknown": used in replies to frames whose header could not be
 /// read. Hosts never use it for a request.
@@ -690,13 +693,14 @@ mod tests {
     /// frame = [0] + cobs(payload + crc32c(payload).to_bytes(4, 'little')) + [0]
     /// ```
     ///
-    /// Frame 1: header (version 6, seq 7) = 06 07, `Request::Board` = variant 2 = 02,
-    /// 0xdeadbeef = varint ef fd b6 f5 0d; CRC-32C 0x2ce0829c = 9c 82 e0 2c (LE); no zero,
+    /// Frame 1: header (version 7, seq 7) = 07 07, `Request::Board` = variant 2 = 02,
+    /// 0xdeadbeef = varint ef fd b6 f5 0d; CRC-32C 0x65dcffbb = bb ff dc 65 (LE); no zero,
     /// so COBS is one run of 12: 0d then the 12 bytes.
-    /// Frame 2: header (6, seq 300 = varint ac 02), `Request::Board` 02,
-    /// `SensorRequest::Status` = variant 0 = 00; CRC 0xb5dcfa9f = 9f fa dc b5; COBS splits at
-    /// the zero: 05 | 06 ac 02 02, 05 | 9f fa dc b5. (Protocol 5's were the same with 05 for
-    /// the version and the CRCs 0xf7a405f5, 0xfdef4a6b: the script reproduces them too.)
+    /// Frame 2: header (7, seq 300 = varint ac 02), `Request::Board` 02,
+    /// `SensorRequest::Status` = variant 0 = 00; CRC 0x8dcd9533 = 33 95 cd 8d; COBS splits at
+    /// the zero: 05 | 07 ac 02 02, 05 | 33 95 cd 8d. (Protocols 5 and 6 had the same frames
+    /// with 05 and 06 for the version and the CRCs 0xf7a405f5, 0xfdef4a6b and 0x2ce0829c,
+    /// 0xb5dcfa9f: the script reproduces them too.)
     /// RCC_CSR values as the STM32F1 leaves them (RM0008 7.3.10; bits 0-1 are LSION and
     /// LSIRDY, bit 24 RMVF): each cause on its own, with the NRST flag an internal reset may
     /// set along, and the power-on value.
@@ -729,7 +733,7 @@ mod tests {
     #[test]
     fn golden_frames() {
         assert_eq!(
-            PROTOCOL_VERSION, 6,
+            PROTOCOL_VERSION, 7,
             "a protocol version bump changes the golden frames: recompute them (see above)"
         );
         let mut buf = [0u8; 64];
@@ -742,7 +746,7 @@ mod tests {
         assert_eq!(
             f,
             [
-                0x00, 0x0d, 0x06, 0x07, 0x02, 0xef, 0xfd, 0xb6, 0xf5, 0x0d, 0x9c, 0x82, 0xe0, 0x2c,
+                0x00, 0x0d, 0x07, 0x07, 0x02, 0xef, 0xfd, 0xb6, 0xf5, 0x0d, 0xbb, 0xff, 0xdc, 0x65,
                 0x00
             ]
         );
@@ -756,7 +760,7 @@ mod tests {
         let f = encode_frame(Header::new(300), &status, &mut buf).unwrap();
         assert_eq!(
             f,
-            [0x00, 0x05, 0x06, 0xac, 0x02, 0x02, 0x05, 0x9f, 0xfa, 0xdc, 0xb5, 0x00]
+            [0x00, 0x05, 0x07, 0xac, 0x02, 0x02, 0x05, 0x33, 0x95, 0xcd, 0x8d, 0x00]
         );
         let mut d = FrameDecoder::<64>::new();
         let got = f

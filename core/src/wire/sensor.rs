@@ -106,6 +106,10 @@ pub struct PoseReport {
     pub iterations: u8,
     /// Beacons used.
     pub beacons: u8,
+    /// Spot magnitudes fitted with the spots ([`crate::pose::PoseSolution::magnitudes`]): 0
+    /// when the pose is from the spots alone (no magnitude law in the calibration, the
+    /// pinhole model, or a frame at another sensitivity than the law's).
+    pub magnitudes: u8,
     /// Whether the solve started cold (no previous good pose).
     pub cold_start: bool,
     /// Time spent solving on the board, microseconds.
