@@ -11,7 +11,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use cta_core::emulator::{Effects, Emulator, Head, Pose as HeadPose};
-use cta_core::pose::{simulate_spots, Calibration, Constellation};
+use cta_core::pose::{simulate_spots_with, Calibration, Constellation};
 use cta_core::wire::ResetCause;
 use nalgebra::Vector3;
 use rand::rngs::StdRng;
@@ -36,6 +36,10 @@ pub struct SimNorthStar {
     pub q: Vector3<f64>,
     /// Gaussian noise on each coordinate, counts (1-sigma).
     pub noise: f64,
+    /// Gaussian noise on each spot's magnitude, percent of it (1-sigma; 0 by default: the
+    /// magnitudes are then exact but for their rounding to counts). Drawn from a stream of
+    /// its own, so the coordinates' noise does not depend on it.
+    pub magnitude_noise: f64,
     /// Probability that a burst of random bytes precedes a frame (line noise).
     pub garbage: f64,
     /// Report rate, Hz (set by the board's rate command).
@@ -44,7 +48,13 @@ pub struct SimNorthStar {
     pub sensitivity: u8,
     seq: u8,
     rng: StdRng,
+    /// The magnitude noise's own stream.
+    magnitude_rng: StdRng,
 }
+
+/// Mixed into the seed of the magnitude noise's stream (any constant: the two streams only
+/// need to differ).
+const MAGNITUDE_STREAM: u64 = 0x6d61_676e_6974_7564;
 
 impl SimNorthStar {
     /// A NorthStar mounted with `cal`'s head pose and near-field parameters (true physics:
@@ -63,21 +73,30 @@ impl SimNorthStar {
             t,
             q,
             noise,
+            magnitude_noise: 0.0,
             garbage: 0.0,
             rate_hz: 10,
             sensitivity: 4,
             seq: 0,
             rng: StdRng::seed_from_u64(seed),
+            magnitude_rng: StdRng::seed_from_u64(seed ^ MAGNITUDE_STREAM),
         }
     }
 
     /// The next frame's bytes (with line noise before it, if configured).
     pub fn next_frame(&mut self) -> Vec<u8> {
         let normal = Normal::new(0.0, self.noise.max(0.0)).expect("finite sigma");
-        let rng = &mut self.rng;
-        let spots = simulate_spots(&self.physics, &self.constellation, &self.t, &self.q, |_| {
-            normal.sample(rng)
-        });
+        let mag_normal =
+            Normal::new(0.0, self.magnitude_noise.max(0.0) / 100.0).expect("finite sigma");
+        let (rng, mag_rng) = (&mut self.rng, &mut self.magnitude_rng);
+        let spots = simulate_spots_with(
+            &self.physics,
+            &self.constellation,
+            &self.t,
+            &self.q,
+            |_| normal.sample(rng),
+            |_| mag_normal.sample(mag_rng),
+        );
         let frame = SpotFrame {
             seq: self.seq,
             sensitivity: self.sensitivity,
@@ -299,4 +318,57 @@ pub fn answer_commands(sensitivity: &mut u8, rate_hz: &mut u8, bytes: &[u8]) -> 
         out.extend_from_slice(&a[..n]);
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::northstar::{NsDecoder, NsEvent};
+    use cta_core::pose::cta_constellation;
+
+    fn frames(ns: &mut SimNorthStar, n: usize) -> Vec<SpotFrame> {
+        let mut d = NsDecoder::new();
+        let mut out = Vec::new();
+        for _ in 0..n {
+            d.feed(&ns.next_frame(), |ev| {
+                if let NsEvent::Report(f) = ev {
+                    out.push(f);
+                }
+            });
+        }
+        assert_eq!(out.len(), n);
+        out
+    }
+
+    /// The magnitude noise scatters the magnitudes by the percentage asked for, from a
+    /// stream of its own: the coordinates are those of the same NorthStar without it.
+    #[test]
+    fn magnitude_noise_has_its_own_stream() {
+        // At 3 in the inner beacons' magnitudes are thousands of counts: their rounding is
+        // negligible.
+        let t = Vector3::new(0.2, -0.1, 3.0);
+        let q = Vector3::new(0.0, 0.0, 0.01);
+        let cal = Calibration::table3();
+        let mut quiet = SimNorthStar::new(&cal, cta_constellation(), t, q, 32.768, 5);
+        let mut noisy = quiet.clone();
+        noisy.magnitude_noise = 1.0;
+        let (a, b) = (frames(&mut quiet, 200), frames(&mut noisy, 200));
+        let mut rel = Vec::new();
+        for (a, b) in a.iter().zip(&b) {
+            assert_eq!(a.spots.len(), b.spots.len());
+            for (a, b) in a.spots.iter().zip(&b.spots) {
+                assert_eq!((a.id, a.x, a.y), (b.id, b.x, b.y));
+                if a.magnitude > 2000 {
+                    rel.push(b.magnitude as f64 / a.magnitude as f64 - 1.0);
+                }
+            }
+        }
+        let n = rel.len() as f64;
+        assert!(n >= 1000.0, "{n} spots");
+        let mean = rel.iter().sum::<f64>() / n;
+        let sd = (rel.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        // 1 % asked for; the estimates' own scatter is about 0.02 % and 1.6 % of it.
+        assert!(mean.abs() < 0.001, "mean {mean}");
+        assert!((sd - 0.01).abs() < 0.001, "sd {sd}");
+    }
 }

@@ -374,6 +374,20 @@ pub struct SimArgs {
     /// Spot noise, counts (1-sigma, 0 or more).
     #[arg(long, default_value_t = 32.768, allow_negative_numbers = true)]
     pub noise: f64,
+    /// Spot magnitude noise, percent of the magnitude (1-sigma, 0 to 100; the magnitudes are
+    /// then rounded to counts, 0.29 counts 1-sigma: about 0.1 % of the 270-360 counts of the
+    /// default scene at 12 in). The default 0.07 % is the level the default spot noise (0.1 %
+    /// of beta) implies if both come from independent noise in the four cells (sigma_M / M =
+    /// sigma_X / (sqrt 2 beta), see `cta sensor floor --help`). The board fits the magnitudes
+    /// when its calibration has a magnitude law (`magnitude`) fitted at the NorthStar's
+    /// sensitivity in force.
+    #[arg(
+        long,
+        value_name = "PCT",
+        default_value_t = 0.07,
+        allow_negative_numbers = true
+    )]
+    pub magnitude_noise: f64,
     /// Probability of line noise before a NorthStar frame (0 to 1).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub garbage: f64,
@@ -413,6 +427,7 @@ impl Default for SimArgs {
             offset: [0.2, -0.1],
             yaw_deg: 2.0,
             noise: 32.768,
+            magnitude_noise: 0.07,
             garbage: 0.0,
             seconds: None,
             configured: true,
@@ -434,6 +449,12 @@ impl SimArgs {
         }
         if !(self.noise >= 0.0 && self.noise <= 32768.0) {
             bail!("--noise {}: expected 0 to 32768 counts", self.noise);
+        }
+        if !(self.magnitude_noise >= 0.0 && self.magnitude_noise <= 100.0) {
+            bail!(
+                "--magnitude-noise {}: expected 0 to 100 percent of the magnitude",
+                self.magnitude_noise
+            );
         }
         if !(0.0..=1.0).contains(&self.garbage) {
             bail!("--garbage {}: expected a probability, 0 to 1", self.garbage);
@@ -515,6 +536,7 @@ impl SimArgs {
         if let Some(head) = self.head()? {
             ns.physics = head.emulator;
         }
+        ns.magnitude_noise = self.magnitude_noise;
         ns.garbage = self.garbage;
         Ok(ns)
     }

@@ -264,6 +264,14 @@ fn sensor_flags_are_checked_up_front() {
         ),
         (&["sim", "--range", "-3"], "--range -3"),
         (&["sim", "--noise", "-1"], "--noise -1"),
+        (
+            &["sim", "--magnitude-noise", "-0.1"],
+            "--magnitude-noise -0.1: expected 0 to 100 percent",
+        ),
+        (
+            &["sim", "--magnitude-noise", "101"],
+            "--magnitude-noise 101",
+        ),
         (&["sim", "--garbage", "1.5"], "--garbage 1.5"),
         (&["sim", "--seconds", "0"], "--seconds 0"),
     ];

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use cta_core::mrp;
 use cta_core::pose::{
-    cta_constellation, CalField, Calibration, ConfigError, ModelKind, PoseStatus,
+    cta_constellation, CalField, Calibration, ConfigError, Magnitude, ModelKind, PoseStatus,
 };
 use cta_core::wire::sensor::{
     Mode, PoseReport, SensorError, SensorProtocol, SensorRequest, SensorResponse, SensorStatus,
@@ -207,6 +207,67 @@ fn protocol_and_pose_over_a_pty() {
     assert!(s.calibrated && s.constellation);
     assert_eq!(s.last_pose, Some(PoseStatus::TooFewBeacons));
     assert!(s.reports >= 12 && s.northstar.frames >= 12);
+    l.call(SensorRequest::SetMode(Mode::Idle)).unwrap();
+}
+
+/// A calibration with a magnitude law (the simulated NorthStar's, fitted at sensitivity 4)
+/// goes through the wire and the flash, and the near-field poses fit the spot magnitudes
+/// while the NorthStar reports that sensitivity: every beacon's (`magnitudes` 10), with an
+/// attitude 1-sigma well below the spots' alone (at 10 in the mean over the three axes was
+/// 0.06 against 0.25 deg when this test was written). After `SetSensitivity` to another setting the poses are the spots' alone
+/// (`magnitudes` 0), and back at 4 the magnitudes are fitted again.
+#[test]
+fn a_magnitude_law_is_fitted_at_its_sensitivity_only() {
+    let (mut ns, t, _) = scene(10.0, 0.0);
+    ns.magnitude_noise = 0.07;
+    let sim = SimBoard::spawn(ns).unwrap();
+    let mut l = connect(&sim);
+    let cal = Calibration {
+        magnitude: Some(Magnitude::simulated(0.07)),
+        ..Calibration::table3()
+    };
+    assert_eq!(cal.magnitude.unwrap().sensitivity, 4);
+    l.call(SensorRequest::LoadCalibration(cal)).unwrap();
+    l.call(SensorRequest::LoadConstellation(cta_constellation()))
+        .unwrap();
+    match l.call(SensorRequest::GetConfig).unwrap() {
+        Some(SensorResponse::Config(c)) => assert_eq!(c.calibration, Some(cal)),
+        other => panic!("{other:?}"),
+    }
+    l.call(SensorRequest::SetMode(Mode::Pose(ModelKind::NearField)))
+        .unwrap();
+    // The attitude 1-sigma (mean over the axes and the poses) of 6 poses at `sensitivity`,
+    // each checked: Ok, all 10 beacons, `magnitudes` fitted, position within 0.1 in.
+    let mut at = |sensitivity: u8, magnitudes: u8| -> f64 {
+        l.call(SensorRequest::SetSensitivity(sensitivity)).unwrap();
+        l.discard_unsolicited();
+        let ps = poses(&mut l, 6);
+        assert_eq!(ps.len(), 6);
+        let mut sigma = 0.0;
+        for p in &ps {
+            assert_eq!(p.status, PoseStatus::Ok, "{p:?}");
+            assert_eq!(p.beacons, 10, "{p:?}");
+            assert_eq!(
+                p.magnitudes, magnitudes,
+                "at sensitivity {sensitivity}: {p:?}"
+            );
+            let pos = Vector3::new(
+                p.position[0] as f64,
+                p.position[1] as f64,
+                p.position[2] as f64,
+            );
+            assert!((pos - t).norm() < 0.1, "{p:?}");
+            sigma += p.sigma_attitude_deg.iter().map(|&s| s as f64).sum::<f64>() / 18.0;
+        }
+        sigma
+    };
+    let with = at(4, 10);
+    let without = at(3, 0);
+    assert!(
+        with < 0.5 * without,
+        "attitude 1-sigma {with:.3} deg with the magnitudes, {without:.3} deg without"
+    );
+    at(4, 10);
     l.call(SensorRequest::SetMode(Mode::Idle)).unwrap();
 }
 
