@@ -320,7 +320,9 @@ impl World {
                     id: ch,
                     x: saturate_i16(out[0] + sigma * nx),
                     y: saturate_i16(out[1] + sigma * ny),
-                    magnitude: m.min(65535.0) as u16,
+                    // Rounded, as the coordinates: truncation would bias ln M by -0.5 / M,
+                    // which depends on the distance.
+                    magnitude: m.min(65535.0).round() as u16,
                 });
             }
         }
