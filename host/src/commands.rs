@@ -649,6 +649,11 @@ pub struct SimulateArgs {
         default_value_t = 0.0
     )]
     pub magnitude_noise: f64,
+    /// Scatter of the LEDs' brightness, percent (0-50): each LED's is drawn once, log-normal
+    /// with this 1-sigma of its logarithm, and multiplies its magnitudes (not x, y); the
+    /// truth file records the factors. 0 = all alike. What `cta calibrate` measures back.
+    #[arg(long = "led-brightness", value_name = "PERCENT", default_value_t = 0.0)]
+    pub led_brightness: f64,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -683,6 +688,13 @@ pub fn sim_config(a: &SimulateArgs) -> Result<SimConfig> {
             crate::simulate::MAX_MAGNITUDE_NOISE
         );
     }
+    if !(0.0..=crate::simulate::MAX_LED_BRIGHTNESS).contains(&a.led_brightness) {
+        bail!(
+            "--led-brightness {}: between 0 and {} percent",
+            a.led_brightness,
+            crate::simulate::MAX_LED_BRIGHTNESS
+        );
+    }
     let v3 = |s: &str, what: &str| -> Result<nalgebra::Vector3<f64>> {
         let v = parse_list(s).with_context(|| what.to_string())?;
         if v.len() != 3 {
@@ -710,6 +722,7 @@ pub fn sim_config(a: &SimulateArgs) -> Result<SimConfig> {
         samples: a.samples,
         round: a.round,
         magnitude_noise: a.magnitude_noise,
+        led_brightness: a.led_brightness,
         seed: a.seed,
     })
 }

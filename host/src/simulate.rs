@@ -28,6 +28,28 @@ pub const MAX_MAGNITUDE_NOISE: f64 = 25.0;
 /// Mixed into the seed of the magnitude noise's stream.
 const MAGNITUDE_STREAM: u64 = 0x6d61_676e_6974_7564;
 
+/// Mixed into the seed of the LEDs' brightness draws ("brightns").
+const BRIGHTNESS_STREAM: u64 = 0x6272_6967_6874_6e73;
+
+/// The largest LED brightness scatter a simulation takes, percent (1-sigma of its
+/// logarithm): 4 sigma is then a factor 7.4, within what a constellation takes (0.05-20).
+pub const MAX_LED_BRIGHTNESS: f64 = 50.0;
+
+/// The relative brightness of `n` LEDs scattered `percent` (1-sigma of the logarithm, so a
+/// few percent is that scatter in percent; log-normal, always positive), drawn once from a
+/// stream of the seed's own: every LED 1 when `percent` is 0, and other draws of the seed (the
+/// noise, the geometry) are the same either way. `cta simulate --led-brightness` and the
+/// simulated sweep's `--sim-led-brightness` (LED `i` of the array) use it.
+pub fn led_brightness(seed: u64, percent: f64, n: usize) -> Vec<f64> {
+    if percent == 0.0 {
+        return vec![1.0; n];
+    }
+    let mut rng = StdRng::seed_from_u64(seed ^ BRIGHTNESS_STREAM);
+    (0..n)
+        .map(|_| (percent / 100.0 * rng.sample::<f64, _>(StandardNormal)).exp())
+        .collect()
+}
+
 /// Seed of the plate tilts' stream ("plattilt"), XORed with the seed.
 const TILT_STREAM: u64 = 0x706c_6174_7469_6c74;
 
@@ -60,6 +82,9 @@ pub struct SimConfig {
     /// `cta sensor floor --magnitude-noise`. Drawn from its own stream, so it never changes
     /// the x, y noise of a seed.
     pub magnitude_noise: f64,
+    /// The LEDs' brightness scatter, percent ([`led_brightness`]): each beacon's magnitude is
+    /// multiplied by its LED's brightness (its x, y are unchanged: a ratio). 0: all alike.
+    pub led_brightness: f64,
     /// Random seed.
     pub seed: u64,
 }
@@ -78,6 +103,7 @@ impl Default for SimConfig {
             samples: 1,
             round: false,
             magnitude_noise: 0.0,
+            led_brightness: 0.0,
             seed: 1,
         }
     }
@@ -124,6 +150,15 @@ pub struct Truth {
     /// none.
     #[serde(default)]
     pub magnitude_noise_percent: f64,
+    /// The LEDs' brightness scatter, percent (1-sigma of the logarithm); 0 (also in files
+    /// written before it existed): all alike.
+    #[serde(default)]
+    pub led_brightness_percent: f64,
+    /// Each LED's brightness factor (its magnitudes are multiplied by it), by beacon id (the
+    /// array's LED for a sweep: the four-array layout's beacon `100 a + i` is LED `i`); absent
+    /// when all are 1.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub led_brightness: Vec<f64>,
     /// Samples per point.
     pub samples: usize,
     /// Seed.
@@ -338,6 +373,12 @@ impl SimConfig {
                 self.magnitude_noise
             ));
         }
+        if !(0.0..=MAX_LED_BRIGHTNESS).contains(&self.led_brightness) {
+            return Err(format!(
+                "LED brightness scatter {} %: between 0 and {MAX_LED_BRIGHTNESS} %",
+                self.led_brightness
+            ));
+        }
         let reports = (self.separations.len() as u128) * (beacons as u128) * (self.samples as u128);
         if reports > MAX_REPORTS as u128 {
             return Err(format!(
@@ -383,6 +424,7 @@ impl SimConfig {
         let mut mag_rng = StdRng::seed_from_u64(self.seed ^ MAGNITUDE_STREAM);
         let mag_sigma = self.magnitude_noise / 100.0;
         let n = self.grid.0 * self.grid.1;
+        let bright = led_brightness(self.seed, self.led_brightness, n);
         let mut samples = Vec::with_capacity(
             self.separations
                 .len()
@@ -394,14 +436,14 @@ impl SimConfig {
         for (k, &sep) in self.separations.iter().enumerate() {
             let place = phys.geometry[k];
             let em = place.emulator(em);
-            for i in 0..n {
+            for (i, brightness) in bright.iter().enumerate() {
                 let nominal = grid_position_xy(self.grid, self.pitch, sep, i);
                 let truth = place.beacon(&nominal);
                 let Some(out) = em.output(&truth) else {
                     skipped += 1;
                     continue;
                 };
-                let mag = em.magnitude(&truth);
+                let mag = em.magnitude(&truth) * brightness;
                 for s in 0..self.samples {
                     let mut v = [out[0], out[1]];
                     if self.noise > 0.0 {
@@ -453,6 +495,12 @@ impl SimConfig {
             noise_counts: self.noise,
             noise_law: None,
             magnitude_noise_percent: self.magnitude_noise,
+            led_brightness_percent: self.led_brightness,
+            led_brightness: if self.led_brightness > 0.0 {
+                bright
+            } else {
+                Vec::new()
+            },
             samples: self.samples,
             seed: self.seed,
             skipped_points: skipped,
@@ -735,6 +783,53 @@ mod tests {
             .check()
             .unwrap_err();
             assert!(e.contains("magnitude noise"), "{e}");
+        }
+    }
+
+    /// The LEDs' brightness scatter multiplies each beacon's magnitudes by its LED's factor
+    /// (recorded in the truth, drawn from a stream of its own: x, y and the magnitude noise of
+    /// the seed are unchanged), about as widely as asked; 0 leaves the file as it was, and the
+    /// truth without factors; beyond 50 % it is refused.
+    #[test]
+    fn led_brightness_scales_the_magnitudes_by_their_leds_factor() {
+        let base = SimConfig {
+            separations: vec![5.0, 20.0],
+            noise: 30.0,
+            samples: 2,
+            magnitude_noise: 0.5,
+            seed: 8,
+            ..Default::default()
+        };
+        let (plain, t0) = base.run();
+        assert!(t0.led_brightness.is_empty() && t0.led_brightness_percent == 0.0);
+        let json = serde_json::to_string(&t0).unwrap();
+        assert!(!json.contains("\"led_brightness\""), "{json}");
+        let (bright, t1) = SimConfig {
+            led_brightness: 10.0,
+            ..base.clone()
+        }
+        .run();
+        assert_eq!(t1.led_brightness_percent, 10.0);
+        assert_eq!(t1.led_brightness.len(), 100);
+        assert_eq!(t1.led_brightness, led_brightness(8, 10.0, 100));
+        for (a, b) in plain.samples.iter().zip(&bright.samples) {
+            assert_eq!([a.x, a.y], [b.x, b.y]);
+            let f = t1.led_brightness[a.beacon.unwrap() as usize];
+            let (ma, mb) = (a.magnitude.unwrap(), b.magnitude.unwrap());
+            assert!((mb / ma / f - 1.0).abs() < 1e-12, "{ma} {mb} {f}");
+        }
+        let ln: Vec<f64> = t1.led_brightness.iter().map(|b| b.ln()).collect();
+        let sd = (ln.iter().map(|v| v * v).sum::<f64>() / ln.len() as f64).sqrt();
+        assert!((0.08..0.12).contains(&sd), "{sd}");
+        assert!(led_brightness(8, 0.0, 3) == [1.0; 3]);
+        for bad in [-1.0, 50.5, f64::NAN] {
+            let e = SimConfig {
+                led_brightness: bad,
+                ..base.clone()
+            }
+            .check()
+            .unwrap_err();
+            assert!(e.contains("LED brightness"), "{e}");
         }
     }
 

@@ -1,6 +1,7 @@
 //! `cta sweep` killed mid-run (SIGKILL, the process gone without warning) and resumed: the
 //! measurement file equals, byte for byte and point for point, an uninterrupted run with the
-//! same seed.
+//! same seed (the simulation's settings journalled: the LEDs' brightness scatter too, which
+//! the magnitudes show).
 //!
 //! The killed process is this test binary re-executed with `CTA_SWEEP_CHILD` set, running
 //! only `child_sweep`.
@@ -35,6 +36,7 @@ fn args(out: &Path, plan: &Path) -> SweepArgs {
         sim_noise: Some(25.0),
         sim_seed: Some(42),
         sim_effect: vec!["plate_offset=0.05".into()],
+        sim_led_brightness: Some(8.0),
         ..sweep_args(plan, out)
     }
 }
@@ -96,6 +98,16 @@ fn killed_and_resumed_equals_uninterrupted() {
         "{e}"
     );
     drop(held);
+    // A resume simulates what the run did: another brightness scatter is refused.
+    let e = format!(
+        "{:#}",
+        sweep::sweep(&SweepArgs {
+            sim_led_brightness: Some(3.0),
+            ..resume_args(&run)
+        })
+        .unwrap_err()
+    );
+    assert!(e.contains("LED brightness scatter 8 %"), "{e}");
     let resumed = sweep::sweep(&a).unwrap();
     assert_eq!(resumed.ending, Ending::Complete);
     assert!(resumed.stats.ok + resumed.stats.no_signal + resumed.stats.partial < full.points);

@@ -92,6 +92,11 @@ pub struct SweepArgs {
     /// for `cta noise` -> `cta sensor floor --magnitude-noise`.
     #[arg(long, value_name = "PERCENT")]
     pub sim_magnitude_noise: Option<f64>,
+    /// Simulated CTA: scatter of the LEDs' brightness, percent (0-50; each LED of the array
+    /// drawn once, log-normal, multiplying its magnitudes; the truth records the factors);
+    /// default 0, and on --resume the run's own. What `cta calibrate` measures back.
+    #[arg(long, value_name = "PERCENT")]
+    pub sim_led_brightness: Option<f64>,
     /// Simulated CTA: inject an effect of the analysis vocabulary (repeatable), e.g.
     /// `beacon_tilt=2,45`, `plate_offset=0.05`, `cell_gain=0.03`.
     #[arg(long, value_name = "NAME=VALUE")]
@@ -146,7 +151,7 @@ pub struct SweepArgs {
         value_name = "RUN_DIR",
         conflicts_with_all = [
             "out", "resume", "plan", "beacon", "sensor", "sim", "force", "yes", "sim_noise",
-            "sim_magnitude_noise", "sim_effect", "sim_seed", "sim_realtime", "sim_unthrottled",
+            "sim_magnitude_noise", "sim_led_brightness", "sim_effect", "sim_seed", "sim_realtime", "sim_unthrottled",
             "sim_fault", "quiet", "no_sync", "recover_truncated"
         ]
     )]
@@ -381,16 +386,21 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                     || args
                         .sim_magnitude_noise
                         .is_some_and(|x| x != s.magnitude_noise)
+                    || args
+                        .sim_led_brightness
+                        .is_some_and(|x| x != s.led_brightness)
                     || (!args.sim_effect.is_empty() && args.sim_effect != s.effects);
                 if differs {
                     bail!(
-                        "{} was simulated with seed {}, noise {}, magnitude noise {} %, effects \
-                         {:?}; a resume simulates the same (leave out --sim-seed/--sim-noise/\
-                         --sim-magnitude-noise/--sim-effect)",
+                        "{} was simulated with seed {}, noise {}, magnitude noise {} %, LED \
+                         brightness scatter {} %, effects {:?}; a resume simulates the same \
+                         (leave out --sim-seed/--sim-noise/--sim-magnitude-noise/\
+                         --sim-led-brightness/--sim-effect)",
                         dir.display(),
                         s.seed,
                         s.noise,
                         s.magnitude_noise,
+                        s.led_brightness,
                         s.effects
                     );
                 }
@@ -857,6 +867,7 @@ fn sim_settings(args: &SweepArgs) -> Result<Option<SimSettings>> {
     if args.beacon.is_some() {
         let sim_only = args.sim_noise.is_some()
             || args.sim_magnitude_noise.is_some()
+            || args.sim_led_brightness.is_some()
             || !args.sim_effect.is_empty()
             || args.sim_seed.is_some()
             || args.sim_realtime
@@ -875,6 +886,7 @@ fn sim_settings(args: &SweepArgs) -> Result<Option<SimSettings>> {
         seed: args.sim_seed.unwrap_or(d.seed),
         noise: args.sim_noise.unwrap_or(d.noise),
         magnitude_noise: args.sim_magnitude_noise.unwrap_or(d.magnitude_noise),
+        led_brightness: args.sim_led_brightness.unwrap_or(d.led_brightness),
         effects: args.sim_effect.clone(),
         realtime: args.sim_realtime,
         faults: parse_faults(args)?,

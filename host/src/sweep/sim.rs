@@ -202,6 +202,10 @@ pub struct SimSettings {
     /// before it existed): none.
     #[serde(default)]
     pub magnitude_noise: f64,
+    /// The LEDs' brightness scatter, percent ([`crate::simulate::led_brightness`], LED `i` of
+    /// the array); 0 (also in journals written before it existed): all alike.
+    #[serde(default)]
+    pub led_brightness: f64,
     /// Effects (`NAME=VALUE`, the analysis vocabulary).
     pub effects: Vec<String>,
     /// Run the detector at the board's rate (10 Hz) instead of unthrottled.
@@ -216,6 +220,7 @@ impl Default for SimSettings {
             seed: 1,
             noise: 10.0,
             magnitude_noise: 0.0,
+            led_brightness: 0.0,
             effects: Vec::new(),
             realtime: false,
             faults: Faults::default(),
@@ -233,6 +238,8 @@ struct Apparatus {
 
 struct World {
     em: Emulator<f64>,
+    /// Each LED's brightness factor (its magnitude is multiplied by it).
+    brightness: Vec<f64>,
     geometry: Vec<Placement>,
     separations: Vec<f64>,
     layout: Layout,
@@ -290,7 +297,7 @@ impl World {
             let Some(out) = em.output(&r) else {
                 continue;
             };
-            let mag = em.magnitude(&r) * scale * gain;
+            let mag = em.magnitude(&r) * scale * gain * self.brightness[led];
             if mag.is_nan() || mag < NO_SIGNAL {
                 continue;
             }
@@ -769,11 +776,19 @@ impl SimCta {
                 crate::simulate::MAX_MAGNITUDE_NOISE
             );
         }
+        if !(0.0..=crate::simulate::MAX_LED_BRIGHTNESS).contains(&settings.led_brightness) {
+            bail!(
+                "--sim-led-brightness {}: between 0 and {} percent",
+                settings.led_brightness,
+                crate::simulate::MAX_LED_BRIGHTNESS
+            );
+        }
         let config = SimConfig {
             separations: plan.separations.clone(),
             effects,
             noise: settings.noise,
             magnitude_noise: settings.magnitude_noise,
+            led_brightness: settings.led_brightness,
             seed: settings.seed,
             samples: plan.samples as usize,
             ..SimConfig::default()
@@ -781,6 +796,11 @@ impl SimCta {
         let phys = config.physics();
         let world = Arc::new(World {
             em: phys.emulator,
+            brightness: crate::simulate::led_brightness(
+                settings.seed,
+                settings.led_brightness,
+                LED_COUNT,
+            ),
             geometry: phys.geometry,
             separations: plan.separations.clone(),
             layout: plan.layout,
