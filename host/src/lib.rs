@@ -15,6 +15,8 @@ pub mod pose_floor;
 pub mod sensor_cmd;
 // `cta calibrate`: the sensor board's calibration file from a measured sweep.
 pub mod calibrate;
+// The spot magnitude law (and each LED's brightness) `cta calibrate` fits to a sweep.
+pub mod magnitude;
 
 // The thesis subcommands.
 pub mod commands;
