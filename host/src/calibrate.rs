@@ -20,6 +20,11 @@
 //!    model explains the data to the noise). Points with a pinned output (a coordinate at
 //!    +/-32767 in any sample, or its mean within 3 sigma of it) carry no position
 //!    information and are left out.
+//! 3. **Spot magnitudes** ([`fit_magnitude`], [`crate::magnitude`]; `--no-magnitude` leaves
+//!    them out): the law `M = offset + A (b S)^exponent` of [`Calibration::magnitude`], `S`
+//!    the eq 63 summed cell signal of the fitted head at each beacon, with each LED's
+//!    brightness `b` (the file's `led_brightness`, host-side) and the law's 1-sigma in
+//!    `fitted.sigma`, at one sensitivity setting.
 //!
 //! The calibration's `noise` (the chip's per-coordinate 1-sigma) is the one-sample noise
 //! pooled over the file (or `--noise`). The residual RMS per separation of both models is
@@ -41,6 +46,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::analyze::wiring;
 use crate::fit::{self, Weights};
+use crate::magnitude::{LedBrightness, MagnitudeReport, Outcome};
 use crate::measurement::{any_sample_pinned, fmt_list, mean_near_rail, parse_separations, Dataset};
 
 /// Near-field chi2/dof above which the report warns that the data hold structure the chip's
@@ -357,7 +363,11 @@ fn strong_correlations(cov: &nalgebra::DMatrix<f64>) -> Vec<(String, String, f64
 the JSON file `cta sensor load-calibration` stores in the board's flash.\n\n\
 Two fits: the pinhole model (eq 65: d, p, H) on the far separations, then the near-field model \
 (eqs 60-63: d, p, the face angles of both pairs, cell offset s, cell gains gx, gy, cell offsets \
-bx, by) on every separation, started from it. The file holds both: the near-field fit's d, p (the \
+bx, by) on every separation, started from it. Then the spot magnitude law the near-field pose \
+fits the magnitudes with, M = offset + A (b S)^exponent (S: eq 63's summed cell signal of the \
+fitted head; b: each LED's brightness, written as `led_brightness` for `cta sensor \
+load-constellation --brightness`; A: a scale every pose estimates), at one sensitivity setting, \
+saturated readings left out (host/CALIBRATE.md, item 3; --no-magnitude leaves it out). The file holds both: the near-field fit's d, p (the \
 head) and the pinhole fit's own (`pinhole`: its eye point, about 1 in above the head), which the \
 chip's pinhole model uses with H. Repeated samples are averaged per point and weighted by their noise, pooled per separation and axis. The \
 report gives every parameter with its 1-sigma, the residual RMS per separation of both models (what \
@@ -404,6 +414,15 @@ pub struct CalibrateArgs {
     /// many were left out.
     #[arg(long)]
     pub drop_glitches: bool,
+    /// Leave the spot magnitude law out of the calibration (by default it is fitted to the
+    /// file's `magnitude` column with the fitted head, and the pose uses the magnitudes).
+    #[arg(long, conflicts_with = "magnitude_sensitivity")]
+    pub no_magnitude: bool,
+    /// The NorthStar sensitivity setting (1-4) whose magnitudes the law is fitted to (the chip
+    /// uses the law only at it). Default: the setting with the most magnitudes in the file
+    /// (rows without a `sensitivity` count as 4, the board's start-up setting).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=4))]
+    pub magnitude_sensitivity: Option<u8>,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -418,6 +437,11 @@ pub struct CalibrationFile {
     pub calibration: Calibration,
     /// Provenance and fit quality.
     pub fitted: Provenance,
+    /// Each LED's brightness relative to the others', from the spot magnitudes (host-side
+    /// data the board ignores: `cta sensor load-constellation --brightness` puts it into a
+    /// constellation's beacons). Empty (and absent from the file) without a magnitude law.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub led_brightness: Vec<LedBrightness>,
 }
 
 /// Where a calibration came from.
@@ -503,6 +527,10 @@ pub struct CalibrationReport {
     /// Notes on the data fitted: the glitched samples `--drop-glitches` left out, as `cta
     /// analyze`'s `data_notes`.
     pub data_notes: Vec<String>,
+    /// The spot magnitude law fitted ([`fit_magnitude`]), when there is one.
+    pub magnitude: Option<MagnitudeReport>,
+    /// Why the calibration has no magnitude law, when it has none.
+    pub magnitude_note: Option<String>,
 }
 
 /// The pooled one-sample noise per separation ([`fit::pooled_noise`], the rule `cta fit
@@ -956,6 +984,7 @@ pub fn calibrate(
                 glitches_left_out: 0,
                 correlations: nf.correlations.clone(),
             },
+            led_brightness: Vec::new(),
         },
         pinhole_h: xp.h(),
         pinhole_chi2_dof,
@@ -966,7 +995,48 @@ pub fn calibrate(
         by_separation,
         warnings,
         data_notes: Vec::new(),
+        magnitude: None,
+        magnitude_note: Some("not fitted".into()),
     })
+}
+
+/// Fit the spot magnitude law ([`crate::magnitude`]) to the magnitudes of `ds` (the
+/// near-field fit's data) with the head `rep`'s calibration holds, at `sensitivity` (default:
+/// the file's most common), and put it into `rep`: the calibration's `magnitude`, the file's
+/// `led_brightness`, the 1-sigma `magnitude.offset` and `magnitude.exponent` in
+/// `fitted.sigma`. A file whose magnitudes give no law leaves the calibration without one and
+/// says why in [`CalibrationReport::magnitude_note`]; an error only for a `sensitivity` the
+/// file does not have.
+pub fn fit_magnitude(
+    rep: &mut CalibrationReport,
+    ds: &Dataset,
+    sensitivity: Option<u8>,
+) -> Result<()> {
+    let em = cta_firmware_sensor::sim::physics(&rep.file.calibration);
+    match crate::magnitude::fit_dataset(ds, &em, sensitivity)? {
+        Outcome::Law(m) => {
+            let mut cal = rep.file.calibration;
+            cal.magnitude = Some(m.law);
+            cal.validate()
+                .map_err(|e| anyhow!("{}: the magnitude law: {e}", ds.path.display()))?;
+            rep.file.calibration = cal;
+            rep.file.led_brightness = m.led_brightness.clone();
+            let sigma = &mut rep.file.fitted.sigma;
+            if let Some(s) = m.offset_sigma {
+                sigma.insert("magnitude.offset".into(), s);
+            }
+            sigma.insert("magnitude.exponent".into(), m.exponent_sigma);
+            rep.magnitude = Some(*m);
+            rep.magnitude_note = None;
+        }
+        Outcome::NoLaw(why) => {
+            rep.file.calibration.magnitude = None;
+            rep.file.led_brightness.clear();
+            rep.magnitude = None;
+            rep.magnitude_note = Some(why);
+        }
+    }
+    Ok(())
 }
 
 /// `--out` may replace an earlier calibration written by `cta calibrate`; never the
@@ -1028,6 +1098,11 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
         Some(s) => Some(parse_separations(s).map_err(|e| anyhow!("--pinhole-separations: {e}"))?),
     };
     let mut rep = calibrate(&ds, &all, ph.as_deref(), a.noise, a.pattern_m)?;
+    if a.no_magnitude {
+        rep.magnitude_note = Some("left out (--no-magnitude)".into());
+    } else {
+        fit_magnitude(&mut rep, &ds, a.magnitude_sensitivity)?;
+    }
     if let Some((n, note)) = dropped {
         rep.file.fitted.glitches_left_out = n;
         rep.data_notes.push(note);
@@ -1205,6 +1280,7 @@ fn print_report(rep: &CalibrationReport, out: Option<Option<&Path>>) {
         );
         println!("{}", line.trim_end());
     }
+    print_magnitude(rep);
     for w in rep.pinhole_warnings.iter().chain(&rep.warnings) {
         println!("warning: {w}");
     }
@@ -1224,6 +1300,133 @@ fn print_report(rep: &CalibrationReport, out: Option<Option<&Path>>) {
         ),
         Some(None) => println!("\n(not written: give --out CAL.json)"),
         None => {}
+    }
+}
+
+/// The magnitude law's section of the report: the law with its 1-sigma, the noise, the LEDs'
+/// brightness, what was used and left out, the residuals per separation and the warnings; or
+/// one line saying why there is none.
+fn print_magnitude(rep: &CalibrationReport) {
+    let Some(m) = &rep.magnitude else {
+        if let Some(n) = &rep.magnitude_note {
+            println!("\n  spot magnitudes: no law ({n})");
+        }
+        return;
+    };
+    let l = &m.law;
+    let unit = if m.counts { " counts" } else { "" };
+    println!(
+        "\n  spot magnitudes (sensitivity {}): {} samples, {} points, {} LEDs at {} in",
+        l.sensitivity,
+        m.samples,
+        m.points,
+        m.led_brightness.len(),
+        match m.separations.as_slice() {
+            [a, .., b] if m.separations.len() > 6 => {
+                format!("{} separations, {a}-{b}", m.separations.len())
+            }
+            v => fmt_list(v),
+        }
+    );
+    let offset = match m.offset_sigma {
+        _ if m.offset_at_zero => format!(
+            "0 (its bound; 1-sigma {})",
+            m.offset_sigma
+                .map_or("undetermined".into(), |s| format!("{s:.2e}"))
+        ),
+        Some(s) => {
+            let (v, s) = crate::analyze::digits::pm_parts(f64::from(l.offset), s);
+            format!("{v} ± {s}")
+        }
+        None => format!("{:.1} (undetermined)", l.offset),
+    };
+    let (g, gs) = crate::analyze::digits::pm_parts(f64::from(l.exponent), m.exponent_sigma);
+    println!("    M = offset + A (b S)^exponent: offset = {offset}{unit}, exponent = {g} ± {gs}");
+    println!(
+        "    noise {:.3} % of M - offset per reading (within points {:.3} %, points about the \
+         law {:.3} %{}); readings at or above {} taken as saturated",
+        l.noise_percent,
+        m.noise_within_percent,
+        m.noise_between_percent,
+        if m.counts { "; rounding apart" } else { "" },
+        l.max
+    );
+    println!(
+        "    LED brightness b: {:.3}-{:.3}, RMS {:.1} % about 1 (in the file as `led_brightness`, \
+         for `cta sensor load-constellation --brightness`)",
+        m.brightness_min, m.brightness_max, m.brightness_rms_percent
+    );
+    if m.settings.len() > 1 {
+        let what = |s: &crate::magnitude::SettingLight| {
+            let mut w = Vec::new();
+            if let Some(p) = s.power {
+                w.push(format!("power {p}"));
+            }
+            if let Some(f) = s.frequency_hz {
+                w.push(format!("{f} Hz"));
+            }
+            w.join(", ")
+        };
+        println!(
+            "    light per drive setting, relative to {}: {}",
+            what(&m.settings[0]),
+            m.settings[1..]
+                .iter()
+                .map(|s| format!("{} {:.4} ± {:.4}", what(s), s.light, s.sigma))
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
+    }
+    let by = &m.by_separation;
+    if by.len() <= 10 {
+        println!(
+            "    residual RMS per separation (%): {}",
+            by.iter()
+                .map(|b| format!("{} in {:.3}", b.separation_in, b.rms_percent))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    } else {
+        let rms = by.iter().map(|b| b.rms_percent);
+        println!(
+            "    residual RMS per separation: {:.3}-{:.3} % (each in --json)",
+            rms.clone().fold(f64::INFINITY, f64::min),
+            rms.fold(0.0, f64::max)
+        );
+    }
+    let mut left = Vec::new();
+    if m.saturated_points > 0 {
+        left.push(format!(
+            "{} saturated points ({} readings at or above {})",
+            m.saturated_points, m.saturated_samples, l.max
+        ));
+    }
+    if m.pinned_points > 0 {
+        left.push(format!(
+            "{} points with an output at the 16-bit rail",
+            m.pinned_points
+        ));
+    }
+    if m.no_signal_points > 0 {
+        left.push(format!("{} points without signal", m.no_signal_points));
+    }
+    if m.other_sensitivity_samples > 0 {
+        left.push(format!(
+            "{} samples at other sensitivities ({}; --magnitude-sensitivity chooses)",
+            m.other_sensitivity_samples,
+            m.sensitivities
+                .iter()
+                .filter(|(k, _)| *k != l.sensitivity)
+                .map(|(k, n)| format!("{k}: {n}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    if !left.is_empty() {
+        println!("    left out: {}", left.join("; "));
+    }
+    for w in &m.warnings {
+        println!("warning: spot magnitudes: {w}");
     }
 }
 

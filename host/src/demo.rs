@@ -269,11 +269,13 @@ fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> 
          head ({hidden}), at the calibration's spot noise. \
          Run the first command in another terminal; it prints the pseudo-terminal to use as PTY:\n\
          \x20 cta sensor sim --truth {} --noise {noise:.1} --configured\n\
-         \x20 cta sensor --port PTY load-calibration {}\n\
+         \x20 cta sensor --port PTY load-calibration {} --no-magnitude\n\
          \x20 cta sensor --port PTY pose --count 5\n\
          The target sits at x {x}, y {y}, z {} in (the simulated board's --offset and --range): \
          single poses scatter about it by their 1-sigma (sx, sy, sz), and the mean of a few lies \
-         within it.\n",
+         within it. (--no-magnitude: the poses use the spots alone. cal.json's spot magnitude \
+         law describes the simulated sweep's NorthStar; the simulated board's magnitudes are on \
+         a scale of their own and noise-free, which the law does not describe.)\n",
         truth.display(),
         cal.display(),
         scene.range,

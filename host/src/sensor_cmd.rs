@@ -208,6 +208,11 @@ pub enum SensorCommand {
     LoadCalibration {
         /// JSON file.
         file: String,
+        /// Store it without its spot magnitude law (`magnitude`): the pose then uses the spots
+        /// alone (to compare, or when the board's magnitudes are not the sweep's: a simulated
+        /// board's scale is another than the simulated sweep's).
+        #[arg(long)]
+        no_magnitude: bool,
         #[command(flatten)]
         conn: SensorConn,
     },
@@ -905,11 +910,21 @@ fn board_command<S: std::io::Read + std::io::Write>(
             link.heartbeat()?;
             println!("heartbeat acknowledged");
         }
-        SensorCommand::LoadCalibration { file, .. } => {
-            let cal: Calibration = read_json(file)?;
+        SensorCommand::LoadCalibration {
+            file, no_magnitude, ..
+        } => {
+            let mut cal: Calibration = read_json(file)?;
+            let without = if *no_magnitude && cal.magnitude.take().is_some() {
+                " without its magnitude law (--no-magnitude)"
+            } else {
+                ""
+            };
             link.call(SensorRequest::LoadCalibration(cal))
                 .with_context(|| format!("loading the calibration of {file}"))?;
-            println!("calibration from {file} stored in flash{}", sim_note(conn));
+            println!(
+                "calibration from {file}{without} stored in flash{}",
+                sim_note(conn)
+            );
         }
         SensorCommand::LoadConstellation { file, .. } => {
             let (con, warnings) = crate::plate::read_constellation(file)?;
@@ -1119,8 +1134,8 @@ fn small_angles_deg(q: &Vector3<f64>) -> [f64; 3] {
 /// A calibration or constellation file. A key the type does not have is refused, naming it
 /// and the keys it has there: a typo (`gains` for `gain`, `nearfield` for `near_field`)
 /// would otherwise be dropped, and the board would store the nominal value in its place.
-/// `fitted` (what `cta calibrate` records of the fit, which the board ignores) is allowed at
-/// the top.
+/// The host-side keys of [`BoardFile::HOST_KEYS`] (what `cta calibrate` records of the fit,
+/// and the LEDs' brightness, which the board ignores) are allowed at the top.
 pub(crate) fn read_json<T: serde::de::DeserializeOwned + serde::Serialize + BoardFile>(
     file: &str,
 ) -> Result<T> {
@@ -1138,7 +1153,7 @@ pub(crate) fn read_json<T: serde::de::DeserializeOwned + serde::Serialize + Boar
     };
     let given: serde_json::Value = serde_json::from_str(&text)?;
     let known = serde_json::to_value(&t)?;
-    if let Some((key, keys)) = unknown_key(&given, &known, "", &["fitted"]) {
+    if let Some((key, keys)) = unknown_key(&given, &known, "", T::HOST_KEYS) {
         bail!(
             "{file}: unknown key `{key}` (a typo? the keys there are {keys}; see `cta sensor \
              template`)"
@@ -1155,6 +1170,8 @@ pub(crate) trait BoardFile {
     const MADE_BY: &'static str;
     /// The `cta sensor` subcommand that loads one.
     const LOAD: &'static str;
+    /// Top-level keys of host-side data the board ignores.
+    const HOST_KEYS: &'static [&'static str] = &["fitted"];
 }
 
 impl BoardFile for Calibration {
@@ -1162,6 +1179,9 @@ impl BoardFile for Calibration {
     const MADE_BY: &'static str = "a calibration comes from `cta calibrate DATA.csv --out \
          cal.json` (a sweep's data) or `cta sensor template calibration` (to edit)";
     const LOAD: &'static str = "load-calibration";
+    // `cta calibrate`'s provenance and the LEDs' brightness
+    // (`load-constellation --brightness`).
+    const HOST_KEYS: &'static [&'static str] = &["fitted", "led_brightness"];
 }
 
 impl BoardFile for cta_core::pose::Constellation {

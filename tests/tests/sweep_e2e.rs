@@ -131,3 +131,107 @@ fn simulated_magnitude_noise_is_measured_by_cta_noise() {
         "{truth}"
     );
 }
+
+/// The simulated sweep's magnitudes through the boards (whole counts, the NorthStar's no-signal
+/// floor of 5000 and its 16-bit rail) with the LEDs 10 % apart and 0.3 % magnitude noise:
+/// `cta calibrate` finds the simulator's linear law (exponent 1, offset 0, each within a few
+/// of its 1-sigma), leaves the saturated points out (the law's max is the rail, and no point
+/// it used reads it), measures the noise, and gives each LED's brightness as the truth file
+/// records it.
+#[test]
+fn a_simulated_sweeps_magnitudes_give_a_linear_law_and_the_leds_brightness() {
+    use cta_host::calibrate::{calibrate, fit_magnitude};
+    let d = TestDir::new("sweep-e2e-law");
+    let plan = write_plan(
+        &d,
+        r#"
+name = "magnitude law"
+separations_in = [8, 12, 16, 20, 25, 30]
+beacons = "all"
+frequencies_hz = [4050]
+power_levels = [2]
+sensitivities = [4]
+samples = 3
+settle_ms = 0
+"#,
+    );
+    let a = SweepArgs {
+        sim_led_brightness: Some(10.0),
+        sim_magnitude_noise: Some(0.3),
+        ..args(&d, &plan)
+    };
+    assert_eq!(sweep::sweep(&a).unwrap().ending, Ending::Complete);
+    let run = d.join("run");
+    let ds = Dataset::read(&sweep::data_path(&run)).unwrap();
+    let saturated = ds
+        .samples
+        .iter()
+        .filter(|s| s.magnitude == Some(65535.0))
+        .count();
+    assert!(
+        saturated > 100,
+        "{saturated}: the close points must saturate"
+    );
+    let mut rep = calibrate(&ds, &ds, None, None, 1.0).unwrap();
+    fit_magnitude(&mut rep, &ds, None).unwrap();
+    let m = rep.magnitude.as_ref().expect("a magnitude law");
+    let law = rep
+        .file
+        .calibration
+        .magnitude
+        .expect("the law in the calibration");
+    assert_eq!(law, m.law);
+    assert_eq!((law.max, law.sensitivity), (65535.0, 4));
+    assert!(m.counts, "the sweep's magnitudes are whole counts");
+    assert!(m.saturated_points > 30, "{}", m.saturated_points);
+    assert_eq!(m.points + m.saturated_points, ds.points().len());
+    assert!(
+        (f64::from(law.exponent) - 1.0).abs() < 4.0 * m.exponent_sigma && m.exponent_sigma < 0.002,
+        "exponent {} +/- {}",
+        law.exponent,
+        m.exponent_sigma
+    );
+    let o = m.offset_sigma.unwrap();
+    assert!(
+        m.offset_at_zero || f64::from(law.offset) < 4.0 * o,
+        "offset {} +/- {o}",
+        law.offset
+    );
+    assert!(o < 100.0, "offset 1-sigma {o}");
+    assert!(
+        (f64::from(law.noise_percent) / 0.3 - 1.0).abs() < 0.15,
+        "{}",
+        law.noise_percent
+    );
+    assert_eq!(rep.file.led_brightness, m.led_brightness);
+    assert!(rep.file.fitted.sigma.contains_key("magnitude.exponent"));
+    // Each LED's brightness against the truth's, normalised alike (geometric mean 1).
+    let truth = cta_host::simulate::Truth::load_for(&sweep::data_path(&run))
+        .unwrap()
+        .unwrap();
+    assert_eq!(truth.led_brightness_percent, 10.0);
+    let tb = truth.led_brightness;
+    assert_eq!(tb.len(), 100);
+    let leds = &m.led_brightness;
+    assert_eq!(leds.len(), 100);
+    let gm = (leds
+        .iter()
+        .map(|l| tb[l.beacon.unwrap() as usize].ln())
+        .sum::<f64>()
+        / leds.len() as f64)
+        .exp();
+    let z: Vec<f64> = leds
+        .iter()
+        .map(|l| (l.brightness - tb[l.beacon.unwrap() as usize] / gm) / l.sigma)
+        .collect();
+    let rms = (z.iter().map(|z| z * z).sum::<f64>() / z.len() as f64).sqrt();
+    assert!(
+        z.iter().all(|z| z.abs() < 4.5) && (0.6..1.5).contains(&rms),
+        "brightness z-scores: RMS {rms}, {z:?}"
+    );
+    assert!(
+        (8.0..12.0).contains(&m.brightness_rms_percent),
+        "{}",
+        m.brightness_rms_percent
+    );
+}
