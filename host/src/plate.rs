@@ -214,6 +214,71 @@ pub fn read_constellation(file: &str) -> Result<(Constellation, Vec<String>)> {
     Ok((con, warnings))
 }
 
+/// How far (in) a beacon's `(x, y)` may lie from an LED of a calibration's `led_brightness`
+/// to take its brightness ([`set_brightness`]).
+pub const BRIGHTNESS_MATCH_IN: f64 = 0.05;
+
+/// Set each beacon's [`Beacon::brightness`](cta_core::pose::Beacon::brightness) from the LEDs'
+/// brightness `cta calibrate` fitted (the calibration file `cal`'s `led_brightness`): the LED
+/// whose plate position `(x, y)` (as the measurement file gave it, N frame) lies within
+/// [`BRIGHTNESS_MATCH_IN`] of the beacon's `(x, y)` in T (for a constellation built from the
+/// plate's LEDs, T is the plate frame). Beacons without one keep theirs, and are named in a
+/// warning. Returns how many were set and the warnings.
+pub fn set_brightness(con: &mut Constellation, cal: &str) -> Result<(usize, Vec<String>)> {
+    let text = std::fs::read_to_string(cal).map_err(|e| anyhow::anyhow!("reading {cal}: {e}"))?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+        anyhow::anyhow!(
+            "{cal}: not a JSON calibration file ({e}); --brightness takes the file `cta \
+             calibrate --out` writes"
+        )
+    })?;
+    let Some(list) = v.get("led_brightness") else {
+        bail!(
+            "{cal}: no `led_brightness` (the LEDs' brightness `cta calibrate` fits from a \
+             sweep's spot magnitudes): {}",
+            if v.get("beacons").is_some() {
+                "this is a constellation; --brightness takes a calibration".to_string()
+            } else {
+                "calibrate from a sweep that recorded magnitudes (`cta calibrate DATA.csv --out \
+                 cal.json`), without --no-magnitude"
+                    .to_string()
+            }
+        );
+    };
+    let leds: Vec<crate::magnitude::LedBrightness> = serde_json::from_value(list.clone())
+        .map_err(|e| anyhow::anyhow!("{cal}: `led_brightness`: {e}"))?;
+    let mut set = 0;
+    let mut missed = Vec::new();
+    for b in con.beacons.iter_mut() {
+        let (x, y) = (f64::from(b.r[0]), f64::from(b.r[1]));
+        let nearest = leds
+            .iter()
+            .map(|l| (l, (l.x_in - x).hypot(l.y_in - y)))
+            .filter(|(_, d)| *d <= BRIGHTNESS_MATCH_IN)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        match nearest {
+            Some((l, _)) => {
+                b.brightness = l.brightness as f32;
+                set += 1;
+            }
+            None => missed.push(format!("{} at ({x}, {y}) in", b.id)),
+        }
+    }
+    let mut warnings = Vec::new();
+    if !missed.is_empty() {
+        warnings.push(format!(
+            "{cal}: no LED within {BRIGHTNESS_MATCH_IN} in of beacon(s) {}: they keep their \
+             brightness ({} LEDs in the calibration; beacon positions are matched to the LEDs' \
+             plate positions, the constellation's x, y in the plate frame)",
+            missed.join(", "),
+            leds.len()
+        ));
+    }
+    con.validate()
+        .map_err(|e| anyhow::anyhow!("with the brightness of {cal}: {e}"))?;
+    Ok((set, warnings))
+}
+
 /// `con` without its beacons on channel `id`.
 fn without(mut con: Constellation, id: u8) -> Constellation {
     con.beacons.retain(|b| b.id != id);

@@ -220,6 +220,11 @@ pub enum SensorCommand {
     LoadConstellation {
         /// JSON file.
         file: String,
+        /// Set each beacon's brightness from a calibration's `led_brightness` (`cta calibrate`
+        /// fits it from a sweep's spot magnitudes): the LED within 0.05 in of the beacon's
+        /// (x, y), the constellation's frame being the plate's. Beacons without one keep theirs.
+        #[arg(long, value_name = "CAL.json")]
+        brightness: Option<String>,
         #[command(flatten)]
         conn: SensorConn,
     },
@@ -926,8 +931,18 @@ fn board_command<S: std::io::Read + std::io::Write>(
                 sim_note(conn)
             );
         }
-        SensorCommand::LoadConstellation { file, .. } => {
-            let (con, warnings) = crate::plate::read_constellation(file)?;
+        SensorCommand::LoadConstellation {
+            file, brightness, ..
+        } => {
+            let (mut con, mut warnings) = crate::plate::read_constellation(file)?;
+            let bright = match brightness {
+                Some(cal) => {
+                    let (set, w) = crate::plate::set_brightness(&mut con, cal)?;
+                    warnings.extend(w);
+                    format!(" (the brightness of {set} from {cal})")
+                }
+                None => String::new(),
+            };
             for w in warnings {
                 eprintln!("warning: {w}");
             }
@@ -935,7 +950,7 @@ fn board_command<S: std::io::Read + std::io::Write>(
             link.call(SensorRequest::LoadConstellation(con))
                 .with_context(|| format!("loading the constellation of {file}"))?;
             println!(
-                "constellation of {n} beacons from {file} stored in flash{}",
+                "constellation of {n} beacons from {file}{bright} stored in flash{}",
                 sim_note(conn)
             );
         }

@@ -489,6 +489,9 @@ fn documented_command_lines_parse() {
 /// A typo in a calibration or constellation key is refused, naming it and the keys there
 /// (it used to be dropped: `gains` left the cell gains at 0); a constellation on channels 2
 /// and 19, which share 4050 Hz in the NorthStar table, is refused; the built-in four-19 loads.
+/// A calibration's host-side `led_brightness` is accepted, and `load-constellation
+/// --brightness CAL.json` sets the beacons' brightness from it on a board on a pty (read back
+/// with `config`), naming a beacon with no LED there.
 #[test]
 fn board_files_with_unknown_keys_or_shared_channels_are_refused() {
     let d = std::env::temp_dir().join(format!("cta-board-files-{}", std::process::id()));
@@ -587,6 +590,89 @@ fn board_files_with_unknown_keys_or_shared_channels_are_refused() {
     fails_with(
         &cta(&["sensor", "--sim", "load-constellation", &many]),
         &["30 beacons; the board holds at most 20"],
+    );
+    // The LEDs' brightness of a calibration (as `cta calibrate` writes it) for every beacon
+    // of the template but the last, moved off the grid.
+    let mut calv: serde_json::Value = serde_json::from_str(&cal).unwrap();
+    let beacons = base["beacons"].as_array().unwrap();
+    let n = beacons.len();
+    calv["led_brightness"] = beacons[..n - 1]
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            serde_json::json!({
+                "x_in": b["r"][0].as_f64().unwrap() + 0.02,
+                "y_in": b["r"][1],
+                "brightness": 0.8 + 0.05 * i as f64,
+                "sigma": 0.001,
+            })
+        })
+        .collect();
+    let bright = file("bright.json", &calv.to_string());
+    ok(&cta(&["sensor", "--sim", "load-calibration", &bright]));
+    let moved = edited("moved.json", &|v| {
+        let x = v["beacons"][n - 1]["r"][0].as_f64().unwrap();
+        v["beacons"][n - 1]["r"][0] = (x + 0.3).into();
+    });
+    let sim = Sim::start(&["sensor", "sim", "--configured"]);
+    let o = cta(&[
+        "sensor",
+        "--port",
+        &sim.path,
+        "load-constellation",
+        &moved,
+        "--brightness",
+        &bright,
+    ]);
+    let out = ok(&o);
+    assert!(
+        out.contains(&format!("the brightness of {} from {bright}", n - 1)),
+        "{out}"
+    );
+    let last = base["beacons"][n - 1]["id"].as_u64().unwrap();
+    assert!(
+        stderr(&o).contains(&format!("no LED within 0.05 in of beacon(s) {last} at")),
+        "{}",
+        stderr(&o)
+    );
+    let config = ok(&cta(&["sensor", "--port", &sim.path, "config"]));
+    let stored: serde_json::Value = serde_json::from_str(
+        config
+            .lines()
+            .find_map(|l| l.strip_prefix("constellation: "))
+            .unwrap(),
+    )
+    .unwrap();
+    let got: Vec<f64> = stored["beacons"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["brightness"].as_f64().unwrap())
+        .collect();
+    let want: Vec<f64> = (0..n)
+        .map(|i| {
+            if i + 1 < n {
+                0.8 + 0.05 * i as f64
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    assert!(
+        got.iter().zip(&want).all(|(g, w)| (g - w).abs() < 1e-6),
+        "{got:?} against {want:?}"
+    );
+    // A file without the LEDs' brightness is named.
+    fails_with(
+        &cta(&[
+            "sensor",
+            "--sim",
+            "load-constellation",
+            &moved,
+            "--brightness",
+            &moved,
+        ]),
+        &["no `led_brightness`", "this is a constellation"],
     );
     let mm = edited("mm.json", &|v| {
         for b in v["beacons"].as_array_mut().unwrap() {
