@@ -287,6 +287,13 @@ pub struct Magnitude {
     /// The largest reading used, counts (above `offset` + 1, at most 65535): a reading at or
     /// above it is taken as saturated and not used.
     pub max: f32,
+    /// The smallest reading used, counts (0 ..= `max`): the law holds where it was measured,
+    /// and `cta calibrate` sets this to the weakest reading it fitted, so that a law fitted
+    /// on strong spots is not stretched over weak ones (where an offset it barely saw, or a
+    /// response that bends below its range, would bias the pose). A calibration file without
+    /// it reads 0.
+    #[serde(default)]
+    pub min: f32,
     /// The NorthStar light-sensitivity setting (1-4) the law was fitted at: frames at
     /// another setting are solved from the spots alone.
     pub sensitivity: u8,
@@ -302,6 +309,7 @@ impl Magnitude {
             exponent: 1.0,
             noise_percent,
             max: 65535.0,
+            min: 0.0,
             sensitivity: 4,
         }
     }
@@ -407,6 +415,8 @@ pub enum CalField {
     MagnitudeNoise,
     /// Largest magnitude used ([`Magnitude::max`]): above the offset + 1, at most 65535.
     MagnitudeMax,
+    /// Smallest magnitude used ([`Magnitude::min`]): 0 ..= max.
+    MagnitudeMin,
     /// Sensitivity of the magnitude law ([`Magnitude::sensitivity`]): 1 ..= 4.
     MagnitudeSensitivity,
 }
@@ -431,6 +441,7 @@ impl CalField {
             CalField::MagnitudeExponent => "magnitude exponent (0.1 ..= 5)",
             CalField::MagnitudeNoise => "magnitude noise (0.001 ..= 100 %)",
             CalField::MagnitudeMax => "magnitude max (above the offset + 1 count, at most 65535)",
+            CalField::MagnitudeMin => "magnitude min (0 ..= max counts)",
             CalField::MagnitudeSensitivity => "magnitude sensitivity (1 ..= 4)",
         }
     }
@@ -602,6 +613,9 @@ impl Calibration {
             }
             if !(in_range(m.max, 0.0, 65_535.0) && m.max > m.offset + 1.0) {
                 return bad(CalField::MagnitudeMax);
+            }
+            if !in_range(m.min, 0.0, m.max) {
+                return bad(CalField::MagnitudeMin);
             }
             if !(1..=4).contains(&m.sensitivity) {
                 return bad(CalField::MagnitudeSensitivity);
@@ -794,6 +808,7 @@ struct MagSolve<T> {
     /// `(noise_percent / 100)^2`.
     rel2: T,
     max: T,
+    min: T,
     sensitivity: u8,
 }
 
@@ -807,19 +822,20 @@ impl<T: Real> MagSolve<T> {
             w_num: noise * noise * g * g,
             rel2: rel * rel,
             max: T::lit(m.max as f64),
+            min: T::lit(m.min as f64),
             sensitivity: m.sensitivity,
         }
     }
 
     /// `(m, weight)` of a reading (see [`Obs::m`]; `ln_b` the beacon's `ln` brightness), or
-    /// `None` when it is not used: saturated (at or above `max`), or not a whole count above
-    /// the offset. `M - offset = D` has the variance `(rel D)^2 + 1/12` (the scatter and the
+    /// `None` when it is not used: saturated (at or above `max`), below the law's range
+    /// (`min`), or not a whole count above the offset. `M - offset = D` has the variance `(rel D)^2 + 1/12` (the scatter and the
     /// rounding to counts), so `ln S = ln D / exponent` has `(rel^2 + 1/(12 D^2)) /
     /// exponent^2`.
     fn reading(&self, magnitude: u16, ln_b: T) -> Option<(T, T)> {
         let mv = T::lit(magnitude as f64);
         let d = mv - self.offset;
-        if mv >= self.max || d < T::one() {
+        if mv >= self.max || mv < self.min || d < T::one() {
             return None;
         }
         let var = self.rel2 + T::one() / (T::lit(12.0) * d * d);
@@ -2578,6 +2594,8 @@ mod magnitude_tests {
             CalField::MagnitudeMax
         );
         assert_eq!(field(|m| m.sensitivity = 5), CalField::MagnitudeSensitivity);
+        assert_eq!(field(|m| m.min = 65535.5), CalField::MagnitudeMin);
+        assert_eq!(field(|m| m.min = -1.0), CalField::MagnitudeMin);
         assert!(CalField::MagnitudeNoise
             .describe()
             .contains("magnitude noise"));
@@ -2799,6 +2817,21 @@ mod magnitude_tests {
         cal.magnitude.as_mut().unwrap().max = 60000.0;
         spots[0].magnitude = 60000; // saturated
         spots[1].magnitude = 0; // no signal above the offset
+        let weak = spots[3].magnitude;
+        cal.magnitude.as_mut().unwrap().min = weak as f32 + 1.0;
+        let s = PoseSolver::<f64>::new(&cal, &con, SolverSettings::default()).unwrap();
+        let obs = s.match_spots(&spots);
+        // Below the law's range: every reading weaker than beacon 3's (and its own).
+        for (o, sp) in obs.iter().zip(&spots).skip(2) {
+            assert_eq!(o.magnitude_used(), sp.magnitude > weak, "{sp:?}");
+        }
+        let below = spots
+            .iter()
+            .skip(2)
+            .filter(|sp| sp.magnitude <= weak)
+            .count();
+        assert!(below >= 1);
+        cal.magnitude.as_mut().unwrap().min = 0.0;
         let s = PoseSolver::<f64>::new(&cal, &con, SolverSettings::default()).unwrap();
         let obs = s.match_spots(&spots);
         let used: std::vec::Vec<bool> = obs.iter().map(|o| o.magnitude_used()).collect();

@@ -256,9 +256,21 @@ fn hidden_effect_words(effect: &str) -> String {
 /// `cta ` and holds `PTY` where the pseudo-terminal goes.
 fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> Result<String> {
     let text = std::fs::read_to_string(cal).with_context(|| format!("{}", cal.display()))?;
-    let noise = serde_json::from_str::<cta_core::pose::Calibration>(&text)
-        .with_context(|| format!("{}", cal.display()))?
-        .noise;
+    let calibration = serde_json::from_str::<cta_core::pose::Calibration>(&text)
+        .with_context(|| format!("{}", cal.display()))?;
+    let noise = calibration.noise;
+    // What becomes of the spot magnitudes on the simulated board.
+    let magnitudes = match calibration.magnitude {
+        Some(m) => format!(
+            " The pose report's `mag` column counts the spot magnitudes fitted: none here. \
+             cal.json's magnitude law holds the readings it was fitted on, {:.0} to {:.0} counts \
+             (the simulated sweep's NorthStar, whose scale mimics the real one's 5000-65535); the \
+             simulated board's are on a scale of its own, a few hundred counts at 12 in, below \
+             the law's range, so its poses use the spots alone.",
+            m.min, m.max
+        ),
+        None => String::new(),
+    };
     let truth = crate::simulate::Truth::path_for(&run_dir.join("data.csv"));
     // The simulated board's own scene, as `cta sensor sim` takes it by default.
     let scene = parse_args::<crate::sensor_cmd::SimArgs>(&[])?;
@@ -269,13 +281,11 @@ fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> 
          head ({hidden}), at the calibration's spot noise. \
          Run the first command in another terminal; it prints the pseudo-terminal to use as PTY:\n\
          \x20 cta sensor sim --truth {} --noise {noise:.1} --configured\n\
-         \x20 cta sensor --port PTY load-calibration {} --no-magnitude\n\
+         \x20 cta sensor --port PTY load-calibration {}\n\
          \x20 cta sensor --port PTY pose --count 5\n\
          The target sits at x {x}, y {y}, z {} in (the simulated board's --offset and --range): \
          single poses scatter about it by their 1-sigma (sx, sy, sz), and the mean of a few lies \
-         within it. (--no-magnitude: the poses use the spots alone. cal.json's spot magnitude \
-         law describes the simulated sweep's NorthStar; the simulated board's magnitudes are on \
-         a scale of their own and noise-free, which the law does not describe.)\n",
+         within it.{magnitudes}\n",
         truth.display(),
         cal.display(),
         scene.range,

@@ -964,11 +964,18 @@ pub fn fit_dataset(ds: &Dataset, em: &Emulator<f64>, sensitivity: Option<u8>) ->
         Ok(f) => f,
         Err(e) => return no_law(e),
     };
+    // The weakest reading fitted: the law is not stretched below it (Magnitude::min).
+    let vmin = points
+        .iter()
+        .flat_map(|p| p.readings.iter().copied())
+        .fold(f64::INFINITY, f64::min);
     let law = Magnitude {
         offset: fit.offset as f32,
         exponent: fit.exponent as f32,
         noise_percent: (100.0 * fit.rel()) as f32,
         max: max as f32,
+        // Rounded down, so that the weakest reading itself is in range in f32.
+        min: (vmin.floor() as f32).min(max as f32),
         sensitivity: sens,
     };
     // The board's ranges (Calibration::validate): a law outside them is not written.
@@ -1274,6 +1281,15 @@ mod tests {
         };
         assert_eq!((m.law.max, m.law.sensitivity), (50_000.0, 3));
         assert!(m.saturated_points > 20, "{}", m.saturated_points);
+        // The law's range below: the weakest reading of a point it fitted (not a saturated
+        // point's).
+        let weakest = ds
+            .samples
+            .iter()
+            .filter(|s| s.separation_in > 6.0)
+            .map(|s| s.magnitude.unwrap())
+            .fold(f64::INFINITY, f64::min);
+        assert_eq!(f64::from(m.law.min), weakest.floor(), "{:?}", m.law);
         assert!(
             m.warnings
                 .iter()

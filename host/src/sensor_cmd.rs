@@ -1647,6 +1647,9 @@ pub struct AccuracyTable {
     pub magnitude_noise_percent: f64,
     /// The near-field pose fitted the magnitudes (not `--no-magnitudes`).
     pub magnitudes: bool,
+    /// The magnitude law fitted to the simulated sweep (`None` with the true head or without
+    /// magnitudes); the law in use is `nearfield_calibration.magnitude`.
+    pub magnitude_law: Option<crate::magnitude::MagnitudeReport>,
     /// Samples averaged per point of the simulated calibration sweep.
     pub cal_samples: usize,
     /// Trials per range.
@@ -1693,12 +1696,24 @@ impl AccuracyTable {
                 self.cal_samples, nc.d[0], nc.d[1], nc.d[2], sg[2], nn.alpha_deg, sg[6], nn.s, sg[7]
             );
         }
-        if self.magnitudes {
+        if let (true, Some(m)) = (self.magnitudes, nc.magnitude) {
             s += &format!(
-                "             The near-field pose also fits the spot magnitudes (the simulated NorthStar's law, linear,\n\
-                 \x20            scatter {} % on top of the rounding to counts; `spots only`: the same model without them).\n",
+                "             The near-field pose also fits the spot magnitudes (`spots only`: the same model without them),\n\
+                 \x20            simulated with {} % scatter on top of their rounding to counts, with the law ",
                 self.magnitude_noise_percent
             );
+            s += &match &self.magnitude_law {
+                Some(r) => format!(
+                    "fitted to the sweep's\n\
+                     \x20            magnitudes as `cta calibrate` fits it: exponent {:.5} (+/-{:.1e}; 1), offset {:.2} counts,\n\
+                     \x20            scatter {:.3} % (readings {:.0}-{:.0} counts).\n",
+                    m.exponent, r.exponent_sigma, m.offset, m.noise_percent, m.min, m.max
+                ),
+                None => format!(
+                    "the simulated NorthStar's (linear, scatter {} %).\n",
+                    m.noise_percent
+                ),
+            };
         } else {
             s += "             From the spots alone (--no-magnitudes).\n";
         }
@@ -2065,6 +2080,49 @@ pub fn nearfield_calibration(
     Ok((sol.calibration, sigma))
 }
 
+/// The spot magnitude law the lab would load with the near-field calibration: `cta
+/// calibrate`'s fit ([`crate::magnitude::fit_dataset`], with the fitted head's summed cell
+/// signal) to the magnitudes of a simulated CTA sweep of `truth`'s physics, as the simulated
+/// NorthStar reports them (`cta_core::pose::simulate_spots_with`: `SIM_MAGNITUDE_SCALE` times
+/// the signal, `noise_percent` of scatter, rounded to counts and saturated at 65535): every
+/// LED of `plate` at 2, 3, ..., 30 in, `samples` readings each. Returns the fit's report.
+pub fn magnitude_calibration(
+    truth: &Calibration,
+    fitted: &Calibration,
+    plate: Plate,
+    samples: usize,
+    noise_percent: f64,
+    rng: &mut StdRng,
+) -> Result<crate::magnitude::MagnitudeReport> {
+    let em = cta_firmware_sensor::sim::physics(truth);
+    let normal = Normal::new(0.0, noise_percent / 100.0).context("magnitude noise")?;
+    let scale = cta_core::pose::SIM_MAGNITUDE_SCALE;
+    let mut ds = crate::measurement::Dataset::default();
+    for sep in 2..=30 {
+        for (i, r) in plate.positions(sep as f64).into_iter().enumerate() {
+            let Some(y) = em.output(&r) else { continue };
+            let m = em.magnitude(&r) * scale;
+            for k in 0..samples {
+                ds.samples.push(crate::measurement::Sample {
+                    separation_in: sep as f64,
+                    r: r.into(),
+                    x: y[0].round().clamp(-32768.0, 32767.0),
+                    y: y[1].round().clamp(-32768.0, 32767.0),
+                    beacon: Some(i as u32),
+                    sample: Some(k as u32),
+                    magnitude: Some((m * (1.0 + normal.sample(rng))).round().clamp(0.0, 65535.0)),
+                    ..Default::default()
+                });
+            }
+        }
+    }
+    let head = cta_firmware_sensor::sim::physics(fitted);
+    match crate::magnitude::fit_dataset(&ds, &head, Some(4))? {
+        crate::magnitude::Outcome::Law(report) => Ok(*report),
+        crate::magnitude::Outcome::NoLaw(why) => bail!("simulated magnitude calibration: {why}"),
+    }
+}
+
 /// `a / b` for the table (`>1e5` when `b` is at rounding level).
 fn ratio(a: f64, b: f64) -> String {
     if a > 1e5 * b {
@@ -2131,6 +2189,11 @@ impl AccuracyArgs {
     }
 }
 
+/// Readings per point of the accuracy table's simulated magnitude calibration (at most; fewer
+/// with `--cal-samples`): the law's fit uses the points' means and their scatter, which 20
+/// readings give to 16 % (`cta calibrate` on a Ch VI sweep has 50 or more).
+const MAGNITUDE_CAL_SAMPLES: usize = 20;
+
 /// Compute the accuracy table.
 pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
     args.check()?;
@@ -2149,10 +2212,27 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
     } else {
         nearfield_calibration(&truth, &ph_cal, scene.plate, args.cal_samples, &mut rng)?
     };
-    // The magnitude law the simulated NorthStar follows (linear, no offset), with the scatter
-    // simulated (the validation's floor, 0.001 %, for none).
+    // The spot magnitude law: fitted to a simulated sweep's magnitudes as `cta calibrate`
+    // fits it, or (with the true head) the law the simulated NorthStar follows, linear with
+    // the scatter simulated (the validation's floor, 0.001 %, for none).
+    let mut magnitude_law = None;
     if !args.no_magnitudes {
-        nf_cal.magnitude = Some(Magnitude::simulated(args.magnitude_noise.max(0.001) as f32));
+        nf_cal.magnitude = Some(if args.true_calibration {
+            Magnitude::simulated(args.magnitude_noise.max(0.001) as f32)
+        } else {
+            let samples = args.cal_samples.min(MAGNITUDE_CAL_SAMPLES);
+            let report = magnitude_calibration(
+                &truth,
+                &nf_cal,
+                scene.plate,
+                samples,
+                args.magnitude_noise,
+                &mut rng,
+            )?;
+            let law = report.law;
+            magnitude_law = Some(report);
+            law
+        });
     }
     // The magnitudes' scatter is drawn from a stream of its own: the spots' noise, and so
     // the spots-only and pinhole columns, are those of a run without magnitudes.
@@ -2292,6 +2372,7 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
         true_calibration: args.true_calibration,
         magnitude_noise_percent: args.magnitude_noise,
         magnitudes: !args.no_magnitudes,
+        magnitude_law,
         cal_samples: args.cal_samples,
         trials: args.trials,
         noise_counts: noise,
