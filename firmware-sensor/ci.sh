@@ -5,20 +5,26 @@
 #     invocation, from this folder (so its .cargo/config.toml profile is the one used by
 #     `cargo run --release`), and print flash and static RAM;
 #  2. run the QEMU pose program (tests/qemu, Cortex-M3 lm3s6965evb, built at the
-#     firmware's opt-level) for the pinhole and the near-field model: instructions of one
-#     warm 10-beacon solve, and of core's 20-beacon four-array constellation (the chip's
-#     capacity; `cta sensor accuracy --constellation four-19`, the one that meets every
-#     accuracy claim, is it without channel 19, whose frequency is channel 2's);
+#     firmware's opt-level) for the pinhole and the near-field model, the latter also with
+#     the spot magnitudes (POSE_MODEL=nearfield-mag: a calibration with a magnitude law):
+#     instructions of one warm 10-beacon solve, and of core's 20-beacon four-array
+#     constellation (the chip's capacity; `cta sensor accuracy --constellation four-19`, the
+#     one that meets every accuracy claim, is it without channel 19, whose frequency is
+#     channel 2's), near-field with and without the magnitudes;
 #  3. compare the on-target f32 answer with the host's f64 answer (example pose_reference),
-#     for both models and for the 20-beacon run;
+#     for every run of step 2, and the magnitudes each fitted (every beacon's with the law,
+#     none without);
 #  3b. run the QEMU trig program (untraced, a few seconds): the chip's face-angle sine and
 #     cosine (cta_core::trig, fixed point) against libm's sinf/cosf on the target;
 #  4. run the QEMU board program: the board's own code (Board::init and Board::poll, as
 #     the chip's main calls them) through a session that reaches every deep path (requests,
-#     flash writes, the 20-beacon near-field pose), and measure its peak stack by painting;
+#     flash writes, the 20-beacon near-field pose with the magnitudes and without), and
+#     measure its peak stack by painting;
 #  5. fail when over budget: flash <= 48 KiB, RAM <= 12 KiB, one warm 10-beacon solve
 #     <= 1,000,000 instructions, for each model (the issue's budget), and the warm
-#     20-beacon near-field solve under the same line (ours: so that four-19 stays an option).
+#     20-beacon near-field solve from the spots under the same line (ours: so that four-19
+#     stays an option). The warm solves with the magnitudes are reported against it, not
+#     held to it (see step 5 below and firmware-sensor/README.md, "Budgets").
 #
 # RAM = static (.data + .bss + .uninit of the firmware: the board's state is a static)
 #     + the chip main's own frame (from the firmware's disassembly: its prologue)
@@ -55,31 +61,32 @@ flash=$(( $(n .vector_table) + $(n .text) + $(n .rodata) + $(n .data) ))
 ram_static=$(( $(n .data) + $(n .bss) + $(n .uninit) ))
 
 echo "== QEMU pose benchmark (Cortex-M3, lm3s6965evb)"
+# Runs: MODEL for 10 beacons, MODEL20 for 20 (POSE_BEACONS=20).
+runs=(pinhole nearfield nearfield-mag nearfield20 nearfield-mag20)
 declare -A insn stack f32line
-for model in pinhole nearfield; do
-  out=$(POSE_MODEL=$model bash "$root/tests/qemu/run.sh" pose)
+for run in "${runs[@]}"; do
+  model=${run%20}
+  out=$(POSE_MODEL=$model POSE_BEACONS=${run#"$model"} bash "$root/tests/qemu/run.sh" pose)
   echo "$out"
-  insn[$model]=$(echo "$out" | sed -n 's/^pose: .* mean=\([0-9.]*\) max=\([0-9]*\).*/\2/p')
-  stack[$model]=$(echo "$out" | sed -n 's/^STACK solve_peak_bytes=\([0-9]*\).*/\1/p')
-  f32line[$model]=$(echo "$out" | grep '^POSE f32')
-  [ -n "${insn[$model]}" ] && [ -n "${stack[$model]}" ] && [ -n "${f32line[$model]}" ] \
-    || { echo "ci.sh: QEMU pose run ($model) printed no count" >&2; exit 1; }
+  insn[$run]=$(echo "$out" | sed -n 's/^pose: .* mean=\([0-9.]*\) max=\([0-9]*\).*/\2/p')
+  stack[$run]=$(echo "$out" | sed -n 's/^STACK solve_peak_bytes=\([0-9]*\).*/\1/p')
+  f32line[$run]=$(echo "$out" | grep '^POSE f32')
+  [ -n "${insn[$run]}" ] && [ -n "${stack[$run]}" ] && [ -n "${f32line[$run]}" ] \
+    || { echo "ci.sh: QEMU pose run ($run) printed no count" >&2; exit 1; }
 done
-out=$(POSE_MODEL=nearfield POSE_BEACONS=20 bash "$root/tests/qemu/run.sh" pose)
-echo "$out"
-insn20=$(echo "$out" | sed -n 's/^pose: .* mean=\([0-9.]*\) max=\([0-9]*\).*/\2/p')
-stack20=$(echo "$out" | sed -n 's/^STACK solve_peak_bytes=\([0-9]*\).*/\1/p')
-f32line[nearfield20]=$(echo "$out" | grep '^POSE f32')
-[ -n "$insn20" ] && [ -n "$stack20" ] && [ -n "${f32line[nearfield20]}" ] \
-  || { echo "ci.sh: QEMU pose run (20 beacons) printed no count" >&2; exit 1; }
 
 echo "== f32 on target vs f64 on the host"
 (cd "$root" && cargo build --quiet -p cta-firmware-sensor --example pose_reference)
-for run in pinhole nearfield nearfield20; do
+for run in "${runs[@]}"; do
   model=${run%20}
   ref=$(cd "$root" && cargo run --quiet -p cta-firmware-sensor --example pose_reference -- "$model" ${run#"$model"} | grep '^POSE f64')
   echo "target: ${f32line[$run]}"
   echo "host:   $ref"
+  # The magnitudes fitted: the same on both sides, every beacon's with the law, none without.
+  counts() { echo "$1" | sed -n 's/.* beacons=\([0-9]*\) magnitudes=\([0-9]*\) .*/\1 \2/p'; }
+  read -r nb nm <<<"$(counts "${f32line[$run]}")"
+  [ -n "$nm" ] && [ "$(counts "$ref")" = "$nb $nm" ] && [ "$nm" = "$(case $model in *-mag) echo "$nb";; *) echo 0;; esac)" ] \
+    || { echo "ci.sh: magnitudes fitted ($run): target \"$(counts "${f32line[$run]}")\", host \"$(counts "$ref")\" (beacons, magnitudes)" >&2; exit 1; }
   # Position within 1e-3 in and MRP within 1e-4 (0.03 deg): far below the noise floor.
   # Both lines must read "... t= x y z q= a b c" with six numbers (awk would take a
   # missing or non-numeric field, NaN included, for 0 and pass).
@@ -110,7 +117,7 @@ echo "$out"
 echo "$out" | grep -q '^TRIG checked=[1-9][0-9]* mismatches=0$' \
   || { echo "ci.sh: the target's face-angle sine/cosine differ from libm's" >&2; exit 1; }
 
-echo "== QEMU board session (the board's code below main: init, requests, 20-beacon poses)"
+echo "== QEMU board session (the board's code below main: init, requests, 20-beacon poses with magnitudes)"
 out=$(bash "$root/tests/qemu/run.sh" board)
 echo "$out"
 peak=$(echo "$out" | sed -n 's/^STACK board_peak_bytes=\([0-9]*\).*/\1/p')
@@ -122,20 +129,35 @@ verdict() { if [ "$1" -le "$2" ]; then echo "ok"; else echo "OVER BUDGET"; fi; }
 check() { [ "$1" -le "$2" ] || over=1; }
 check "$flash" "$FLASH_BUDGET"; check "$ram" "$RAM_BUDGET"
 # The instruction budget holds for both models: the pinhole (calibrated eq 65) and the
-# near-field (eq 60-63) solve; see firmware-sensor/README.md, "Budgets".
-check "${insn[pinhole]}" "$INSN_BUDGET"; check "${insn[nearfield]}" "$INSN_BUDGET"
-check "$insn20" "$INSN_BUDGET"
+# near-field (eq 60-63) solve from the spots, for 10 beacons and (ours) 20; see
+# firmware-sensor/README.md, "Budgets". The solves with the magnitudes are reported against
+# it, not held to it: the 10-beacon one is over it (1.35 M on 2026-11-28: two Jacobian
+# passes where the spots need one, see the README) until the solver's carried
+# linearisation serves it; then add nearfield-mag here. The 20-beacon one cannot meet it.
+enforced=(pinhole nearfield nearfield20)
+for run in "${enforced[@]}"; do
+  check "${insn[$run]}" "$INSN_BUDGET"
+done
+held() { local r; for r in "${enforced[@]}"; do [ "$r" = "$1" ] && return 0; done; return 1; }
+# The verdict of an instruction count: held to the budget, or only reported against it.
+insn_verdict() {
+  if held "$1"; then verdict "${insn[$1]}" "$INSN_BUDGET"
+  elif [ "${insn[$1]}" -le "$INSN_BUDGET" ]; then echo "under it (reported, not enforced)"
+  else echo "OVER it (reported, not enforced)"; fi
+}
 echo "== firmware-sensor figures"
 printf 'flash                        %6d B (%.1f KiB) / %d B: %s\n' "$flash" "$(awk -v f="$flash" 'BEGIN { print f / 1024 }')" "$FLASH_BUDGET" "$(verdict "$flash" "$FLASH_BUDGET")"
 printf 'RAM static                   %6d B\n' "$ram_static"
 printf 'RAM stack: main frame        %6d B\n' "$main_frame"
-printf 'RAM stack: board below main  %6d B (QEMU: solve-only peak %d B, 20 beacons)\n' "$peak" "$stack20"
+printf 'RAM stack: board below main  %6d B (QEMU: solve-only peak %d B, 20 beacons; %d B with the magnitudes)\n' "$peak" "${stack[nearfield20]}" "${stack[nearfield-mag20]}"
 printf 'RAM stack: entry, interrupt  %6d B (allowance)\n' "$ENTRY_IRQ_ALLOWANCE"
 printf 'RAM total                    %6d B / %d B: %s\n' "$ram" "$RAM_BUDGET" "$(verdict "$ram" "$RAM_BUDGET")"
-for model in pinhole nearfield; do
-  printf 'warm 10-beacon solve, %-9s %8d instructions / %d: %s\n' "$model" "${insn[$model]}" "$INSN_BUDGET" "$(verdict "${insn[$model]}" "$INSN_BUDGET")"
+hz() { awk -v n="$1" 'BEGIN { printf "%.0f", 72e6 / n }'; }
+for run in "${runs[@]}"; do
+  model=${run%20}
+  beacons=10; [ "$run" = "$model" ] || beacons=20
+  printf 'warm %d-beacon solve, %-13s %8d instructions / %d (%s Hz at 72 MHz): %s\n' "$beacons" "$model" "${insn[$run]}" "$INSN_BUDGET" "$(hz "${insn[$run]}")" "$(insn_verdict "$run")"
 done
-printf 'warm 20-beacon solve, nearfield %8d instructions / %d (capacity, four-19 + 1; %.0f Hz at 72 MHz): %s\n' "$insn20" "$INSN_BUDGET" "$(awk -v n="$insn20" 'BEGIN { print 72e6 / n }')" "$(verdict "$insn20" "$INSN_BUDGET")"
 if [ "$over" -ne 0 ]; then
   if [ "$mode" = report ]; then
     echo "firmware-sensor: OVER BUDGET (CTA_SENSOR_BUDGETS=report: not failing)"

@@ -6,6 +6,11 @@
 #
 #   usage: tests/qemu/run.sh BIN        e.g. tests/qemu/run.sh beacon_tick
 #
+# The environment reaches the program's build: `pose` reads POSE_MODEL (pinhole, nearfield,
+# the default, or nearfield-mag: the near-field solve with the spot magnitudes) and
+# POSE_BEACONS (20: the 20-beacon constellation), e.g.
+#   POSE_MODEL=nearfield-mag POSE_BEACONS=20 tests/qemu/run.sh pose
+#
 # Output: the program's own output, then a line
 #   BIN: segments=N overhead=O mean=M max=X min=Y (instructions per segment, marker overhead subtracted)
 # where the overhead O (instructions of an empty segment: the first segments of every

@@ -1,14 +1,18 @@
 //! Peak stack of the sensor board's work on a Cortex-M3 (QEMU lm3s6965evb): the same
 //! [`Board::init`] and [`Board::poll`] the chip's `main` calls (firmware-sensor/src/chip.rs),
 //! built at the firmware's opt-level, fed a session that reaches every deep path: identify,
-//! status, a bad frame, loading the calibration and the 20-beacon constellation (stored to
-//! flash, solver built), reading the configuration back, pose mode with the near-field
-//! model, then NorthStar frames solved for the pose (cold start, then warm starts with the
-//! carried linearisation), then stream mode.
+//! status, a bad frame, loading the calibration (with every optional part: the near-field
+//! physics, the pinhole head and the magnitude law) and the 20-beacon constellation (stored
+//! to flash, solver built), reading the configuration back, pose mode with the near-field
+//! model, then NorthStar frames at the magnitude law's sensitivity solved for the pose with
+//! the spot magnitudes (cold start, then warm starts: 20 beacons' spots and magnitudes are
+//! more rows than the solver carries from frame to frame), then frames at another
+//! sensitivity solved from the spots alone (with the carried linearisation), then stream
+//! mode.
 //!
-//! The instruction count (run.sh) is of one warm frame in pose mode, from the NorthStar's
-//! bytes to the pose report sent: decoding, matching, the 20-beacon near-field solve and
-//! encoding.
+//! The instruction count (run.sh) is of one warm frame in pose mode with the magnitudes, from
+//! the NorthStar's bytes to the pose report sent: decoding, matching, the 20-beacon
+//! near-field solve and encoding.
 //!
 //! Prints `STACK board_peak_bytes=N`: the bytes of stack used below this program's `main`
 //! by `init`, by the requests up to pose mode, or by the rest of the session (the NorthStar
@@ -23,7 +27,10 @@ use core::mem::MaybeUninit;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use cta_core::pose::{benchmark_frames_of, four_array_constellation, Calibration, ModelKind};
+use cta_core::pose::{
+    benchmark_frames_of, four_array_constellation, Calibration, Magnitude, ModelKind, NearField,
+    PinholeHead, PoseStatus,
+};
 use cta_core::wire::sensor::{Mode, SensorRequest, SensorResponse};
 use cta_core::wire::{encode_frame, FrameDecoder, Header, Reply, Request, ResetCause, MAX_FRAME};
 use cta_firmware_sensor::board::{Board, Io};
@@ -57,6 +64,38 @@ impl Io for HarnessIo {
     fn send_ns(&mut self, _bytes: &[u8]) {}
 }
 
+/// The pose report of the last frame sent: `(status, beacons, magnitudes)`.
+fn last_pose(io: &HarnessIo) -> Option<(PoseStatus, u8, u8)> {
+    let mut d = FrameDecoder::<MAX_FRAME>::new();
+    let mut last = None;
+    for &b in &io.last[..io.last_len] {
+        if let Some(r) = d.push::<Reply<SensorResponse, cta_core::wire::sensor::SensorError>>(b) {
+            last = Some(r);
+        }
+    }
+    match last {
+        Some(Ok((_, Ok(cta_core::wire::Response::Board(SensorResponse::Pose(p)))))) => {
+            Some((p.status, p.beacons, p.magnitudes))
+        }
+        _ => None,
+    }
+}
+
+/// A NorthStar report of `spots` at `sensitivity`, as bytes on the wire; returns their length.
+fn ns_frame(
+    seq: u8,
+    sensitivity: u8,
+    spots: &heapless::Vec<cta_core::pose::Spot, 20>,
+    bytes: &mut [u8; northstar::MAX_FRAME],
+) -> usize {
+    let frame = SpotFrame {
+        seq,
+        sensitivity,
+        spots: spots.clone(),
+    };
+    northstar::encode_report(&frame, bytes)
+}
+
 /// One request from the PC, as bytes on the wire, handed to the board from `main`'s frame as
 /// the chip's `main` hands it the bytes of its receive queue (a static). Always inlined, its
 /// encoding buffer a static: neither is on the stack measured below `main` (until 2026-11-28
@@ -79,8 +118,21 @@ fn main() -> ! {
     static mut BOARD: MaybeUninit<Board<RamFlash>> = MaybeUninit::uninit();
     let con = four_array_constellation();
     let (f1, f2, _, _) = benchmark_frames_of(&con);
-    let mut cal = Calibration::table3();
-    cal.near_field = Some(cta_core::pose::NearField::nominal());
+    // Every optional part (the widest calibration), the magnitude law the simulated
+    // NorthStar's, at sensitivity 4.
+    let cal = Calibration {
+        near_field: Some(NearField {
+            alpha_y_deg: Some(30.0),
+            ..NearField::nominal()
+        }),
+        pinhole: Some(PinholeHead {
+            d: [0.6, 0.1, 0.062],
+            p: [0.001, 0.002, 0.001],
+        }),
+        magnitude: Some(Magnitude::simulated(0.07)),
+        ..Calibration::table3()
+    };
+    let law = Magnitude::simulated(0.07).sensitivity;
     let mut io = HarnessIo {
         t_us: 0,
         frames: 0,
@@ -123,12 +175,7 @@ fn main() -> ! {
         mark();
     }
     for (k, spots) in [&f1, &f2, &f1, &f2].into_iter().enumerate() {
-        let frame = SpotFrame {
-            seq: k as u8,
-            sensitivity: 4,
-            spots: spots.clone(),
-        };
-        let n = northstar::encode_report(&frame, &mut bytes);
+        let n = ns_frame(k as u8, law, spots, &mut bytes);
         // Measured: the warm frames (the first is solved from the cold start), each from
         // its bytes to the pose report sent.
         if k > 0 {
@@ -137,31 +184,31 @@ fn main() -> ! {
         board.poll(&[], &bytes[..n], &mut io);
     }
     end();
-    // The last frame sent is the last pose: it must be one, solved.
-    let mut d = FrameDecoder::<MAX_FRAME>::new();
-    let mut last = None;
-    for &b in &io.last[..io.last_len] {
-        if let Some(r) = d.push::<Reply<SensorResponse, cta_core::wire::sensor::SensorError>>(b) {
-            last = Some(r);
-        }
+    // The last frame sent is the last pose: it must be one, solved with every magnitude.
+    if last_pose(&io) != Some((PoseStatus::Ok, 20, 20)) {
+        fail("the last NorthStar frame gave no Ok pose with the 20 magnitudes");
     }
-    match last {
-        Some(Ok((_, Ok(cta_core::wire::Response::Board(SensorResponse::Pose(p))))))
-            if p.status == cta_core::pose::PoseStatus::Ok => {}
-        _ => fail("the last NorthStar frame gave no Ok pose"),
-    }
+    // At another sensitivity: the spots alone, the linearisation carried.
     pc(
         &mut io,
         board,
         7,
+        Request::Board(SensorRequest::SetSensitivity(law - 1)),
+    );
+    for (k, spots) in [&f1, &f2, &f1].into_iter().enumerate() {
+        let n = ns_frame(4 + k as u8, law - 1, spots, &mut bytes);
+        board.poll(&[], &bytes[..n], &mut io);
+    }
+    if last_pose(&io) != Some((PoseStatus::Ok, 20, 0)) {
+        fail("a NorthStar frame at another sensitivity gave no Ok pose from the spots alone");
+    }
+    pc(
+        &mut io,
+        board,
+        8,
         Request::Board(SensorRequest::SetMode(Mode::Stream)),
     );
-    let frame = SpotFrame {
-        seq: 9,
-        sensitivity: 4,
-        spots: f2.clone(),
-    };
-    let n = northstar::encode_report(&frame, &mut bytes);
+    let n = ns_frame(9, law - 1, &f2, &mut bytes);
     board.poll(&[], &bytes[..n], &mut io);
     let frames_used = stack_used(lo, sp);
     hprintln!(

@@ -5,18 +5,23 @@
 //! The scenario is [`cta_core::pose::benchmark_frames`]: frame 1 is solved from the cold
 //! start (not measured), then each measured segment is one solve of frame 2 from the
 //! solver's state after frame 1 (its solution as the warm start, its last linearisation
-//! carried), exactly as the board does from one NorthStar frame to the next. The model is chosen at build time: `POSE_MODEL=pinhole` or `nearfield`
-//! (default); so is the constellation: `POSE_BEACONS=20` solves the 20-beacon
+//! carried), exactly as the board does from one NorthStar frame to the next. The model is
+//! chosen at build time: `POSE_MODEL=pinhole`, `nearfield` (default) or `nearfield-mag` (the
+//! near-field model with the spot magnitudes: the calibration carries the simulated
+//! NorthStar's magnitude law, [`cta_core::pose::Magnitude::simulated`] at 0.07 %, and the
+//! frames' magnitudes, exact but for their rounding to counts, are fitted with the spots);
+//! so is the constellation: `POSE_BEACONS=20` solves the 20-beacon
 //! [`cta_core::pose::four_array_constellation`] instead of the 10-beacon
-//! [`cta_core::pose::cta_constellation`] (same poses and noise).
+//! [`cta_core::pose::cta_constellation`] (same poses and noise). Every solve is the board's,
+//! [`PoseSolver::solve_frame`] at the frames' sensitivity (4, the law's).
 #![no_std]
 #![no_main]
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use cta_core::pose::{
-    benchmark_frames_of, cta_constellation, four_array_constellation, Calibration, ModelKind,
-    PoseSolver, PoseStatus, SolverSettings,
+    benchmark_frames_of, cta_constellation, four_array_constellation, Calibration, Magnitude,
+    ModelKind, PoseSolver, PoseStatus, SolverSettings,
 };
 use cta_qemu::{done, end, fail, mark, paint_stack, stack_used};
 
@@ -24,13 +29,20 @@ use cta_qemu::{done, end, fail, mark, paint_stack, stack_used};
 const RUNS: usize = 3;
 /// Stack region painted below the current stack pointer.
 const PAINT: usize = 16 * 1024;
+/// The NorthStar sensitivity the frames are reported at: the simulated magnitude law's.
+const SENSITIVITY: u8 = 4;
 
 #[entry]
 fn main() -> ! {
-    let model = match option_env!("POSE_MODEL") {
-        Some("pinhole") => ModelKind::Pinhole,
-        _ => ModelKind::NearField,
+    let (model, name) = match option_env!("POSE_MODEL") {
+        Some("pinhole") => (ModelKind::Pinhole, "pinhole"),
+        Some("nearfield-mag") => (ModelKind::NearField, "nearfield-mag"),
+        _ => (ModelKind::NearField, "nearfield"),
     };
+    let mut cal = Calibration::table3();
+    if name == "nearfield-mag" {
+        cal.magnitude = Some(Magnitude::simulated(0.07));
+    }
     let con = match option_env!("POSE_BEACONS") {
         Some("20") => four_array_constellation(),
         _ => cta_constellation(),
@@ -40,11 +52,11 @@ fn main() -> ! {
         model,
         ..SolverSettings::default()
     };
-    let Ok(mut solver) = PoseSolver::<f32>::new(&Calibration::table3(), &con, settings) else {
+    let Ok(mut solver) = PoseSolver::<f32>::new(&cal, &con, settings) else {
         fail("solver rejected the configuration")
     };
     let (lo, sp) = paint_stack(PAINT);
-    let first = solver.solve(&f1);
+    let first = solver.solve_frame(&f1, SENSITIVITY);
     if first.status != PoseStatus::Ok {
         fail("cold-start solve of frame 1 failed");
     }
@@ -62,21 +74,31 @@ fn main() -> ! {
     for _ in 0..RUNS {
         solver = after_f1.clone();
         mark();
-        sol = solver.solve(&f2);
+        sol = solver.solve_frame(&f2, SENSITIVITY);
     }
     // The last segment ends with the solve, not after the stack scan and the printing below.
     end();
     if sol.status != PoseStatus::Ok {
         fail("warm solve of frame 2 failed");
     }
+    // Every beacon's magnitude fitted with the magnitude law, none without.
+    let fitted = if cal.magnitude.is_some() {
+        sol.beacons
+    } else {
+        0
+    };
+    if sol.magnitudes != fitted || first.magnitudes != fitted {
+        fail("the magnitudes fitted are not every beacon's (with the law) or none (without)");
+    }
     hprintln!(
         "STACK solve_peak_bytes={} (cold and warm solves, below the caller's frame)",
         stack_used(lo, sp)
     );
     hprintln!(
-        "POSE f32 model={} beacons={} iterations={} cold_iterations={} t= {:.6} {:.6} {:.6} q= {:.8} {:.8} {:.8}",
-        if model == ModelKind::Pinhole { "pinhole" } else { "nearfield" },
+        "POSE f32 model={} beacons={} magnitudes={} iterations={} cold_iterations={} t= {:.6} {:.6} {:.6} q= {:.8} {:.8} {:.8}",
+        name,
         sol.beacons,
+        sol.magnitudes,
         sol.iterations,
         first.iterations,
         sol.position.x,
