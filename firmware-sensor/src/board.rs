@@ -207,16 +207,20 @@ impl<F: FlashPages> Board<F> {
         }
     }
 
-    /// Bytes received from the NorthStar.
+    /// Bytes received from the NorthStar. The decoder is asked byte by byte
+    /// ([`NsDecoder::push`]), so that it is not borrowed while a frame is handled: no copy of
+    /// it on the stack under the pose solve.
     #[inline(never)]
     pub fn on_ns_bytes(&mut self, bytes: &[u8], io: &mut impl Io) {
-        let mut ns = core::mem::take(&mut self.ns);
-        ns.feed(bytes, |ev| {
-            if let NsEvent::Report(frame) = ev {
-                self.on_frame(&frame, io);
+        for &b in bytes {
+            let mut event = self.ns.push(b);
+            while let Some(ev) = &event {
+                if let NsEvent::Report(frame) = ev {
+                    self.on_frame(frame, io);
+                }
+                event = self.ns.next_event();
             }
-        });
-        self.ns = ns;
+        }
     }
 
     #[inline(never)]

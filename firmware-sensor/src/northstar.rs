@@ -245,28 +245,42 @@ impl NsDecoder {
     /// Feed received bytes; `on_event` is called for every complete valid frame.
     pub fn feed(&mut self, bytes: &[u8], mut on_event: impl FnMut(NsEvent)) {
         for &b in bytes {
-            if self.buf.push(b).is_err() {
-                // Cannot happen (every full buffer is resolved below), but never panic:
-                self.drop_front(1);
-                let _ = self.buf.push(b);
+            let mut event = self.push(b);
+            while let Some(ev) = event {
+                on_event(ev);
+                event = self.next_event();
             }
-            let len = self.buf.len();
-            if len >= 3 && self.buf[len - 2] == SYNC[0] && b == SYNC[1] {
-                // A sync word starting after the head (position >= 1; MAX_FRAME < 256).
-                if let Some(v) = self.syncs.as_mut() {
-                    if v.push((len - 2) as u8).is_err() {
-                        self.syncs = None;
-                    }
-                }
-            }
-            self.drain(&mut on_event);
         }
     }
 
-    fn drain(&mut self, on_event: &mut impl FnMut(NsEvent)) {
+    /// One received byte; returns the first frame it completes, if any. Call
+    /// [`Self::next_event`] after each event until it returns `None`: the bytes buffered
+    /// may hold more (what [`Self::feed`] does). Unlike `feed` the caller keeps no borrow of
+    /// the decoder while it handles the event: the board handles a frame (and solves its pose)
+    /// without a copy of the decoder on its stack.
+    pub fn push(&mut self, b: u8) -> Option<NsEvent> {
+        if self.buf.push(b).is_err() {
+            // Cannot happen (every full buffer is resolved below), but never panic:
+            self.drop_front(1);
+            let _ = self.buf.push(b);
+        }
+        let len = self.buf.len();
+        if len >= 3 && self.buf[len - 2] == SYNC[0] && b == SYNC[1] {
+            // A sync word starting after the head (position >= 1; MAX_FRAME < 256).
+            if let Some(v) = self.syncs.as_mut() {
+                if v.push((len - 2) as u8).is_err() {
+                    self.syncs = None;
+                }
+            }
+        }
+        self.next_event()
+    }
+
+    /// The next frame the bytes already buffered hold (see [`Self::push`]).
+    pub fn next_event(&mut self) -> Option<NsEvent> {
         loop {
             match self.scan() {
-                Scan::More => return,
+                Scan::More => return None,
                 Scan::Skip => {
                     self.stats.discarded += 1;
                     self.drop_front(1);
@@ -281,13 +295,15 @@ impl NsDecoder {
                     self.drop_front(p);
                 }
                 Scan::Frame(len) => {
-                    if let Some(ev) = parse(&self.buf[..len]) {
-                        self.stats.frames += 1;
-                        on_event(ev);
-                    } else {
-                        self.stats.discarded += len as u32;
-                    }
+                    let event = parse(&self.buf[..len]);
                     self.drop_front(len);
+                    match event {
+                        Some(ev) => {
+                            self.stats.frames += 1;
+                            return Some(ev);
+                        }
+                        None => self.stats.discarded += len as u32,
+                    }
                 }
             }
         }
