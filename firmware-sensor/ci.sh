@@ -66,7 +66,7 @@ runs=(pinhole nearfield nearfield-mag nearfield20 nearfield-mag20)
 declare -A insn stack f32line
 for run in "${runs[@]}"; do
   model=${run%20}
-  out=$(POSE_MODEL=$model POSE_BEACONS=${run#"$model"} bash "$root/tests/qemu/run.sh" pose)
+  out=$(POSE_MODEL=$model POSE_BEACONS=${run#"$model"} POSE_MAG_SCALE= bash "$root/tests/qemu/run.sh" pose)
   echo "$out"
   insn[$run]=$(echo "$out" | sed -n 's/^pose: .* mean=\([0-9.]*\) max=\([0-9]*\).*/\2/p')
   stack[$run]=$(echo "$out" | sed -n 's/^STACK solve_peak_bytes=\([0-9]*\).*/\1/p')

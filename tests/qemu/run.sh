@@ -8,7 +8,8 @@
 #
 # The environment reaches the program's build: `pose` reads POSE_MODEL (pinhole, nearfield,
 # the default, or nearfield-mag: the near-field solve with the spot magnitudes) and
-# POSE_BEACONS (20: the 20-beacon constellation), e.g.
+# POSE_BEACONS (20: the 20-beacon constellation) and POSE_MAG_SCALE (a diagnostic: the
+# frames' magnitudes multiplied by it), e.g.
 #   POSE_MODEL=nearfield-mag POSE_BEACONS=20 tests/qemu/run.sh pose
 #
 # Output: the program's own output, then a line
