@@ -64,6 +64,12 @@ pub const NOISE_FLOOR: f64 = 1e-5;
 /// The variance of rounding to whole counts, counts^2.
 const ROUNDING: f64 = 1.0 / 12.0;
 
+/// Spread of a point's readings (variance, counts^2) from which their rounding to counts acts
+/// as noise of its own (Sheppard's 1/12 then holds to a few percent): a count. Readings that
+/// straddle one rounding boundary spread by up to half a count with almost no scatter of their
+/// own, and would read as a scatter of 0.2-0.3 % at 150 counts.
+const DITHER: f64 = 1.0;
+
 /// The highest reading a NorthStar can give (16 bits).
 pub const RAIL: f64 = 65535.0;
 
@@ -272,19 +278,40 @@ impl Prepared<'_> {
         let np = self.points.len();
         let dbar: Vec<f64> = self.mean.iter().map(|m| m - offset).collect();
         let y: Vec<f64> = dbar.iter().map(|d| d.ln()).collect();
-        // The samples' relative scatter about their own means, rounding taken out.
-        let within: f64 = self.n.iter().map(|n| n - 1.0).sum();
+        // The samples' relative scatter about their own means, rounding taken out. Rounding
+        // acts as noise of its own (1/12 counts^2, Sheppard) only where the scatter spreads
+        // the readings over several counts; where it is well below a count, a point's
+        // readings round alike (their spread tells nothing and their mean keeps the whole
+        // rounding error, which the readings of a standing target do too). So the scatter is
+        // pooled over the dithered points (spread of a count or more), or over every
+        // point without a rounding correction when the readings are not counts.
+        let dithered: Vec<bool> = (0..np)
+            .map(|j| self.q == 0.0 || (self.n[j] > 1.0 && self.ss[j] >= DITHER * (self.n[j] - 1.0)))
+            .collect();
+        let within: f64 = (0..np)
+            .filter(|&j| dithered[j])
+            .map(|j| self.n[j] - 1.0)
+            .sum();
         let rel_w2 = if within > 0.0 {
-            let ss: f64 = (0..np).map(|j| self.ss[j] / (dbar[j] * dbar[j])).sum();
-            let round: f64 = (0..np)
-                .map(|j| self.q * (self.n[j] - 1.0) / (dbar[j] * dbar[j]))
+            let ss: f64 = (0..np)
+                .filter(|&j| dithered[j])
+                .map(|j| (self.ss[j] - self.q * (self.n[j] - 1.0)) / (dbar[j] * dbar[j]))
                 .sum();
-            ((ss - round) / within).max(0.0)
+            (ss / within).max(0.0)
         } else {
             0.0
         };
+        // A point mean's variance: the scatter averages over its readings; the rounding
+        // too where they are dithered, not where they round alike.
         let u: Vec<f64> = (0..np)
-            .map(|j| (rel_w2 + self.q / (dbar[j] * dbar[j])) / self.n[j])
+            .map(|j| {
+                let round = self.q / (dbar[j] * dbar[j]);
+                if dithered[j] {
+                    (rel_w2 + round) / self.n[j]
+                } else {
+                    rel_w2 / self.n[j] + round
+                }
+            })
             .collect();
         let tau_min2 = (NOISE_FLOOR * NOISE_FLOOR - rel_w2).max(0.0);
         let var = |t2: f64| -> Vec<f64> { u.iter().map(|u| (u + t2).max(1e-300)).collect() };

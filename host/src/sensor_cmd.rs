@@ -2221,13 +2221,16 @@ pub fn accuracy_table(args: &AccuracyArgs) -> Result<AccuracyTable> {
             Magnitude::simulated(args.magnitude_noise.max(0.001) as f32)
         } else {
             let samples = args.cal_samples.min(MAGNITUDE_CAL_SAMPLES);
+            // A stream of its own: the poses and the spots' noise are those of a run without
+            // magnitudes.
+            let mut cal_rng = StdRng::seed_from_u64(args.seed ^ 0x6d61_6763_616c_6962);
             let report = magnitude_calibration(
                 &truth,
                 &nf_cal,
                 scene.plate,
                 samples,
                 args.magnitude_noise,
-                &mut rng,
+                &mut cal_rng,
             )?;
             let law = report.law;
             magnitude_law = Some(report);
@@ -2479,6 +2482,12 @@ mod tests {
             (d[2] - 0.062).abs() < 0.001 && (d[0] - 0.6).abs() < 0.001,
             "{d:?}"
         );
+        // The magnitude law as `cta calibrate` fits it to the simulated sweep: linear, with
+        // the scatter simulated (0.07 %; the far readings, 50-150 counts with a scatter well
+        // under a count, round alike and must not read as scatter: 0.16 % when they did).
+        let law = t.magnitude_law.as_ref().unwrap().law;
+        assert!((law.exponent - 1.0).abs() < 1e-3, "{law:?}");
+        assert!((law.noise_percent / 0.07 - 1.0).abs() < 0.2, "{law:?}");
         // The magnitudes make the attitude at 8-10 in: from the spots alone the near-field
         // pose sits on the spots' floor, several times higher.
         for r in t.rows.iter().filter(|r| r.range == 8.0 || r.range == 10.0) {
