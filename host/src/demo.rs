@@ -156,7 +156,8 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     std::fs::write(&plan, DEMO_PLAN).with_context(|| format!("{}", plan.display()))?;
     println!(
         "\n== 3. Ch VI: an unattended sweep of the simulated CTA (both boards on pseudo-terminals), \
-         4-30 in, noise 0.1 % of beta for a strong spot (growing as a spot dims, about 50 counts at 30 in), hidden effect `{}`",
+         4-30 in, noise 0.1 % of beta for a strong spot (growing as a spot dims, about 50 counts at 30 in), spot magnitudes \
+         scattering 0.07 % (what that noise implies if both come from the cells), hidden effect `{}`",
         a.effect
     );
     let seed = a.seed.to_string();
@@ -168,6 +169,8 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         "--sim",
         "--sim-noise",
         "32.8",
+        "--sim-magnitude-noise",
+        "0.07",
         "--sim-effect",
         &a.effect,
         "--sim-seed",

@@ -147,7 +147,8 @@ impl From<ModelArg> for ModelKind {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum TemplateKind {
     /// The simulated CTA's calibration, to edit: the Table 3 truth head, nominal near-field
-    /// parameters and the pinhole fit's H, with `pinhole` null (the pinhole model then uses
+    /// parameters, the simulated NorthStar's magnitude law and the pinhole fit's H, with
+    /// `pinhole` null (the pinhole model then uses
     /// `d`, `p`; `cta calibrate` writes the fitted eye point there).
     Calibration,
     /// A built-in constellation (`--name`: the 10-beacon CTA one by default).
@@ -189,12 +190,17 @@ pub enum SensorCommand {
     /// cells 1 and 3's gain minus 1 against their pair, `bias` their offsets (1/in^2, as a
     /// signal); `pinhole` (null: the pinhole model uses `d` and `p`): the pinhole model's own
     /// `d` and `p`, fitted with `h` (eq 65; `cta calibrate` writes its pinhole fit's, whose eye
-    /// point sits about 1 in above the head). Out-of-range values are refused by the board,
-    /// naming the field.
+    /// point sits about 1 in above the head); `magnitude` (null: the pose uses the spots
+    /// alone): the spot magnitude law `M = offset + A (b S)^exponent` the near-field pose fits
+    /// the magnitudes with, its scatter `noise_percent`, the range of readings it holds
+    /// (`min`, `max`) and the NorthStar `sensitivity` it was fitted at (`cta calibrate` fits
+    /// it; the template's is the simulated NorthStar's). Out-of-range values are refused by the
+    /// board, naming the field.
     ///
-    /// Constellation fields: `beacons`, each an `id` (the NorthStar channel, 0-19) and its
-    /// position `r` (in, target frame); `boresight` the direction the LEDs face (target
-    /// frame). 4 to 20 beacons, distinct ids, not both of channels 2 and 19 (the NorthStar
+    /// Constellation fields: `beacons`, each an `id` (the NorthStar channel, 0-19), its
+    /// position `r` (in, target frame) and its LED's relative `brightness` (1 when left out;
+    /// `load-constellation --brightness CAL.json` sets it from a calibration); `boresight` the
+    /// direction the LEDs face (target frame). 4 to 20 beacons, distinct ids, not both of channels 2 and 19 (the NorthStar
     /// table gives both 4050 Hz).
     Template {
         /// Which one.
@@ -834,7 +840,7 @@ pub fn run(args: &SensorArgs) -> Result<()> {
                 // eye point would keep the pinhole model where it was).
                 TemplateKind::Calibration => serde_json::to_string_pretty(&Calibration {
                     pinhole: None,
-                    ..sim_calibration()?
+                    ..sim_calibration(SimArgs::default().magnitude_noise)?
                 })?,
                 TemplateKind::Constellation => {
                     let con = built_in_constellation(name)?;
@@ -892,7 +898,9 @@ fn board_command<S: std::io::Read + std::io::Write>(
 ) -> Result<()> {
     if in_process {
         // The in-process board starts with empty flash: load the defaults.
-        link.call(SensorRequest::LoadCalibration(sim_calibration()?))?;
+        link.call(SensorRequest::LoadCalibration(sim_calibration(
+            SimArgs::default().magnitude_noise,
+        )?))?;
         link.call(SensorRequest::LoadConstellation(cta_constellation()))?;
     }
     match command {
@@ -1526,7 +1534,9 @@ fn run_sim(args: &SimArgs) -> Result<()> {
     if args.configured {
         let port = open_serial(sim.path())?;
         let mut link = Link::<SensorProtocol, _>::new(port, LinkConfig::default());
-        link.call(SensorRequest::LoadCalibration(sim_calibration()?))?;
+        link.call(SensorRequest::LoadCalibration(sim_calibration(
+            args.magnitude_noise,
+        )?))?;
         link.call(SensorRequest::LoadConstellation(cta_constellation()))?;
     }
     println!("simulated sensor board on {}", sim.path());
@@ -1993,12 +2003,15 @@ impl AccuracyTable {
 /// near-field parameters the simulated NorthStar has, with the pinhole model's own eye point
 /// `d, p` and its `H` from [`pinhole_calibration`] on the CTA grid, as `cta calibrate` writes
 /// them. (With the true head's `d, p` and the nominal `H`, the pinhole pose would read ranges
-/// about 1 in short at 12 in.)
-pub fn sim_calibration() -> Result<Calibration> {
+/// about 1 in short at 12 in.) It holds the simulated NorthStar's spot magnitude law
+/// (linear, the scatter `magnitude_noise` percent it simulates; the validation's floor, 0.001 %,
+/// for none), so that its poses fit the magnitudes as a calibrated board's would.
+pub fn sim_calibration(magnitude_noise: f64) -> Result<Calibration> {
     let mut cal = Calibration::table3();
     let ph = pinhole_calibration(&cal, Plate::One)?;
     cal.h = ph.h;
     cal.pinhole = Some(PinholeHead { d: ph.d, p: ph.p });
+    cal.magnitude = Some(Magnitude::simulated(magnitude_noise.max(0.001) as f32));
     Ok(cal)
 }
 

@@ -151,13 +151,13 @@ fn sensor_pose_prints_every_field_and_json() {
     ] {
         assert!(lines[0].contains(col), "header lacks {col}: {}", lines[0]);
     }
-    // The first pose is a cold start, the next warm; every pose uses the 10 beacons, and no
-    // magnitude (the simulated CTA's calibration has no magnitude law).
+    // The first pose is a cold start, the next warm; every pose uses the 10 beacons and
+    // their 10 magnitudes (the simulated CTA's calibration holds its NorthStar's law).
     for (i, row) in lines[1..].iter().enumerate() {
         let f: Vec<&str> = row.split_whitespace().collect();
         assert_eq!(f.len(), 21, "{row}");
         assert_eq!(f[16], "10", "beacons used: {row}");
-        assert_eq!(f[17], "0", "magnitudes fitted: {row}");
+        assert_eq!(f[17], "10", "magnitudes fitted: {row}");
         assert!(f[18].parse::<u32>().is_ok(), "solve us: {row}");
         assert_eq!(
             f[19],
@@ -196,7 +196,7 @@ fn sensor_pose_prints_every_field_and_json() {
             assert!(v.get(k).is_some(), "no {k}: {l}");
         }
         assert_eq!(v["beacons"], 10);
-        assert_eq!(v["magnitudes"], 0);
+        assert_eq!(v["magnitudes"], 10);
         assert_eq!(v["cold_start"], i == 0);
         assert_eq!(v["model"], "NearField");
         assert_eq!(v["sigma_attitude_deg"].as_array().unwrap().len(), 3);
