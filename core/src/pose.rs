@@ -1801,7 +1801,7 @@ mod tests {
     use super::*;
 
     /// Deterministic uniform numbers in [-0.5, 0.5) (xorshift32 from `seed`).
-    fn uniform_from(mut seed: u32) -> impl FnMut() -> f64 {
+    pub(super) fn uniform_from(mut seed: u32) -> impl FnMut() -> f64 {
         move || {
             seed ^= seed << 13;
             seed ^= seed >> 17;
@@ -1810,7 +1810,7 @@ mod tests {
         }
     }
 
-    fn truth_emulator() -> Emulator<f64> {
+    pub(super) fn truth_emulator() -> Emulator<f64> {
         let cal = Calibration::table3();
         let head_pose = HeadPose {
             d: v3(&cal.d),
@@ -2013,12 +2013,22 @@ mod tests {
         let p = PoseProblem::of(&s, &obs);
         let (t, q) = target();
         let x = SVector::<f64, 6>::new(t.x, t.y, t.z, q.x, q.y, q.z);
+        check_jacobian(&p, &x, &format!("{model:?}"));
+    }
+
+    /// Every row's analytic Jacobian against central differences of the rows' residuals
+    /// at `x`; returns the rows (residual, Jacobian row).
+    pub(super) fn check_jacobian(
+        p: &PoseProblem<'_, f64>,
+        x: &SVector<f64, 6>,
+        label: &str,
+    ) -> std::vec::Vec<(f64, std::vec::Vec<f64>)> {
         let mut rows = std::vec::Vec::new();
-        p.rows(&x, true, &mut |r, _, j| rows.push((r, j.to_vec())))
+        p.rows(x, true, &mut |r, _, j| rows.push((r, j.to_vec())))
             .unwrap();
         for k in 0..6 {
             let h = 1e-6;
-            let (mut xp, mut xm) = (x, x);
+            let (mut xp, mut xm) = (*x, *x);
             xp[k] += h;
             xm[k] -= h;
             let mut rp = std::vec::Vec::new();
@@ -2031,10 +2041,11 @@ mod tests {
                 let an = rows[i].1[k];
                 assert!(
                     (fd - an).abs() < 1e-4 * (1.0 + an.abs()),
-                    "{model:?} {k} {fd} {an}"
+                    "{label}: row {i} x{k}: {fd} {an}"
                 );
             }
         }
+        rows
     }
 
     fn solve_case<T: Real>(
@@ -2545,28 +2556,8 @@ mod tests {
 /// The spot magnitudes in the near-field pose ([`Magnitude`]).
 #[cfg(test)]
 mod magnitude_tests {
+    use super::tests::{check_jacobian, truth_emulator as physics, uniform_from};
     use super::*;
-
-    fn uniform_from(mut seed: u32) -> impl FnMut() -> f64 {
-        move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed as f64 / 4294967296.0 - 0.5
-        }
-    }
-
-    fn physics() -> Emulator<f64> {
-        let cal = Calibration::table3();
-        Emulator::new(
-            Head::northstar(),
-            HeadPose {
-                d: v3(&cal.d),
-                p: v3(&cal.p),
-            },
-            Effects::default(),
-        )
-    }
 
     fn with_magnitudes(noise_percent: f32) -> Calibration {
         Calibration {
@@ -2658,36 +2649,14 @@ mod magnitude_tests {
         assert_eq!(p.n_rows(), 5 + 2);
         let (t, q) = pose_at(8.0, 1);
         let x = SVector::<f64, 6>::new(t.x, t.y, t.z, q.x, q.y, q.z);
-        let mut rows = std::vec::Vec::new();
-        p.rows(&x, true, &mut |r, w, j| {
-            assert_eq!(w, 1.0);
-            rows.push((r, j.to_vec()))
-        })
-        .unwrap();
+        p.rows(&x, true, &mut |_, w, _| assert_eq!(w, 1.0)).unwrap();
+        let rows = check_jacobian(&p, &x, "magnitudes");
         assert_eq!(rows.len(), p.n_rows());
         // The residual pass gives the same residuals as the Jacobian pass.
         let mut plain = std::vec::Vec::new();
         p.rows(&x, false, &mut |r, _, _| plain.push(r)).unwrap();
         for (a, b) in plain.iter().zip(&rows) {
             assert!((a - b.0).abs() <= 1e-12 * (1.0 + a.abs()), "{a} {}", b.0);
-        }
-        for k in 0..6 {
-            let h = 1e-6;
-            let (mut xp, mut xm) = (x, x);
-            xp[k] += h;
-            xm[k] -= h;
-            let mut rp = std::vec::Vec::new();
-            let mut rm = std::vec::Vec::new();
-            p.rows(&xp, false, &mut |r, _, _| rp.push(r)).unwrap();
-            p.rows(&xm, false, &mut |r, _, _| rm.push(r)).unwrap();
-            for i in 0..rows.len() {
-                let fd = -(rp[i] - rm[i]) / (2.0 * h);
-                let an = rows[i].1[k];
-                assert!(
-                    (fd - an).abs() < 1e-4 * (1.0 + an.abs()),
-                    "row {i} x{k}: {fd} {an}"
-                );
-            }
         }
         // The contrasts hold the weighted spread of the magnitude residuals about their
         // weighted mean, whatever the common scale: adding a constant to every m changes
