@@ -1,54 +1,128 @@
-//! Library half of the `cta` tool, so integration tests can drive it directly.
+//! The `cta` command line: argument parsing, dispatch and rendering over the `cta_lab` library.
 
-// Checks are written `!(x > 0.0)` on purpose: a NaN fails them.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
+use clap::{Parser, Subcommand};
+use cta_lab::commands;
 
-// `cta beacon ...`: talk to the beacon board by hand (firmware-beacon issue).
-pub mod beacon_cmd;
-// Request/response client over a serial link, shared by both boards (firmware-beacon issue).
-pub mod link;
-// The CTA's beacon plate and the built-in constellations of the pose analyses (issue 5).
-pub mod plate;
-// `cta sensor floor`: the pose noise floor from spots alone and with magnitudes (issue 5).
-pub mod pose_floor;
-// `cta sensor ...` and the pose-accuracy table (firmware-sensor issue).
-pub mod sensor_cmd;
-// `cta calibrate`: the sensor board's calibration file from a measured sweep.
-pub mod calibrate;
-// The spot magnitude law (and each LED's brightness) `cta calibrate` fits to a sweep.
-pub mod magnitude;
+#[derive(Parser)]
+#[command(
+    name = "cta",
+    version,
+    about = "Characterize a NorthStar coarse sun sensor in the near field: simulate, sweep, fit, evaluate, \
+calibrate, analyze (start with `cta demo`)",
+    long_about = "CTA turns the NorthStar IR coarse sun sensor (four photocells in a pyramid) into a 6-dof \
+relative-navigation sensor. Close to a beacon the sun-sensor assumptions break: the cells see the beacon from \
+different places (proximity), at different distances (intensity), through a non-uniform LED pattern. `cta` \
+quantifies those near-field errors (thesis Ch II), the apparatus uncertainty (Ch IV), emulates the sensor and \
+fits its calibration model (Ch V), sweeps the apparatus (Ch VI), calibrates the sensor board, and analyzes \
+measured data for what the model gets wrong.\n\n\
+Conventions: inches and degrees at every interface; N = sensor-board frame, O = sensor-head frame; \
+d = N origin -> head centre (in N); C(p) maps N to O (MRP p). Equation numbers are those of Stancliffe (2010).\n\n\
+Start with:  cta demo    (the main job on the built-in simulated CTA, no hardware: a sweep, the calibrations, \
+Figure 57 and the analysis report, in cta-demo/)\n\
+Step by step:  cta simulate --out sim.csv --separations 20,25 && cta fit sim.csv --save fit.json && \
+cta evaluate fit.json sim.csv"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
 
-// The thesis subcommands.
-pub mod commands;
-// The effect vocabulary shared by `simulate` and `analyze`.
-pub mod effects;
-// The Ch V calibration fit and its evaluation.
-pub mod fit;
-// The measurement file format (`host/MEASUREMENTS.md`).
-pub mod measurement;
-// SVG charts.
-pub mod plot;
-// Emulated CTA data with injectable effects and a truth sidecar.
-pub mod simulate;
+#[derive(Subcommand)]
+pub enum Cmd {
+    /// Ch II: how far away each near-field effect (proximity, intensity, beacon pattern)
+    /// falls below the sensor noise, in sensor diameters (2-D model, eqs 1-22).
+    Nearfield(commands::NearfieldArgs),
+    /// Ch IV: the apparatus uncertainty budget (root-sum-square, eq 26; default Table 2)
+    /// and the 2-D angle uncertainty it causes (eq 40) against the near-field error.
+    Uncertainty(commands::UncertaintyArgs),
+    /// Ch V: emulated NorthStar reports of the CTA beacon grid (eqs 60-63), optionally with
+    /// noise and hidden effects; the truth is written next to the data.
+    Simulate(commands::SimulateArgs),
+    /// Ch V: fit the 7-parameter collinearity model (d, MRP p, scale height H; eq 65) by
+    /// GLSDC (eqs 56-59): parameters, 1-sigma, residual RMS, condition number.
+    Fit(commands::FitArgs),
+    /// Ch V: the error in angle of a saved fit per separation (eq 67), the Figure 57 curve,
+    /// against the truth when the data carries it.
+    Evaluate(commands::EvaluateArgs),
+    /// The sensor board's calibration from a measured sweep: the pinhole (eq 65) and
+    /// near-field (eqs 60-63: d, p, face angles, cell offset, cell gains and offsets) fits,
+    /// the residual RMS of both per separation (flagging where the model misses), and the
+    /// JSON file `cta sensor load-calibration` stores in flash.
+    Calibrate(cta_lab::fit::calibrate::CalibrateArgs),
+    /// The main job on the built-in simulated CTA (no hardware): near-field errors,
+    /// uncertainty, a simulated characterization with a hidden effect, calibration and
+    /// evaluation, with plots, in one folder.
+    Demo(cta_lab::demo::DemoArgs),
+    /// Autonomous CTA data collection over serial (or on the simulated CTA with --sim):
+    /// a plan of separations, beacons, frequencies, power levels and sensitivities,
+    /// resumable after any interruption, never losing or duplicating a point.
+    Sweep(cta_lab::sweep::SweepArgs),
+    /// From measured data to a named cause: where the model disagrees with the data, the
+    /// physical effect responsible, the extended model and its held-out gain.
+    Analyze(cta_lab::analyze::AnalyzeArgs),
+    /// The noise of repeated samples by separation, angle, magnitude, frequency, power and
+    /// sensitivity (the Ch VI questions), and the weighting it implies for fit and analyze.
+    Noise(cta_lab::noise::NoiseArgs),
+    /// Talk to the beacon array board (STM32F103ZET6) by hand: identify, light beacons,
+    /// status, heartbeat; `--sim` for an in-process simulated board, or serve one on a
+    /// pseudo-terminal.
+    Beacon(cta_lab::boards::beacon::BeaconArgs),
+    /// Talk to the sensor board (STM32F103C8): identify, stream spots, load a calibration
+    /// and constellation, read poses; simulated board; the pose accuracy table.
+    Sensor(cta_lab::boards::sensor::SensorArgs),
+}
 
-// `cta analyze`: from measured data to a named cause, an extended model and a measured gain.
-pub mod analyze;
-// `cta demo`: the main job on the simulated CTA.
-pub mod demo;
-// `cta noise`: the noise of repeated samples and the weighting it implies.
-pub mod noise;
-// `cta sweep`: autonomous, resumable CTA data collection over serial (and the simulated CTA).
-pub mod sweep;
+/// List options whose value may start with a minus sign (`--separations -5,3` is not a
+/// number, so `allow_negative_numbers` alone lets clap read it as a flag).
+const LIST_OPTIONS: [&str; 4] = ["separations", "holdout", "theta", "ranges"];
 
-/// What the binary does with a command's error: prints `cta: error: ...` with its causes and
-/// exits with 1, or an interrupted sweep's [`sweep::Interrupted::exit_code`] (128 + the
-/// signal). Returns on success.
-pub fn exit_on_error(r: anyhow::Result<()>) {
-    if let Err(e) = r {
-        eprintln!("cta: error: {e:#}");
-        let code = e
-            .downcast_ref::<sweep::Interrupted>()
-            .map_or(1, |i| i.exit_code);
-        std::process::exit(code);
+/// Every option value may be a negative number (`--noise -3` reaches the option's own range
+/// check, which names the allowed range, instead of clap's "unexpected argument '-3'"), and
+/// every list option a list starting with one (`--separations -5,3` reaches the separation
+/// parser, which says why -5 is refused).
+fn negative_values(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|a| {
+        if !a.get_action().takes_values() {
+            a
+        } else if LIST_OPTIONS.contains(&a.get_id().as_str()) {
+            a.allow_hyphen_values(true)
+        } else {
+            a.allow_negative_numbers(true)
+        }
+    })
+    .mut_subcommands(negative_values)
+}
+
+fn parse() -> Cli {
+    use clap::{CommandFactory, FromArgMatches};
+    let matches = negative_values(Cli::command()).get_matches();
+    Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+}
+
+/// Run `cta` with the process's arguments and exit as the tool does.
+pub fn main() {
+    // Like other command-line tools, end quietly when the reader of our output goes away
+    // (`cta fit data.csv | head -1`) instead of panicking in `println!`. Everything a
+    // command writes to files is written before it prints, or is resumable (sweeps).
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE, before any other thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    let cli = parse();
+    let r = match &cli.cmd {
+        Cmd::Nearfield(a) => commands::nearfield(a),
+        Cmd::Uncertainty(a) => commands::uncertainty_cmd(a),
+        Cmd::Simulate(a) => commands::simulate(a),
+        Cmd::Fit(a) => commands::fit_cmd(a),
+        Cmd::Evaluate(a) => commands::evaluate_cmd(a),
+        Cmd::Calibrate(a) => cta_lab::fit::calibrate::run(a),
+        Cmd::Demo(a) => cta_lab::demo::run(a),
+        Cmd::Sweep(a) => cta_lab::sweep::run(a),
+        Cmd::Analyze(a) => cta_lab::analyze::run(a),
+        Cmd::Noise(a) => cta_lab::noise::run(a),
+        Cmd::Beacon(a) => cta_lab::boards::beacon::run(a),
+        Cmd::Sensor(a) => cta_lab::boards::sensor::run(a),
+    };
+    cta_lab::exit_on_error(r);
 }

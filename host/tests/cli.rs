@@ -735,9 +735,9 @@ fn calibrate_writes_what_the_board_loads() {
         (line.to_string(), f["fitted"]["sigma"][n].as_f64().unwrap())
     };
     let (line, s_d1) = row("d1");
-    let (v, sd) = cta_host::analyze::digits::pm_parts(f["d"][0].as_f64().unwrap(), s_d1);
+    let (v, sd) = cta_lab::analyze::digits::pm_parts(f["d"][0].as_f64().unwrap(), s_d1);
     assert!(line.contains(&format!("{v} ± {sd}")), "{line}");
-    let (v, sd) = cta_host::analyze::digits::pm_parts(eye(2), sigma("pinhole.d3"));
+    let (v, sd) = cta_lab::analyze::digits::pm_parts(eye(2), sigma("pinhole.d3"));
     assert!(
         text.contains("its d = ") && text.contains(&format!("{v} ± {sd} in")),
         "{text}"
@@ -952,7 +952,7 @@ fn fit_names_its_spread_by_the_weighting() {
         .lines()
         .find(|l| l.trim_start().starts_with("H ="))
         .unwrap();
-    let (h, sh) = cta_host::analyze::digits::pm_parts(
+    let (h, sh) = cta_lab::analyze::digits::pm_parts(
         f["params"]["H"].as_f64().unwrap(),
         f["sigma"]["H"].as_f64().unwrap(),
     );
@@ -985,7 +985,7 @@ fn fit_names_its_spread_by_the_weighting() {
     let near = sim("near.csv", &[]);
     let f = json(&cta(&["fit", s(&near), "--weights", "repeat", "--json"]));
     let c = f["chi2_per_dof"].as_f64().unwrap();
-    assert!(c > cta_host::calibrate::CHI2_WARN, "{f}");
+    assert!(c > cta_lab::fit::calibrate::CHI2_WARN, "{f}");
     let w = f["warnings"].to_string();
     assert!(
         w.contains(&format!("chi2/dof {c:.2}"))
@@ -1126,7 +1126,7 @@ fn outputs_create_missing_folders() {
     let o = cta(&["fit", s(&sim), "--separations", "25,30", "--save", s(&fit)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stdout).contains("H ="));
-    assert!(cta_host::fit::FitReport::load(&fit).is_ok());
+    assert!(cta_lab::fit::FitReport::load(&fit).is_ok());
     let cal = d.join("new3/cal.json");
     let svg = d.join("new4/cal.svg");
     let o = cta(&["calibrate", s(&sim), "--out", s(&cal), "--plot", s(&svg)]);

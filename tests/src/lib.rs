@@ -16,7 +16,7 @@ use std::ops::Deref;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use cta_host::sweep::{self, SweepArgs};
+use cta_lab::sweep::{self, SweepArgs};
 
 /// A fresh, empty directory for one test: `$TMPDIR/cta-NAME-PID`, emptied if a previous run
 /// left it. Dropping it removes it, unless the test is failing (panicking): a failed test

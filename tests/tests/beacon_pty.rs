@@ -11,7 +11,7 @@ use cta_core::wire::beacon::{
 };
 use cta_core::wire::{encode_frame, BoardKind, Header, Request, MAX_FRAME};
 use cta_firmware_beacon::sim::SimBoard;
-use cta_host::link::{open_serial, Link, LinkConfig, LinkError};
+use cta_lab::boards::link::{open_serial, Link, LinkConfig, LinkError};
 
 type BeaconLink = Link<Beacon, Box<dyn serialport::SerialPort>>;
 
@@ -204,7 +204,7 @@ fn host_drives_the_simulated_board_over_a_pty() {
 fn any_board_can_be_identified() {
     // The identify request and reply do not depend on the board's message types.
     let sim = SimBoard::spawn().unwrap();
-    let mut l: Link<cta_host::link::AnyBoard, _> = Link::new(
+    let mut l: Link<cta_lab::boards::link::AnyBoard, _> = Link::new(
         open_serial(sim.path()).unwrap(),
         LinkConfig {
             timeout: Duration::from_millis(1000),

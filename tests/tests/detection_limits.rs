@@ -21,9 +21,9 @@
 //! Slow (about 1,000 analyses, 1.5-2.5 min on 2 cores); run it in release:
 //! `cargo test --release -p cta-tests --test detection_limits -- --ignored --nocapture detection_limits`
 
-use cta_host::analyze::{analyze, Analysis, Options};
-use cta_host::effects::Effect;
-use cta_host::simulate::SimConfig;
+use cta_lab::analyze::{analyze, Analysis, Options};
+use cta_lab::sim::effects::Effect;
+use cta_lab::sim::SimConfig;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -219,7 +219,7 @@ fn detection_limits() {
     // The compact matrix: per effect, per rung, "named (other named instead) u(nexplained)".
     let mut matrix: Vec<(String, Vec<String>)> = Vec::new();
     // Every effect `analyze` can name; `intensity` is a switch of the pinhole start only.
-    for name in cta_host::effects::VOCABULARY
+    for name in cta_lab::sim::effects::VOCABULARY
         .into_iter()
         .filter(|n| *n != "intensity")
     {

@@ -14,9 +14,9 @@
 //! `intensity` has no test of its own on top of the thesis physics (the `thesis` model
 //! already contains it: injecting it changes nothing); it is found from `pinhole` below.
 
-use cta_host::analyze::{analyze, model::Base, render_text, Analysis, Cause, Options};
-use cta_host::effects::{Effect, VOCABULARY};
-use cta_host::simulate::{SimConfig, Truth};
+use cta_lab::analyze::{analyze, model::Base, render_text, Analysis, Cause, Options};
+use cta_lab::sim::effects::{Effect, VOCABULARY};
+use cta_lab::sim::{SimConfig, Truth};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use std::f64::consts::FRAC_1_SQRT_2;
@@ -508,7 +508,7 @@ fn clean_data_rules_every_candidate_out() {
     assert_eq!(by("proximity").params[0].no_effect, Some(0.175));
     assert_eq!(by("beacon_pattern").params[0].name, "H_deg");
     assert_eq!(by("beacon_pattern").params[0].no_effect, Some(60.0));
-    let text = cta_host::analyze::render_text(&a);
+    let text = cta_lab::analyze::render_text(&a);
     assert!(
         text.contains("not named (tried on top of the final model"),
         "{text}"

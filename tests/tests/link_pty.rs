@@ -12,7 +12,7 @@ use cta_core::wire::{
     encode_frame, BoardKind, FrameDecoder, Header, Identity, Reply, Request, Response, MAX_FRAME,
     PROTOCOL_VERSION,
 };
-use cta_host::link::{open_serial, Link, LinkConfig};
+use cta_lab::boards::link::{open_serial, Link, LinkConfig};
 use serialport::{SerialPort, TTYPort};
 
 fn identity(board: BoardKind) -> Identity {

@@ -4,11 +4,11 @@
 //! by what was measured; taken as level (`--ignore-corners`), the same data name
 //! `plate_tilt`.
 
-use cta_host::analyze::{analyze, Options};
-use cta_host::measurement::Dataset;
-use cta_host::simulate::Truth;
-use cta_host::sweep::corners::{RunCorners, ROD_XY_IN};
-use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::analyze::{analyze, Options};
+use cta_lab::data::Dataset;
+use cta_lab::sim::Truth;
+use cta_lab::sweep::corners::{RunCorners, ROD_XY_IN};
+use cta_lab::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{sweep_args, write_plan, TestDir};
 
 const PLAN: &str = r#"

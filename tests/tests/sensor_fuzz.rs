@@ -7,9 +7,9 @@ use cta_core::wire::sensor::{SensorError, SensorRequest, SensorResponse};
 use cta_core::wire::{
     encode_frame, FrameDecoder, Header, Reply, Request, ResetCause, Response, MAX_FRAME,
 };
-use cta_host::sensor_cmd::firmware::board::{Board, Io};
-use cta_host::sensor_cmd::firmware::northstar::{self, NsDecoder, NsEvent, SpotFrame};
-use cta_host::sensor_cmd::firmware::storage::RamFlash;
+use cta_lab::boards::sensor::firmware::board::{Board, Io};
+use cta_lab::boards::sensor::firmware::northstar::{self, NsDecoder, NsEvent, SpotFrame};
+use cta_lab::boards::sensor::firmware::storage::RamFlash;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 

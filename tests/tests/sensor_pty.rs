@@ -14,9 +14,9 @@ use cta_core::wire::sensor::{
     Mode, PoseReport, SensorError, SensorProtocol, SensorRequest, SensorResponse, SensorStatus,
 };
 use cta_core::wire::BoardKind;
-use cta_host::link::{open_serial, Link, LinkConfig, LinkError};
-use cta_host::sensor_cmd::firmware::sim::{SimBoard, SimNorthStar};
-use cta_host::sensor_cmd::{read_reports, Vector3};
+use cta_lab::boards::link::{open_serial, Link, LinkConfig, LinkError};
+use cta_lab::boards::sensor::firmware::sim::{SimBoard, SimNorthStar};
+use cta_lab::boards::sensor::{read_reports, Vector3};
 
 type SensorLink = Link<SensorProtocol, Box<dyn serialport::SerialPort>>;
 
@@ -308,8 +308,8 @@ fn garbage_on_both_links_is_survived() {
 /// misses by the mounting error and the cells' and pairs' differences.
 #[test]
 fn a_calibration_fitted_to_a_sweep_solves_poses() {
-    use cta_host::calibrate::calibrate;
-    use cta_host::simulate::SimConfig;
+    use cta_lab::fit::calibrate::calibrate;
+    use cta_lab::sim::SimConfig;
     let truth = Calibration {
         d: [0.55, 0.12, 0.07],
         p: [0.002, -0.001, 0.003],
@@ -329,9 +329,9 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
             p: f(truth.p),
         },
         effects: vec![
-            cta_host::effects::Effect::CellGain(0.02, -0.01),
-            cta_host::effects::Effect::CellBias(3e-5, -2e-5),
-            cta_host::effects::Effect::FaceAngle(0.0, 0.4),
+            cta_lab::sim::effects::Effect::CellGain(0.02, -0.01),
+            cta_lab::sim::effects::Effect::CellBias(3e-5, -2e-5),
+            cta_lab::sim::effects::Effect::FaceAngle(0.0, 0.4),
         ],
         noise: 32.8,
         samples: 4,
@@ -395,7 +395,7 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
 /// Ok some 5,800 in away with a 1-sigma of 2,000 in.
 #[test]
 fn an_out_of_view_target_is_never_ok() {
-    let scene = cta_host::sensor_cmd::SimArgs {
+    let scene = cta_lab::boards::sensor::SimArgs {
         offset: [30.0, 30.0],
         range: 3.0,
         ..Default::default()
@@ -427,8 +427,8 @@ fn an_out_of_view_target_is_never_ok() {
 /// the range about 0.9 in short.
 #[test]
 fn the_boards_pinhole_pose_uses_the_pinhole_fits_eye() {
-    use cta_host::calibrate::calibrate;
-    use cta_host::simulate::SimConfig;
+    use cta_lab::fit::calibrate::calibrate;
+    use cta_lab::sim::SimConfig;
     let sweep = SimConfig {
         separations: (1..=15).map(|k| 2.0 * k as f64).chain([25.0]).collect(),
         noise: 32.8,

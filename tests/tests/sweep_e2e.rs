@@ -2,8 +2,8 @@
 
 use std::path::Path;
 
-use cta_host::measurement::Dataset;
-use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::data::Dataset;
+use cta_lab::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{sweep_args, write_plan, TestDir};
 
 const PLAN: &str = r#"
@@ -113,14 +113,14 @@ fn simulated_magnitude_noise_is_measured_by_cta_noise() {
     for (a, b) in plain.samples.iter().zip(&noisy.samples) {
         assert_eq!([a.x, a.y], [b.x, b.y]);
     }
-    let zero = cta_host::noise::analyze_noise(&plain)
+    let zero = cta_lab::noise::analyze_noise(&plain)
         .unwrap()
         .magnitude
         .unwrap();
     assert!(zero.percent < 1e-9, "{zero:?}");
     // ~30 unpinned points x 7 degrees of freedom: the estimate is within ~5 % (1-sigma) of
     // 0.5 %. Points whose magnitude is pinned at 65535 (close, sensitive) are left out.
-    let m = cta_host::noise::analyze_noise(&noisy)
+    let m = cta_lab::noise::analyze_noise(&noisy)
         .unwrap()
         .magnitude
         .unwrap();
@@ -140,7 +140,7 @@ fn simulated_magnitude_noise_is_measured_by_cta_noise() {
 /// records it.
 #[test]
 fn a_simulated_sweeps_magnitudes_give_a_linear_law_and_the_leds_brightness() {
-    use cta_host::calibrate::{calibrate, fit_magnitude};
+    use cta_lab::fit::calibrate::{calibrate, fit_magnitude};
     let d = TestDir::new("sweep-e2e-law");
     let plan = write_plan(
         &d,
@@ -206,7 +206,7 @@ settle_ms = 0
     assert_eq!(rep.file.led_brightness, m.led_brightness);
     assert!(rep.file.fitted.sigma.contains_key("magnitude.exponent"));
     // Each LED's brightness against the truth's, normalised alike (geometric mean 1).
-    let truth = cta_host::simulate::Truth::load_for(&sweep::data_path(&run))
+    let truth = cta_lab::sim::Truth::load_for(&sweep::data_path(&run))
         .unwrap()
         .unwrap();
     assert_eq!(truth.led_brightness_percent, 10.0);

@@ -6,10 +6,10 @@
 
 use std::path::Path;
 
-use cta_host::measurement::Dataset;
-use cta_host::sweep::plan::Plan;
-use cta_host::sweep::sim::{SimCta, SimSettings};
-use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::data::Dataset;
+use cta_lab::sweep::plan::Plan;
+use cta_lab::sweep::sim::{SimCta, SimSettings};
+use cta_lab::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{data_rows, journal, journal_field, sweep_args, write_plan, TestDir};
 
 const PLAN: &str = r#"
@@ -234,14 +234,14 @@ give_up_s = 30
 fn a_sensor_reset_at_its_start_up_sensitivity_is_found_and_its_rate_restored() {
     use cta_core::wire::sensor::{SensorProtocol, SensorRequest, SensorResponse};
     use cta_core::wire::ResetCause;
-    use cta_host::link::{open_serial, Link, LinkConfig};
+    use cta_lab::boards::link::{open_serial, Link, LinkConfig};
     let d = TestDir::new("sweep-faults-sensor-reset");
     write_plan(&d, PLAN_20HZ);
     let plan = Plan::parse("plan.toml", PLAN_20HZ).unwrap();
     // On ports, to ask the sensor board for its status after the run.
     let run = |out: &str, faults: &str| {
         let settings = SimSettings {
-            faults: cta_host::sweep::sim::Faults::parse(faults).unwrap(),
+            faults: cta_lab::sweep::sim::Faults::parse(faults).unwrap(),
             ..SimSettings::default()
         };
         let sim = SimCta::spawn(&plan, &settings).unwrap();
@@ -328,7 +328,7 @@ fn a_sensor_reset_that_silences_a_point_is_named_as_a_reset() {
 #[test]
 fn a_dead_man_timeout_too_short_for_the_heartbeat_is_refused() {
     use cta_core::wire::beacon::{BeaconRequest, Limits};
-    use cta_host::link::{open_serial, Link, LinkConfig};
+    use cta_lab::boards::link::{open_serial, Link, LinkConfig};
     let d = dir("deadman");
     let plan = Plan::parse("plan.toml", PLAN).unwrap();
     let sim = SimCta::spawn(&plan, &SimSettings::default()).unwrap();

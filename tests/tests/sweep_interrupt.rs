@@ -9,7 +9,7 @@
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use cta_host::sweep::{self, SweepArgs};
+use cta_lab::sweep::{self, SweepArgs};
 use cta_tests::{
     child, child_paths, journal, journal_points, sweep_args, write_plan, TestDir, SLOW_PLAN,
 };
@@ -26,7 +26,7 @@ fn child_run() {
         ..sweep_args(&plan, &out)
     };
     // What host/src/main.rs does with the command's result.
-    cta_host::exit_on_error(sweep::run(&a));
+    cta_lab::exit_on_error(sweep::run(&a));
     std::process::exit(0);
 }
 

@@ -18,7 +18,7 @@ use std::os::unix::process::CommandExt;
 use std::path::Path;
 use std::process::{Command, Output};
 
-use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{
     assert_same_data, child, child_in_shell, child_paths, crash_after, resume_args, snapshot,
     sweep_args, write_plan, TestDir,

@@ -9,7 +9,7 @@
 //! ```
 //! (once `cta sweep` is wired: `cta sweep --plan host/plans/chvi.toml --out /tmp/chvi --quiet`)
 
-use cta_host::sweep::{self, SweepArgs};
+use cta_lab::sweep::{self, SweepArgs};
 use cta_tests::{sweep_args, TestDir};
 
 #[test]

@@ -4,9 +4,9 @@
 
 use std::path::Path;
 
-use cta_host::sweep::plan::Plan;
-use cta_host::sweep::sim::{SimCta, SimSettings};
-use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::plan::Plan;
+use cta_lab::sweep::sim::{SimCta, SimSettings};
+use cta_lab::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{sweep_args, write_plan, TestDir};
 
 const PLAN: &str = r#"

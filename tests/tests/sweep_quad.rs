@@ -2,9 +2,9 @@
 //! the detector must see it there (it once kept seeing quadrant 0 at every quadrant's
 //! recorded positions, which the fit turned into H = 4,173 instead of 18,919).
 
-use cta_host::fit::{self, Weights};
-use cta_host::measurement::Dataset;
-use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::data::Dataset;
+use cta_lab::fit::{self, Weights};
+use cta_lab::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{sweep_args, write_plan, TestDir};
 
 #[test]

@@ -9,10 +9,10 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use cta_host::measurement::Dataset;
-use cta_host::sweep::plan::Plan;
-use cta_host::sweep::store::RunDir;
-use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::data::Dataset;
+use cta_lab::sweep::plan::Plan;
+use cta_lab::sweep::store::RunDir;
+use cta_lab::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{
     assert_same_data, child, child_paths, journal, journal_points, resume_args, sweep_args,
     write_plan, TestDir,

@@ -10,10 +10,10 @@
 
 use std::path::{Path, PathBuf};
 
-use cta_host::sweep::plan::Plan;
-use cta_host::sweep::sim::{Posing, SimCta, SimSettings};
-use cta_host::sweep::store::{Event, RunDir};
-use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::plan::Plan;
+use cta_lab::sweep::sim::{Posing, SimCta, SimSettings};
+use cta_lab::sweep::store::{Event, RunDir};
+use cta_lab::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{
     child, child_paths, crash_after, journal, journal_field, resume_args, snapshot, sweep_args,
     write_plan, TestDir,

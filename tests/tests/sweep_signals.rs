@@ -19,10 +19,10 @@ use std::time::{Duration, Instant};
 
 use cta_core::wire::beacon::{Beacon, BeaconRequest, BeaconResponse};
 use cta_core::wire::sensor::{SensorProtocol, SensorRequest, SensorResponse};
-use cta_host::link::{open_serial, Link, LinkConfig};
-use cta_host::sweep::plan::Plan;
-use cta_host::sweep::sim::{SimCta, SimSettings};
-use cta_host::sweep::{self, SweepArgs};
+use cta_lab::boards::link::{open_serial, Link, LinkConfig};
+use cta_lab::sweep::plan::Plan;
+use cta_lab::sweep::sim::{SimCta, SimSettings};
+use cta_lab::sweep::{self, SweepArgs};
 use cta_tests::{child, child_paths, journal, journal_points, write_plan, TestDir, SLOW_PLAN};
 
 /// Generous: a loaded machine must not fail the tests.
@@ -74,7 +74,7 @@ fn child_hardware_run() {
     };
     let r = sweep::run(&a);
     print_board_state(&sim);
-    cta_host::exit_on_error(r);
+    cta_lab::exit_on_error(r);
     std::process::exit(0);
 }
 
@@ -281,7 +281,7 @@ fn child_log_run() {
         no_sync: true,
         ..SweepArgs::default()
     };
-    cta_host::exit_on_error(sweep::run(&a));
+    cta_lab::exit_on_error(sweep::run(&a));
     std::process::exit(0);
 }
 

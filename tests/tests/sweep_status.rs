@@ -10,8 +10,8 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use cta_host::sweep::status::{self, Holder};
-use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::status::{self, Holder};
+use cta_lab::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{
     child, child_paths, crash_after, journal_points, snapshot, sweep_args, write_plan, TestDir,
     SLOW_PLAN,
@@ -161,7 +161,7 @@ fn child_run() {
         sim_realtime: true,
         ..sweep_args(&plan, &out)
     };
-    cta_host::exit_on_error(sweep::run(&a));
+    cta_lab::exit_on_error(sweep::run(&a));
     std::process::exit(0);
 }
 

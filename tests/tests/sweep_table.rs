@@ -18,10 +18,10 @@ use std::time::{Duration, Instant};
 
 use cta_core::schedule::NORTHSTAR_TABLE_MHZ;
 use cta_firmware_beacon::sim::SimBoard;
-use cta_host::beacon_cmd::{self, BeaconArgs, BeaconCommand, BeaconConn};
-use cta_host::sweep::plan::Plan;
-use cta_host::sweep::sim::{Faults, SimCta, SimSettings};
-use cta_host::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::boards::beacon::{self, BeaconArgs, BeaconCommand, BeaconConn};
+use cta_lab::sweep::plan::Plan;
+use cta_lab::sweep::sim::{Faults, SimCta, SimSettings};
+use cta_lab::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{
     child, child_paths, data_rows, journal, journal_points, write_plan, TestDir, SLOW_PLAN,
 };
@@ -61,7 +61,7 @@ fn table(port: &str, set: Option<&[f64]>, default: bool) -> String {
         },
     };
     let mut out = Vec::new();
-    beacon_cmd::run_to(&args, &mut out).unwrap();
+    beacon::run_to(&args, &mut out).unwrap();
     String::from_utf8(out).unwrap()
 }
 

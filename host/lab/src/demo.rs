@@ -1,0 +1,362 @@
+//! `cta demo`: the whole job on the built-in simulated CTA, no hardware.
+
+use crate::commands::{self, EvaluateArgs, FitArgs, NearfieldArgs, Profile, UncertaintyArgs};
+use crate::fit::Weights;
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use std::path::PathBuf;
+
+/// Run the main job on the simulated CTA: near-field analysis, uncertainty, an unattended
+/// sweep of the simulated apparatus with a hidden effect, calibration, evaluation, and the
+/// analysis that names the hidden effect, ending in an HTML report.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Output folder (created; must not exist unless --force, which replaces an earlier
+    /// demo's folder and refuses one that holds anything else).
+    #[arg(long, default_value = "cta-demo")]
+    pub out: PathBuf,
+    /// Replace an earlier demo's output folder.
+    #[arg(long)]
+    pub force: bool,
+    /// The hidden effect injected into the simulated data (NAME=VALUE).
+    #[arg(long, default_value = "cell_gain=0.02,-0.01")]
+    pub effect: String,
+    /// Random seed.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+}
+
+/// The demo sweep plan (also shipped as `host/plans/demo.toml`).
+const DEMO_PLAN: &str = include_str!("../../plans/demo.toml");
+
+fn path_str(p: &std::path::Path) -> Result<&str> {
+    p.to_str()
+        .ok_or_else(|| anyhow::anyhow!("{}: not a UTF-8 path", p.display()))
+}
+
+/// Build a subcommand's arguments exactly as its command line would.
+fn parse_args<A: clap::Args>(args: &[&str]) -> Result<A> {
+    #[derive(clap::Parser)]
+    struct Wrap<B: clap::Args> {
+        #[command(flatten)]
+        inner: B,
+    }
+    let argv = std::iter::once("cta").chain(args.iter().copied());
+    Ok(<Wrap<A> as clap::Parser>::try_parse_from(argv)?.inner)
+}
+
+/// The file the demo writes first into its folder, saying what the folder is; `--force`
+/// deletes only a folder that has it.
+const DEMO_README: &str = "README.txt";
+
+/// Its first line.
+const DEMO_README_HEAD: &str = "written by `cta demo`: `cta demo --force` deletes this folder";
+
+/// What the demo writes into its folder: `--force` deletes a folder holding only these, with
+/// [`DEMO_README`].
+const DEMO_ENTRIES: [&str; 10] = [
+    DEMO_README,
+    "nearfield.svg",
+    "uncertainty.svg",
+    "plan.toml",
+    "run",
+    "fit.json",
+    "figure57.svg",
+    "cal.json",
+    "calibration.svg",
+    "report",
+];
+
+/// Delete an earlier demo's folder; refuse a folder holding anything the demo does not write.
+fn remove_earlier_demo(out: &std::path::Path) -> Result<()> {
+    if !out.is_dir() {
+        bail!("--out {}: exists and is not a folder", out.display());
+    }
+    let mut foreign = Vec::new();
+    for e in std::fs::read_dir(out).with_context(|| format!("{}", out.display()))? {
+        let name = e
+            .with_context(|| format!("{}", out.display()))?
+            .file_name()
+            .to_string_lossy()
+            .into_owned();
+        if !DEMO_ENTRIES.contains(&name.as_str()) {
+            foreign.push(name);
+        }
+    }
+    if !foreign.is_empty() {
+        foreign.sort();
+        bail!(
+            "--out {}: holds files the demo did not write ({}): not deleting it; choose another --out",
+            out.display(),
+            foreign.join(", ")
+        );
+    }
+    let readme = out.join(DEMO_README);
+    let ours = std::fs::read_to_string(&readme).is_ok_and(|t| t.starts_with(DEMO_README_HEAD));
+    // A demo folder of an older cta (before README.txt) is known by its report; an empty
+    // folder holds nothing to lose.
+    let older = crate::plot::is_cta_output(&out.join("report").join("index.html"));
+    let empty = std::fs::read_dir(out).is_ok_and(|mut d| d.next().is_none());
+    if !(ours || older || empty) {
+        bail!(
+            "--out {}: has no {} written by `cta demo` (demos write it first) nor a report by \
+             an older cta, so it is not known to be an earlier demo's folder: not deleting it; \
+             remove it yourself or choose another --out",
+            out.display(),
+            readme.display()
+        );
+    }
+    std::fs::remove_dir_all(out).with_context(|| format!("{}", out.display()))
+}
+
+/// Run `cta demo`.
+pub fn run(a: &DemoArgs) -> Result<()> {
+    // Refuse a bad effect before anything is deleted or written.
+    crate::sim::effects::Effect::parse(&a.effect).map_err(|e| anyhow::anyhow!("--effect: {e}"))?;
+    if a.out.exists() {
+        if !a.force {
+            bail!("{} exists; pass --force to replace it", a.out.display());
+        }
+        remove_earlier_demo(&a.out)?;
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}", a.out.display()))?;
+    let p = |f: &str| a.out.join(f);
+    crate::data::write_output(
+        &p(DEMO_README),
+        format!(
+            "{DEMO_README_HEAD}\n\nThe walkthrough of `cta demo` on the built-in simulated CTA (see the \
+             top-level README.md):\nnearfield.svg, uncertainty.svg: Ch II errors and Ch IV budget\n\
+             plan.toml, run/: the simulated sweep\nfit.json, figure57.svg: the 20-30 in \
+             calibration and Figure 57\ncal.json, calibration.svg: the sensor board's \
+             calibration\nreport/index.html: cta analyze's report\n"
+        )
+        .as_bytes(),
+    )
+    .map_err(anyhow::Error::msg)?;
+    println!("== 1. Ch II: near-field errors (2-D)");
+    commands::nearfield(&NearfieldArgs {
+        alpha: 30.0,
+        theta: "6,18,30,45".into(),
+        noise_deg: 0.1,
+        profile: Profile::Lambertian,
+        half_angle: 60.0,
+        diameter_in: 0.35,
+        plot: Some(p("nearfield.svg")),
+        json: false,
+    })?;
+    println!("\n== 2. Ch IV: CTA uncertainty");
+    commands::uncertainty_cmd(&UncertaintyArgs {
+        budget: None,
+        diameter_in: 0.35,
+        plot: Some(p("uncertainty.svg")),
+        json: false,
+    })?;
+    let run_dir = p("run");
+    let plan = p("plan.toml");
+    std::fs::write(&plan, DEMO_PLAN).with_context(|| format!("{}", plan.display()))?;
+    println!(
+        "\n== 3. Ch VI: an unattended sweep of the simulated CTA (both boards on pseudo-terminals), \
+         4-30 in, noise 0.1 % of beta for a strong spot (growing as a spot dims, about 50 counts at 30 in), spot magnitudes \
+         scattering 0.07 % (what that noise implies if both come from the cells), hidden effect `{}`",
+        a.effect
+    );
+    let seed = a.seed.to_string();
+    let sweep = parse_args::<crate::sweep::SweepArgs>(&[
+        "--plan",
+        path_str(&plan)?,
+        "--out",
+        path_str(&run_dir)?,
+        "--sim",
+        "--sim-noise",
+        "32.8",
+        "--sim-magnitude-noise",
+        "0.07",
+        "--sim-effect",
+        &a.effect,
+        "--sim-seed",
+        &seed,
+        "--yes",
+    ])?;
+    crate::sweep::run(&sweep)?;
+    let data = run_dir.join("data.csv");
+    println!("\n== 4. Ch V: calibrate the pinhole model at 20-30 in (thesis recommendation)");
+    let fit = p("fit.json");
+    commands::fit_cmd(&FitArgs {
+        file: data.clone(),
+        separations: Some("20..30:2".into()),
+        weights: Weights::Pooled,
+        save: Some(fit.clone()),
+        force: false,
+        drop_glitches: false,
+        json: false,
+    })?;
+    println!("\n== 5. Figure 57: error in angle of that calibration at every separation");
+    commands::evaluate_cmd(&EvaluateArgs {
+        fit,
+        file: data.clone(),
+        separations: None,
+        head: None,
+        budget: None,
+        without_rail: false,
+        drop_glitches: false,
+        plot: Some(p("figure57.svg")),
+        json: false,
+    })?;
+    println!(
+        "\n== 6. The sensor board's calibration from the sweep (pinhole, then the chip's near-field model)"
+    );
+    let cal = p("cal.json");
+    crate::fit::calibrate::run(&parse_args::<crate::fit::calibrate::CalibrateArgs>(&[
+        path_str(&data)?,
+        "--out",
+        path_str(&cal)?,
+        "--plot",
+        path_str(&p("calibration.svg"))?,
+    ])?)?;
+    println!("\n== 7. What the simulation gets wrong, why, and the gain of the extended model");
+    let report = p("report");
+    let analyze = parse_args::<crate::analyze::AnalyzeArgs>(&[
+        path_str(&data)?,
+        "--report",
+        path_str(&report)?,
+    ])?;
+    crate::analyze::run(&analyze)?;
+    println!(
+        "\nDemo output in {}: nearfield.svg, uncertainty.svg, run/ (sweep data, manifest, truth), fit.json, \
+         figure57.svg, cal.json (for `cta sensor load-calibration`) and calibration.svg, and the analysis report: open {}",
+        a.out.display(),
+        report.join("index.html").display()
+    );
+    print!("{}", rehearsal(&run_dir, &cal, &a.effect)?);
+    Ok(())
+}
+
+/// What the rehearsal's simulated board does with the demo's hidden effect: a head effect is
+/// included (the truth sidecar carries it); an effect of the plate (its tilt, offsets,
+/// separation errors, LED boresights) is no part of the head, and `cta sensor sim` leaves it
+/// out.
+fn hidden_effect_words(effect: &str) -> String {
+    let on_head = crate::sim::effects::Effect::parse(effect)
+        .map(|e| crate::boards::sensor::acts_on_the_head(&e))
+        .unwrap_or(true);
+    if on_head {
+        format!(
+            "its hidden `{effect}` included: the plain `cta sensor sim` head has none, and its \
+             poses would be off by what the calibration corrects"
+        )
+    } else {
+        format!(
+            "its hidden `{effect}` is the CTA plate's, not the head's, so the simulated board \
+             leaves it out: cal.json was fitted to data with it, and the poses are off by what \
+             the calibration absorbed of it"
+        )
+    }
+}
+
+/// The demo's closing instructions: rehearse the sensor board with its calibration on `cta
+/// sensor sim`, whose head must be the sweep's (its truth sidecar: a hidden effect of the head included),
+/// with the calibration's spot noise. Each command line is indented by two spaces, starts with
+/// `cta ` and holds `PTY` where the pseudo-terminal goes.
+fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> Result<String> {
+    let text = std::fs::read_to_string(cal).with_context(|| format!("{}", cal.display()))?;
+    let calibration = serde_json::from_str::<cta_core::pose::Calibration>(&text)
+        .with_context(|| format!("{}", cal.display()))?;
+    let noise = calibration.noise;
+    // What becomes of the spot magnitudes on the simulated board.
+    let magnitudes = match calibration.magnitude {
+        Some(m) => format!(
+            " The pose report's `mag` column counts the spot magnitudes fitted: none here. \
+             cal.json's magnitude law holds the readings it was fitted on, {:.0} to {:.0} counts \
+             (the simulated sweep's NorthStar, whose scale mimics the real one's 5000-65535); the \
+             simulated board's are on a scale of its own, a few hundred counts at 12 in, below \
+             the law's range, so its poses use the spots alone.",
+            m.min, m.max
+        ),
+        None => String::new(),
+    };
+    let truth = crate::sim::Truth::path_for(&run_dir.join("data.csv"));
+    // The simulated board's own scene, as `cta sensor sim` takes it by default.
+    let scene = parse_args::<crate::boards::sensor::SimArgs>(&[])?;
+    let [x, y] = scene.offset;
+    let hidden = hidden_effect_words(effect);
+    Ok(format!(
+        "\nRehearse the sensor board with cal.json, no hardware: a simulated board with this sweep's \
+         head ({hidden}), at the calibration's spot noise. \
+         Run the first command in another terminal; it prints the pseudo-terminal to use as PTY:\n\
+         \x20 cta sensor sim --truth {} --noise {noise:.1} --configured\n\
+         \x20 cta sensor --port PTY load-calibration {}\n\
+         \x20 cta sensor --port PTY pose --count 5\n\
+         The target sits at x {x}, y {y}, z {} in (the simulated board's --offset and --range): \
+         single poses scatter about it by their 1-sigma (sx, sy, sz), and the mean of a few lies \
+         within it.{magnitudes}\n",
+        truth.display(),
+        cal.display(),
+        scene.range,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rehearsal says the simulated board has a head effect and leaves a plate's out (as
+    /// `cta sensor sim --truth` does: with `plate_tilt=0.2` hidden, 40 rehearsal poses read x
+    /// 0.0046 in off, 0.6 of a pose's 1-sigma).
+    #[test]
+    fn the_rehearsal_says_what_becomes_of_the_hidden_effect() {
+        for e in ["cell_gain=0.03", "face_angle=1", "proximity=0.2"] {
+            assert!(hidden_effect_words(e).contains("included"), "{e}");
+        }
+        for e in [
+            "plate_tilt=0.2",
+            "plate_offset=0.05",
+            "separation_error=0.05",
+            "beacon_tilt=3,45",
+        ] {
+            let w = hidden_effect_words(e);
+            assert!(
+                w.contains("the CTA plate's") && w.contains("leaves it out"),
+                "{e}: {w}"
+            );
+        }
+    }
+
+    /// `--force` deletes a folder the demo wrote (its README first), and nothing else: not a
+    /// folder with the demo's file names but no README, nor one with other files.
+    #[test]
+    fn only_an_earlier_demos_folder_is_deleted() {
+        let d = std::env::temp_dir().join(format!("cta-demo-rm-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(d.join("run")).unwrap();
+        std::fs::write(d.join("fit.json"), "mine").unwrap();
+        std::fs::write(d.join("nearfield.svg"), "mine").unwrap();
+        let e = remove_earlier_demo(&d).unwrap_err().to_string();
+        assert!(
+            e.contains("not known to be an earlier demo's folder"),
+            "{e}"
+        );
+        std::fs::write(d.join(DEMO_README), "notes").unwrap();
+        assert!(remove_earlier_demo(&d).is_err());
+        // An older demo's folder: no README.txt, but its report is cta's.
+        std::fs::remove_file(d.join(DEMO_README)).unwrap();
+        std::fs::create_dir_all(d.join("report")).unwrap();
+        std::fs::write(
+            d.join("report").join("index.html"),
+            "<!doctype html><html><head><meta charset=utf-8><title>cta analyze: x</title>",
+        )
+        .unwrap();
+        remove_earlier_demo(&d).unwrap();
+        assert!(!d.exists());
+        // An empty folder holds nothing to lose.
+        std::fs::create_dir_all(&d).unwrap();
+        remove_earlier_demo(&d).unwrap();
+        std::fs::create_dir_all(d.join("run")).unwrap();
+        std::fs::write(d.join(DEMO_README), format!("{DEMO_README_HEAD}\n")).unwrap();
+        std::fs::write(d.join("mine.txt"), "x").unwrap();
+        let e = remove_earlier_demo(&d).unwrap_err().to_string();
+        assert!(e.contains("(mine.txt)"), "{e}");
+        std::fs::remove_file(d.join("mine.txt")).unwrap();
+        remove_earlier_demo(&d).unwrap();
+        assert!(!d.exists());
+    }
+}

@@ -1,0 +1,1530 @@
+//! The run directory: what a sweep leaves on disk, written so that nothing is lost and
+//! nothing is written twice, whatever stops the run.
+//!
+//! ```text
+//! RUN_DIR/plan.toml      the plan, as given (a resume reads it from here; its timing keys
+//!                        may be edited between sessions, or changed by a resume's --plan)
+//! RUN_DIR/data.csv       the measurements (host/MEASUREMENTS.md), appended per point
+//! RUN_DIR/journal.jsonl  one JSON event per line: sessions, operator entries, points, faults
+//! RUN_DIR/manifest.json  the run's metadata, rewritten from the journal at every session
+//!                        start and stop, operator entry and fault
+//! RUN_DIR/sweep.lock     the pid of the `cta sweep` using the run (locked while it runs)
+//! ```
+//!
+//! One process at a time: a [`RunDir`] holds an exclusive `flock(2)` on `sweep.lock` (released
+//! by the kernel however the process ends), so a second `cta sweep` on the same directory is
+//! refused with the holder's pid instead of interleaving its journal lines with the first's. A
+//! pid left in the file by a process that was killed (nobody holds the lock) is taken over, and
+//! a note says so.
+//!
+//! Commit protocol for a point: its rows (or its "no signal" comment) are appended to
+//! `data.csv` and flushed to the operating system; its `point` event, carrying the file length
+//! after them, is appended to the journal only once `data.csv` is synced to disk, then the
+//! journal is synced. Syncs are grouped: at most one pair every [`SYNC_INTERVAL`] (a slow
+//! point, as on the real CTA, is synced as soon as it is done; the unthrottled simulated CTA
+//! commits many points per sync), and always before any other event and at the end of a
+//! session. So the journal never runs ahead of the data on disk, whatever stops the run. The journal is the authority: on resume,
+//! `data.csv` is cut back to the length of the last journalled point (dropping the rows of a
+//! point whose journal line never made it), a torn last journal line is dropped, and the run
+//! continues with the next point. No duplicate, no gap.
+
+use std::fs::{File, OpenOptions};
+use std::io::{BufRead, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
+use std::os::unix::io::AsRawFd;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use serde::{Deserialize, Serialize};
+
+use super::plan::{Change, Plan, RESUME_MAY_CHANGE};
+use crate::data::{write_row, Sample, OPTIONAL, REQUIRED};
+
+/// What became of a point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PointStatus {
+    /// All samples taken.
+    Ok,
+    /// The sensor never reported the beacon's spot: recorded as a comment line, no rows.
+    NoSignal,
+    /// Some samples, fewer than asked, within the report limit.
+    Partial,
+}
+
+/// The plate separation from the four corner readings (thesis Ch IV, "Plate levelness and
+/// separation distance": the separation is measured at four locations around the outer edges
+/// of the plates, the measurements are averaged to obtain the height at the centre, and "the
+/// uncertainty in the center height will be the difference between the center height and the
+/// maximum and minimum measurements").
+///
+/// Read from a journal, the uncertainty is derived again from the corners: a journal of an
+/// earlier version holds `spread` instead, the corners' sample standard deviation, which is
+/// not Ch IV's bound (one high corner, `(3t, -t, -t, -t)` about the mean: std `2t`, bound `3t`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(from = "SeparationRecord")]
+pub struct SeparationEntry {
+    /// Index in the plan's separations.
+    pub sep_idx: usize,
+    /// Nominal separation, in.
+    pub nominal: f64,
+    /// The four corner readings, in (empty when not measured: `--yes` without readings).
+    pub corners: Vec<f64>,
+    /// Recorded separation: the mean of the corners (the nominal if none), in.
+    pub mean: f64,
+    /// Its uncertainty (Ch IV), in: the larger of (maximum corner - mean) and (mean - minimum
+    /// corner), i.e. the largest |corner - mean|; 0 when not measured. See
+    /// [`corner_uncertainty`].
+    pub uncertainty: f64,
+    /// Who entered it: "operator", "scripted (--yes, not measured)", "simulated plate".
+    pub source: String,
+    /// Where the corners were read: at x, y = +/-this (in) in frame N, in the order
+    /// [`super::corners::CORNER_ORDER`], which gives the plate's tilt
+    /// ([`super::corners::corner_tilt`]). `None` without readings, and in journals of
+    /// versions that did not ask for the corners in an order.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rods_xy_in: Option<f64>,
+}
+
+/// A `separation` event as journalled by any version: `spread` (the corners' standard
+/// deviation, before the uncertainty was Ch IV's) is accepted for `uncertainty`.
+#[derive(Deserialize)]
+struct SeparationRecord {
+    sep_idx: usize,
+    nominal: f64,
+    corners: Vec<f64>,
+    mean: f64,
+    #[serde(alias = "spread", default)]
+    uncertainty: f64,
+    source: String,
+    #[serde(default)]
+    rods_xy_in: Option<f64>,
+}
+
+impl From<SeparationRecord> for SeparationEntry {
+    fn from(r: SeparationRecord) -> SeparationEntry {
+        // Derived again from the corners (the measurement): an older journal's `spread` is a
+        // standard deviation, not the uncertainty this field holds.
+        let uncertainty = if r.corners.is_empty() {
+            r.uncertainty
+        } else {
+            corner_uncertainty(&r.corners)
+        };
+        SeparationEntry {
+            sep_idx: r.sep_idx,
+            nominal: r.nominal,
+            corners: r.corners,
+            mean: r.mean,
+            uncertainty,
+            source: r.source,
+            rods_xy_in: r.rods_xy_in,
+        }
+    }
+}
+
+/// The mean of corner readings, unrounded (0 for none).
+pub fn corner_mean(corners: &[f64]) -> f64 {
+    if corners.is_empty() {
+        return 0.0;
+    }
+    corners.iter().sum::<f64>() / corners.len() as f64
+}
+
+/// The uncertainty of the mean of corner readings (thesis Ch IV): the difference between the
+/// mean and the maximum and minimum readings, the larger of the two, in (0 for none), rounded
+/// to 0.1 mil as the recorded mean is (so that 5 mils reads 5 mils at any separation).
+pub fn corner_uncertainty(corners: &[f64]) -> f64 {
+    let m = corner_mean(corners);
+    let u = corners.iter().map(|c| (c - m).abs()).fold(0.0, f64::max);
+    (u * 1e4).round() / 1e4
+}
+
+/// Ch IV's bound on a separation's uncertainty, in: plates leveled at their centres with a
+/// machinist's level of 5 mils per foot are parallel to +/-5 mils one foot out.
+pub const LEVEL_BOUND_IN: f64 = 0.005;
+
+/// The operator's question when corner readings differ from their mean by more than
+/// [`LEVEL_BOUND_IN`] (the plates are not as level as Ch IV assumes, or a reading is off):
+/// `None` within it.
+pub fn levelness_question(corners: &[f64]) -> Option<String> {
+    let u = corner_uncertainty(corners);
+    (u > LEVEL_BOUND_IN).then(|| {
+        format!(
+            "The corners {corners:?} differ from their mean by up to {:.1} mils, more than the \
+             +/-5 mils Ch IV expects of leveled plates (a machinist's level, 5 mils per foot): \
+             a tilted plate or a misread corner. Keep them? [y/N = level and measure again] ",
+            u * 1000.0
+        )
+    })
+}
+
+/// One journal line.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "event", rename_all = "snake_case")]
+pub enum Event {
+    /// A session (first run or a resume) started.
+    Session {
+        /// Session number, 1-based.
+        n: u32,
+        /// Wall-clock time, RFC 3339-like UTC seconds since the epoch.
+        at: f64,
+        /// `cta` version.
+        software: String,
+        /// The command line.
+        command: Vec<String>,
+        /// Board identities (`beacon`, `sensor`), as answered.
+        boards: serde_json::Value,
+        /// Simulation settings (`None` for real boards).
+        sim: Option<serde_json::Value>,
+        /// The plan in use (validated; [`Plan`]'s fields): a resume compares `plan.toml` (or
+        /// the file given with `--plan`) with the last session's, accepts changed timing keys
+        /// ([`RESUME_MAY_CHANGE`]) with a note and refuses any other change, so every
+        /// session's plan says what the first one's did but for timing. Absent in journals of
+        /// older versions.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        plan: Option<serde_json::Value>,
+        /// First point of this session.
+        from_point: usize,
+        /// What opening the run directory found and did (a dead holder's lock taken over,
+        /// uncommitted data discarded, ...).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        notes: Vec<String>,
+    },
+    /// The plate was moved (or its position confirmed on resume).
+    Separation(SeparationEntry),
+    /// The array was (re)mounted in a quadrant (quad layout).
+    Quadrant {
+        /// Quadrant 0..4.
+        quadrant: usize,
+        /// Who confirmed it.
+        source: String,
+    },
+    /// The power switches were set.
+    Power {
+        /// Power level.
+        level: u8,
+        /// Who confirmed it.
+        source: String,
+    },
+    /// A point was committed.
+    Point {
+        /// Point index in the plan.
+        i: usize,
+        /// Outcome.
+        status: PointStatus,
+        /// Samples written.
+        samples: u32,
+        /// Sensor reports read for it (with or without the spot).
+        reports: u32,
+        /// Reports lost on the wire (gaps in the board's report counter).
+        lost: u32,
+        /// Attempts it took (1 = first try).
+        attempts: u32,
+        /// Length of data.csv after its rows.
+        csv_end: u64,
+        /// FNV-1a 64 (16 hex digits) of data.csv's first `csv_end` bytes: a resume checks the
+        /// committed data are still what was written. Absent in journals of older versions.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        csv_hash: Option<String>,
+        /// When it was committed, seconds since the epoch (`cta sweep --status`'s last commit
+        /// and rate). Absent in journals of older versions.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        at: Option<f64>,
+    },
+    /// Something went wrong, and what was done about it.
+    Fault {
+        /// Seconds since the epoch.
+        at: f64,
+        /// Point being measured.
+        point: usize,
+        /// "beacon", "sensor" or "host".
+        board: String,
+        /// What happened.
+        what: String,
+        /// What the run did ("retry point", "reconnect", "stop").
+        action: String,
+    },
+    /// A session ended.
+    Stop {
+        /// Seconds since the epoch.
+        at: f64,
+        /// "complete", "interrupted (Ctrl-C)", "gave up: ...".
+        reason: String,
+        /// Next point to measure.
+        next_point: usize,
+        /// What a resume of a complete run changed without opening the boards (the notes a
+        /// session would journal: uncommitted bytes cut, a torn line dropped, ...). Absent
+        /// otherwise, and in journals of older versions.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        notes: Vec<String>,
+    },
+}
+
+/// Seconds since the Unix epoch.
+pub fn now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs_f64())
+        .unwrap_or(0.0)
+}
+
+/// FNV-1a, 64 bits: a running hash of data.csv as it is written (no cryptographic claim: it
+/// catches edits and replacements, not an adversary).
+#[derive(Debug, Clone, Copy)]
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Fnv {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+
+    fn update(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+
+    fn hex(&self) -> String {
+        format!("{:016x}", self.0)
+    }
+}
+
+/// An exclusive lock on a run directory: `flock(2)` on [`LOCK`], which holds the holder's pid.
+struct Lock {
+    file: File,
+}
+
+impl Lock {
+    /// Lock `dir` (which must exist), or say who holds it. Also returns the pid a previous
+    /// holder left in the file without holding the lock (it died: killed, crashed, power cut).
+    fn acquire(dir: &Path) -> Result<(Lock, Option<String>)> {
+        let path = dir.join(LOCK);
+        let mut file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)
+            .with_context(|| format!("{}: cannot open the lock file", path.display()))?;
+        // SAFETY: flock on a file descriptor we own; no memory is involved.
+        let r = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+        let mut holder = String::new();
+        let _ = file.read_to_string(&mut holder);
+        let holder = holder.trim().to_string();
+        if r != 0 {
+            let e = std::io::Error::last_os_error();
+            if e.kind() == std::io::ErrorKind::WouldBlock {
+                bail!(
+                    "{}: the run is in use by another `cta sweep` ({}); wait for it to end or stop \
+                     it first: two sessions on one run directory would corrupt its journal",
+                    path.display(),
+                    if holder.is_empty() {
+                        "pid unknown".to_string()
+                    } else {
+                        format!("pid {holder}")
+                    }
+                );
+            }
+            return Err(e).with_context(|| format!("{}: cannot lock", path.display()));
+        }
+        let mut lock = Lock { file };
+        lock.write(&format!("{}\n", std::process::id()))
+            .with_context(|| format!("{}: cannot write", path.display()))?;
+        Ok((lock, Some(holder).filter(|h| !h.is_empty())))
+    }
+
+    fn write(&mut self, s: &str) -> std::io::Result<()> {
+        self.file.set_len(0)?;
+        self.file.seek(SeekFrom::Start(0))?;
+        self.file.write_all(s.as_bytes())
+    }
+}
+
+impl Drop for Lock {
+    fn drop(&mut self) {
+        // Released: no pid left behind (the flock itself goes with the file descriptor).
+        let _ = self.write("");
+    }
+}
+
+/// An open run directory.
+pub struct RunDir {
+    /// The directory.
+    pub dir: PathBuf,
+    /// What opening it found and did that the operator should know (printed and journalled
+    /// with the session): a dead holder's lock taken over, uncommitted data discarded, ...
+    pub notes: Vec<String>,
+    csv: BufWriter<File>,
+    csv_len: u64,
+    /// Hash of data.csv's first `csv_len` bytes.
+    csv_hash: Fnv,
+    journal: File,
+    /// Length of the journal's complete lines (a failed write is cut back to it).
+    journal_len: u64,
+    /// Every event so far (this and previous sessions).
+    pub events: Vec<Event>,
+    sync: bool,
+    /// Journal lines of points whose rows are not yet synced.
+    pending: Vec<u8>,
+    /// Number of events in `pending` (the last ones of `events`).
+    pending_events: usize,
+    last_sync: std::time::Instant,
+    /// A resume's changes not made yet ([`RunDir::begin`]).
+    unapplied: Option<Unapplied>,
+    /// Where the plate was last recorded when the run was opened (the journal's last
+    /// `separation`, also when a recovery cut it from the journal): a resume asks to confirm
+    /// it only when the next point is at that separation.
+    pub plate: Option<SeparationEntry>,
+    _lock: Lock,
+}
+
+/// The changes to the run directory a resume decided and [`RunDir::begin`] makes (the cuts'
+/// lengths are the run's `journal_len` and `csv_len`).
+struct Unapplied {
+    /// The text to write as plan.toml (`--plan FILE` with another text).
+    plan_text: Option<String>,
+    /// A recovery of a data file cut short (`--recover-truncated`): what is moved aside
+    /// before the cuts.
+    recovery: Option<Recovery>,
+}
+
+/// What `--recover-truncated` keeps before it cuts: the journal from `journal_from` (the
+/// lines after the last point the data file still holds whole) and data.csv from `data_from`
+/// (the bytes past that point), each to its own file in `folder`.
+struct Recovery {
+    folder: PathBuf,
+    journal_from: u64,
+    data_from: u64,
+}
+
+/// In a recovery folder: the journal lines cut.
+pub const JOURNAL_TAIL: &str = "journal-tail.jsonl";
+/// In a recovery folder: the data bytes cut.
+pub const DATA_TAIL: &str = "data-tail.csv";
+
+/// Longest time between two syncs while points complete.
+pub const SYNC_INTERVAL: std::time::Duration = std::time::Duration::from_millis(250);
+
+/// Names of the files in a run directory.
+pub const PLAN: &str = "plan.toml";
+/// The measurement file.
+pub const DATA: &str = "data.csv";
+/// The event journal.
+pub const JOURNAL: &str = "journal.jsonl";
+/// The manifest.
+pub const MANIFEST: &str = "manifest.json";
+/// The lock file: the pid of the process using the run, `flock`ed while it runs.
+pub const LOCK: &str = "sweep.lock";
+/// The truth behind a simulated run's data (written at every session of one).
+pub const TRUTH: &str = "data.truth.json";
+
+fn took_over(pid: String) -> String {
+    format!(
+        "took over {LOCK} from pid {pid}, which no longer holds it (killed or crashed without \
+         releasing it)"
+    )
+}
+
+impl RunDir {
+    /// Start a new run in `dir` with the plan text `plan_src`. An existing non-empty `dir` is
+    /// refused unless `force` (then its sweep files are removed first).
+    pub fn create(
+        dir: &Path,
+        plan_src: &str,
+        header: &[String],
+        force: bool,
+        sync: bool,
+    ) -> Result<RunDir> {
+        RunDir::check_new(dir, force)?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
+        // Locked before anything is removed: --force must not pull a run from under a live
+        // session.
+        let (lock, stale) = Lock::acquire(dir)?;
+        for f in [PLAN, DATA, JOURNAL, MANIFEST, TRUTH] {
+            let p = dir.join(f);
+            if p.exists() {
+                std::fs::remove_file(&p)
+                    .with_context(|| format!("{}: cannot remove", p.display()))?;
+            }
+        }
+        let mut run = RunDir::create_files(dir, plan_src, header, sync, lock)?;
+        run.notes.extend(stale.map(took_over));
+        Ok(run)
+    }
+
+    /// Refuse to start a new run in an existing, non-empty `dir` unless `force`.
+    pub fn check_new(dir: &Path, force: bool) -> Result<()> {
+        // --out names a folder: a file there (or above it) is not one to create the run in.
+        let file_above = dir
+            .ancestors()
+            .filter(|a| !a.as_os_str().is_empty())
+            .find(|a| a.exists())
+            .filter(|a| !a.is_dir());
+        if let Some(f) = file_above {
+            bail!(
+                "{}: is a file, not a folder: --out names the folder a new run creates (its {DATA}, \
+                 {JOURNAL}, {MANIFEST} and {PLAN} go in it){}; nothing was started: choose \
+                 another --out",
+                f.display(),
+                if f == dir {
+                    String::new()
+                } else {
+                    format!(", and {} would be under it", dir.display())
+                }
+            );
+        }
+        if dir.exists() {
+            let nonempty = std::fs::read_dir(dir)
+                .with_context(|| format!("{}: cannot read the directory", dir.display()))?
+                .next()
+                .is_some();
+            if nonempty && !force {
+                bail!(
+                    "{} already exists and is not empty: continue it with `cta sweep --resume {}`, \
+                     or start over with --force (deletes its {DATA}, {JOURNAL}, {MANIFEST})",
+                    dir.display(),
+                    dir.display()
+                );
+            }
+        }
+        // The run directory is created, or emptied, once both boards answered: a place it
+        // cannot be written in is refused now, before any port is opened.
+        let existing = dir
+            .ancestors()
+            .map(|a| {
+                if a.as_os_str().is_empty() {
+                    Path::new(".")
+                } else {
+                    a
+                }
+            })
+            .find(|a| a.exists());
+        if let Some(at) = existing.filter(|a| a.is_dir()) {
+            if let Err(e) = writable(at) {
+                let itself = at == dir;
+                // `.` by its name.
+                let at = if at == Path::new(".") {
+                    std::env::current_dir().unwrap_or_else(|_| at.to_path_buf())
+                } else {
+                    at.to_path_buf()
+                };
+                bail!(
+                    "{}: cannot write: {e}. {}: nothing was started; choose another --out, or \
+                     make {} writable",
+                    at.display(),
+                    if itself {
+                        "A new run writes its files in it".to_string()
+                    } else {
+                        format!("A new run would create {} in it", dir.display())
+                    },
+                    at.display()
+                );
+            }
+        }
+        Ok(())
+    }
+
+    fn create_files(
+        dir: &Path,
+        plan_src: &str,
+        header: &[String],
+        sync: bool,
+        lock: Lock,
+    ) -> Result<RunDir> {
+        std::fs::write(dir.join(PLAN), plan_src)
+            .with_context(|| format!("{}: cannot write", dir.join(PLAN).display()))?;
+        let mut csv = File::create(dir.join(DATA))
+            .with_context(|| format!("{}: cannot create", dir.join(DATA).display()))?;
+        let mut head = String::new();
+        for h in header {
+            head.push_str(&format!("# {h}\n"));
+        }
+        head.push_str(&format!("{},{}\n", REQUIRED.join(","), OPTIONAL.join(",")));
+        let dp = dir.join(DATA);
+        csv.write_all(head.as_bytes())
+            .and_then(|_| csv.sync_all())
+            .with_context(|| format!("{}: cannot write", dp.display()))?;
+        let journal = File::create(dir.join(JOURNAL))
+            .with_context(|| format!("{}: cannot create", dir.join(JOURNAL).display()))?;
+        let csv_len = head.len() as u64;
+        let mut csv_hash = Fnv::new();
+        csv_hash.update(head.as_bytes());
+        Ok(RunDir {
+            dir: dir.to_path_buf(),
+            notes: Vec::new(),
+            csv: BufWriter::with_capacity(1 << 16, csv),
+            csv_len,
+            csv_hash,
+            journal,
+            journal_len: 0,
+            events: Vec::new(),
+            sync,
+            pending: Vec::new(),
+            pending_events: 0,
+            last_sync: std::time::Instant::now(),
+            unapplied: None,
+            plate: None,
+            _lock: lock,
+        })
+    }
+
+    /// Reopen `dir` to continue it with `plan` read from its own `plan.toml`: [`RunDir::resume`]
+    /// without a plan file given.
+    pub fn open(dir: &Path, sync: bool, plan: &Plan) -> Result<RunDir> {
+        RunDir::resume(dir, sync, plan, None)
+    }
+
+    /// Reopen `dir` to continue it with `plan`: reads the journal (dropping a torn last line),
+    /// checks the plan is the one the run started with (only the timing keys of
+    /// [`RESUME_MAY_CHANGE`] may differ from the last session's plan, each change said in a
+    /// note) and the committed data are intact, and decides what to cut: `data.csv` back to
+    /// the last committed point (said in a note), the journal to its last whole line.
+    /// [`RunDir::begin`] makes those changes and positions both files for appending, once the
+    /// session goes ahead; nothing is modified before (a check that fails here, or the
+    /// caller's own refusal after it, leaves the run directory as it was).
+    ///
+    /// `plan` is read from the run's `plan.toml`, or from `given` (`--resume RUN --plan FILE`):
+    /// the same checks and notes, naming that file; then, when its text differs from the run's
+    /// `plan.toml`, it replaces it ([`RunDir::begin`]), so the run directory holds the plan the
+    /// run continues with, as it does after `plan.toml` was edited in place.
+    pub fn resume(
+        dir: &Path,
+        sync: bool,
+        plan: &Plan,
+        given: Option<GivenPlan<'_>>,
+    ) -> Result<RunDir> {
+        RunDir::resume_recovering(dir, sync, plan, given, false)
+    }
+
+    /// [`RunDir::resume`], and with `recover` (`--recover-truncated`) a data file cut short
+    /// (fewer bytes than the journal committed) is not refused but resumed from the last
+    /// point it still holds whole: that point's bytes, and so every earlier point's, must
+    /// have the hash journalled with it (a file whose remaining bytes differ is refused as an
+    /// edited one). The journal lines after that point and the data bytes past it are moved
+    /// to `RUN_DIR/recovered-N/` ([`JOURNAL_TAIL`], [`DATA_TAIL`]) by [`RunDir::begin`], which
+    /// then cuts both files there: the run is as if it had been killed just after that point,
+    /// and the points after it are measured again. Said in a note. Without `recover` the
+    /// refusal names that point and the command that recovers.
+    pub fn resume_recovering(
+        dir: &Path,
+        sync: bool,
+        plan: &Plan,
+        given: Option<GivenPlan<'_>>,
+        recover: bool,
+    ) -> Result<RunDir> {
+        let jp = dir.join(JOURNAL);
+        let dp = dir.join(DATA);
+        match (jp.exists(), dp.exists()) {
+            (true, true) => {}
+            (false, false) => bail!(
+                "{}: not a sweep run directory (no {JOURNAL} and no {DATA}); start a run with --out",
+                dir.display()
+            ),
+            // Half a run: nothing to resume from, and --out --force would delete the half
+            // that is left, so it is named and kept.
+            (journal, _) => {
+                let (have, missing) = if journal { (JOURNAL, DATA) } else { (DATA, JOURNAL) };
+                bail!(
+                    "{}: has {have} but no {missing}, so the run cannot be resumed (the journal \
+                     records what data.csv holds; one without the other cannot be checked). \
+                     Restore {missing} if you have it; `--out {} --force` would delete {have}: \
+                     copy it away first",
+                    dir.display(),
+                    dir.display()
+                )
+            }
+        }
+        check_writable_run(dir)?;
+        let (lock, stale) = Lock::acquire(dir)?;
+        let mut notes: Vec<String> = stale.map(took_over).into_iter().collect();
+        let mut events = Vec::new();
+        let mut good_len = 0u64;
+        // The journal's length after each event's line.
+        let mut line_ends: Vec<u64> = Vec::new();
+        {
+            let f = File::open(&jp).with_context(|| format!("{}: cannot open", jp.display()))?;
+            let mut r = BufReader::new(f);
+            let mut line = Vec::new();
+            let mut lineno = 0;
+            loop {
+                line.clear();
+                let n = r
+                    .read_until(b'\n', &mut line)
+                    .with_context(|| format!("{}: cannot read", jp.display()))?;
+                if n == 0 {
+                    break;
+                }
+                lineno += 1;
+                if !line.ends_with(b"\n") {
+                    // Torn last line (the process died mid-write): dropped.
+                    notes.push(format!(
+                        "{JOURNAL}: dropped its torn last line ({n} bytes), which the previous \
+                         session was writing when it stopped"
+                    ));
+                    break;
+                }
+                match serde_json::from_slice::<Event>(line.trim_ascii_end()) {
+                    Ok(e) => events.push(e),
+                    Err(e) => bail!("{}:{lineno}: unreadable journal entry: {e}", jp.display()),
+                }
+                good_len += n as u64;
+                line_ends.push(good_len);
+            }
+        }
+        // The points are numbered by the plan: continuing with another one would leave points
+        // never measured (or measured under other settings) while the run says complete. Each
+        // session journals the plan it ran with; the last one is what this session continues.
+        // Only the keys that govern waiting and retrying may differ from it (their change is
+        // said, and this session journals the plan with it); every other key is the same in
+        // all sessions, so it is still the plan the run started with.
+        let last = events.iter().rev().find_map(|e| match e {
+            Event::Session { plan: Some(p), .. } => Some(p),
+            _ => None,
+        });
+        let pp = dir.join(PLAN);
+        // What the plan is compared with: the last session's, or, in a journal of an older
+        // version that records none, the run's own plan.toml when another file is given.
+        let reference = match (last, given) {
+            (Some(v), _) => Some((
+                serde_json::from_value::<Plan>(v.clone())
+                    .with_context(|| format!("{}: unreadable plan in a session", jp.display()))?,
+                jp.display().to_string(),
+            )),
+            (None, Some(_)) => Some((Plan::load(&pp)?, pp.display().to_string())),
+            (None, None) => None,
+        };
+        // The file the plan was read from, in full (errors) and as said in notes.
+        let (file, short) = match given {
+            Some(g) => (g.path.display().to_string(), g.path.display().to_string()),
+            None => (pp.display().to_string(), PLAN.to_string()),
+        };
+        match reference {
+            Some((was, recorded)) => {
+                // Through the same JSON text as the journalled one, so floats compare exactly.
+                let now: Plan = serde_json::from_str(&serde_json::to_string(plan)?)?;
+                let (timing, refused): (Vec<Change>, Vec<Change>) = now
+                    .differences(&was)
+                    .into_iter()
+                    .partition(Change::resumable);
+                let list = |c: &[Change]| {
+                    c.iter()
+                        .map(|c| c.to_string())
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                };
+                let keys = |c: &[Change]| {
+                    c.iter()
+                        .map(|c| format!("`{}`", c.key))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                };
+                if !refused.is_empty() {
+                    bail!(
+                        "{file}: the plan was changed since the run started (as recorded in \
+                         {recorded}): {}. A resume continues the plan the run started with, whose \
+                         point numbers the data use, measuring and recording the points as \
+                         before: only the keys that govern waiting and retrying ({}) may \
+                         change{}; not resuming, nothing was changed: {}, or start a new run \
+                         with --out for the new plan",
+                        list(&refused),
+                        RESUME_MAY_CHANGE.join(", "),
+                        if timing.is_empty() {
+                            String::new()
+                        } else {
+                            format!(" (the change of {} alone would be accepted)", keys(&timing))
+                        },
+                        match given {
+                            Some(_) => format!(
+                                "resume with the run's own {} (leave out --plan)",
+                                pp.display()
+                            ),
+                            None => format!("restore {PLAN}"),
+                        },
+                    );
+                }
+                if !timing.is_empty() {
+                    notes.push(format!(
+                        "{short}: timing changed since the last session (as recorded in {}): \
+                         {}; these govern only waiting and retrying, not what is measured or \
+                         recorded: the run continues with the new values, journalled with this \
+                         session's plan",
+                        if last.is_some() { JOURNAL } else { PLAN },
+                        list(&timing)
+                    ));
+                }
+            }
+            None if !events.is_empty() => notes.push(format!(
+                "{JOURNAL} records no plan (written by an older version): {PLAN} could not be \
+                 checked against the plan the run started with"
+            )),
+            None => {}
+        }
+        // Where the plate was last recorded (before any recovery cuts the journal).
+        let plate = events.iter().rev().find_map(|e| match e {
+            Event::Separation(s) => Some(s.clone()),
+            _ => None,
+        });
+        // The CSV ends where the last committed point ended (or after the header).
+        let mut last_point = events.iter().rev().find_map(|e| match e {
+            Event::Point { i, csv_end, .. } => Some((*i, *csv_end)),
+            _ => None,
+        });
+        let header_len = match last_point {
+            Some(_) => None,
+            None => Some(csv_header_len(&dp)?),
+        };
+        let mut end = last_point.map_or(header_len.unwrap_or(0), |(_, e)| e);
+        let csv = OpenOptions::new()
+            .write(true)
+            .open(&dp)
+            .with_context(|| format!("{}: cannot open for writing", dp.display()))?;
+        let len = csv
+            .metadata()
+            .with_context(|| format!("{}: cannot read", dp.display()))?
+            .len();
+        let mut recovery = None;
+        if len < end {
+            // Cut short: the last point the file still holds whole, checked; without
+            // `recover`, a refusal that names it and the command that recovers.
+            let (k, i, whole_end) = whole_points(&dp, &events, len, end, last_point)?;
+            if !recover {
+                let last = last_point.map_or(0, |(l, _)| l);
+                bail!(
+                    "{}: {len} bytes, but the journal committed {end} (through point {last}): the \
+                     data file was cut short. It still holds points 0 to {i} whole (its first \
+                     {whole_end} bytes are as written: checked against the hash journalled with \
+                     point {i}); the rows of points {} to {last} are gone from it. Not resuming, \
+                     nothing was changed. Put back a copy of {DATA} that holds them, if you have \
+                     one, and resume as usual; or continue from point {} with `{} \
+                     --recover-truncated`, which measures points {} to {last} again and moves what \
+                     it cuts (the journal's lines after point {i}, the {} bytes past it) to {}",
+                    dp.display(),
+                    i + 1,
+                    i + 1,
+                    super::resume_command(
+                        dir,
+                        super::last_session_ports(&events)
+                            .as_ref()
+                            .map(|(b, s)| (b.as_str(), s.as_str()))
+                    ),
+                    i + 1,
+                    len - whole_end,
+                    recovery_folder(dir).display()
+                );
+            }
+            let folder = recovery_folder(dir);
+            let last = last_point.map_or(0, |(l, _)| l);
+            let cut = events.len() - (k + 1);
+            notes.push(format!(
+                "{DATA}: cut short at {len} bytes, where the journal committed {end} (through \
+                 point {last}): resuming after point {i}, the last it holds whole (its first \
+                 {whole_end} bytes checked against the hash journalled with it); points {} to \
+                 {last} are measured again. Moved to {}: the journal's {cut} line{} after point \
+                 {i} ({JOURNAL_TAIL}: their points, sessions, faults){}",
+                i + 1,
+                folder.display(),
+                if cut == 1 { "" } else { "s" },
+                if len > whole_end {
+                    format!(
+                        " and {DATA}'s {} bytes past it ({DATA_TAIL})",
+                        len - whole_end
+                    )
+                } else {
+                    String::new()
+                }
+            ));
+            recovery = Some(Recovery {
+                folder,
+                journal_from: line_ends[k],
+                data_from: whole_end,
+            });
+            events.truncate(k + 1);
+            good_len = line_ends[k];
+            last_point = Some((i, whole_end));
+            end = whole_end;
+        } else if recover {
+            notes.push(format!(
+                "--recover-truncated: {DATA} holds every committed point ({end} bytes): nothing \
+                 to recover"
+            ));
+        }
+        if last_point.is_none() {
+            // Nothing committed: rows past the header can only be a first session's uncommitted
+            // leftovers, which come after its `session` line. An empty journal with rows, or a
+            // manifest counting committed points, means the journal was emptied or replaced:
+            // resuming would start again at point 0 and cut every measurement.
+            let (rows, _) = data_lines(&dp, end)?;
+            if rows > 0 && events.is_empty() {
+                bail!(
+                    "{} is empty but {} holds {rows} data rows: the journal was emptied or \
+                     replaced, and resuming would delete every measurement; not resuming \
+                     (restore the journal, or start a new run with --out)",
+                    jp.display(),
+                    dp.display()
+                );
+            }
+            let mp = dir.join(MANIFEST);
+            let done = std::fs::read_to_string(&mp)
+                .ok()
+                .and_then(|m| serde_json::from_str::<serde_json::Value>(&m).ok())
+                .and_then(|m| m["points"]["done"].as_u64())
+                .unwrap_or(0);
+            if done > 0 {
+                bail!(
+                    "{} records no committed point, but {} says {done} were done: the journal was \
+                     emptied or replaced, and resuming would delete every measurement; not \
+                     resuming (restore the journal, or start a new run with --out)",
+                    jp.display(),
+                    mp.display()
+                );
+            }
+        }
+        // The committed data must be what was written: a file edited within them (a line
+        // inserted, a value changed) would otherwise be cut at the journalled length in the
+        // middle of a row, silently.
+        let csv_hash = verify_committed(&dp, &events, end)?;
+        if len > end && recovery.is_none() {
+            // Rows of points whose journal line never made it (the session stopped between
+            // the two), or anything appended since: cut, and said.
+            let (rows, comments) = data_lines(&dp, end)?;
+            let plural =
+                |n: u64, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
+            notes.push(format!(
+                "{DATA}: discarded {} ({}, {}) past {}: not committed in the journal (written by \
+                 the previous session before it stopped, or added since); {}",
+                plural(len - end, "byte"),
+                plural(rows, "data row"),
+                plural(comments, "comment line"),
+                match last_point {
+                    Some((i, _)) => format!("the last committed point, {i}"),
+                    None => "the header (no committed point)".into(),
+                },
+                match last_point.map_or(0, |(i, _)| i + 1) {
+                    n if n >= plan.len() => {
+                        "every point is committed (the run is complete)".to_string()
+                    }
+                    n => format!("measuring resumes at point {n}"),
+                }
+            ));
+        }
+        // Every check passed. What the resume changes in the run directory is done by
+        // [`RunDir::begin`], once the session goes ahead (the boards answered as the run's
+        // did): a plan given as another file becomes the run's plan.toml (as an edit in place
+        // would have), so the next resume reads the plan this session continues with; the
+        // journal and data.csv are cut back to what was committed.
+        let plan_text = given
+            .filter(|g| std::fs::read_to_string(&pp).ok().as_deref() != Some(g.text))
+            .map(|g| {
+                notes.push(format!(
+                    "{PLAN}: replaced by {} (--plan), the plan this session continues with",
+                    g.path.display()
+                ));
+                g.text.to_string()
+            });
+        let journal = OpenOptions::new()
+            .write(true)
+            .open(&jp)
+            .with_context(|| format!("{}: cannot open for writing", jp.display()))?;
+        Ok(RunDir {
+            dir: dir.to_path_buf(),
+            notes,
+            csv: BufWriter::with_capacity(1 << 16, csv),
+            csv_len: end,
+            csv_hash,
+            journal,
+            journal_len: good_len,
+            events,
+            sync,
+            pending: Vec::new(),
+            pending_events: 0,
+            last_sync: std::time::Instant::now(),
+            unapplied: Some(Unapplied {
+                plan_text,
+                recovery,
+            }),
+            plate,
+            _lock: lock,
+        })
+    }
+
+    /// Make the changes a resume decided ([`RunDir::resume`]): the given plan written as the
+    /// run's plan.toml, the journal cut back to its last whole line and data.csv to the end
+    /// of the last committed point, both positioned for appending. Until then the run
+    /// directory is as the resume found it, so a session refused after the checks (the boards
+    /// answering are not the run's kind, a port that does not open) changes nothing. Done
+    /// once; a no-op for a new run. Anything written to the run calls it first.
+    pub fn begin(&mut self) -> Result<()> {
+        let Some(u) = &self.unapplied else {
+            return Ok(());
+        };
+        let (jp, dp) = (self.dir.join(JOURNAL), self.dir.join(DATA));
+        if let Some(r) = &u.recovery {
+            // Kept before anything is cut (synced: the cut follows).
+            std::fs::create_dir(&r.folder)
+                .with_context(|| format!("{}: cannot create", r.folder.display()))?;
+            copy_tail(&jp, r.journal_from, &r.folder.join(JOURNAL_TAIL))?;
+            copy_tail(&dp, r.data_from, &r.folder.join(DATA_TAIL))?;
+            // The folder's entries, then the run folder's entry for the folder itself.
+            for d in [&r.folder, &self.dir] {
+                if let Ok(d) = File::open(d) {
+                    let _ = d.sync_all();
+                }
+            }
+        }
+        if let Some(text) = &u.plan_text {
+            write_atomically(&self.dir.join(PLAN), text.as_bytes(), self.sync)?;
+        }
+        let (good_len, end) = (self.journal_len, self.csv_len);
+        let journal = &mut self.journal;
+        journal
+            .set_len(good_len)
+            .and_then(|_| journal.seek(SeekFrom::End(0)))
+            .and_then(|_| journal.sync_all())
+            .with_context(|| format!("{}: cannot cut back to {good_len} bytes", jp.display()))?;
+        let csv = self.csv.get_mut();
+        csv.set_len(end)
+            .and_then(|_| csv.seek(SeekFrom::End(0)))
+            .and_then(|_| csv.sync_all())
+            .with_context(|| format!("{}: cannot cut back to {end} bytes", dp.display()))?;
+        // Only now: until both files are positioned, nothing may be written to them.
+        self.unapplied = None;
+        Ok(())
+    }
+
+    /// Index of the next point to measure (one past the last committed).
+    pub fn next_point(&self) -> usize {
+        self.events
+            .iter()
+            .rev()
+            .find_map(|e| match e {
+                Event::Point { i, .. } => Some(i + 1),
+                _ => None,
+            })
+            .unwrap_or(0)
+    }
+
+    /// Number of sessions so far.
+    pub fn sessions(&self) -> u32 {
+        self.events
+            .iter()
+            .filter(|e| matches!(e, Event::Session { .. }))
+            .count() as u32
+    }
+
+    /// Append an event to the journal (after any pending points; synced when configured).
+    pub fn log(&mut self, e: Event) -> Result<()> {
+        let mut line = serde_json::to_string(&e)?;
+        line.push('\n');
+        self.pending.extend_from_slice(line.as_bytes());
+        self.pending_events += 1;
+        self.events.push(e);
+        self.sync_now()
+    }
+
+    /// Sync `data.csv`, then write and sync the pending journal lines.
+    pub fn sync_now(&mut self) -> Result<()> {
+        self.begin()?;
+        let dp = self.dir.join(DATA);
+        self.csv
+            .flush()
+            .with_context(|| format!("{}: cannot write", dp.display()))?;
+        if self.sync {
+            self.csv
+                .get_ref()
+                .sync_data()
+                .with_context(|| format!("{}: cannot sync", dp.display()))?;
+        }
+        if !self.pending.is_empty() {
+            let pending = std::mem::take(&mut self.pending);
+            self.append_journal(&pending)?;
+            self.pending_events = 0;
+        }
+        self.last_sync = std::time::Instant::now();
+        Ok(())
+    }
+
+    /// Write whole lines to the journal (synced when configured); on failure the journal is
+    /// cut back to its last complete line, so a later line cannot follow a torn one.
+    fn append_journal(&mut self, bytes: &[u8]) -> Result<()> {
+        self.begin()?;
+        let r = self.journal.write_all(bytes).and_then(|_| {
+            if self.sync {
+                self.journal.sync_data()
+            } else {
+                Ok(())
+            }
+        });
+        if let Err(e) = r {
+            let _ = self.journal.set_len(self.journal_len);
+            let _ = self.journal.seek(SeekFrom::Start(self.journal_len));
+            return Err(e)
+                .with_context(|| format!("{}: cannot write", self.dir.join(JOURNAL).display()));
+        }
+        self.journal_len += bytes.len() as u64;
+        Ok(())
+    }
+
+    /// Record that the session stopped on an error (`reason`), as far as the disk allows.
+    /// Points whose rows could not be written and synced stay uncommitted (they are measured
+    /// again on resume): their journal lines are dropped, the other pending events are kept.
+    pub fn stop_after_failure(&mut self, reason: String) -> Result<()> {
+        if self.sync_now().is_err() {
+            let start = self.events.len() - self.pending_events;
+            let unsynced = self.events.split_off(start);
+            self.pending.clear();
+            self.pending_events = 0;
+            for u in unsynced {
+                if !matches!(u, Event::Point { .. }) {
+                    let mut line = serde_json::to_string(&u)?;
+                    line.push('\n');
+                    self.pending.extend_from_slice(line.as_bytes());
+                    self.pending_events += 1;
+                    self.events.push(u);
+                }
+            }
+        }
+        let e = Event::Stop {
+            at: now(),
+            reason,
+            next_point: self.next_point(),
+            notes: Vec::new(),
+        };
+        let mut line = serde_json::to_string(&e)?;
+        line.push('\n');
+        let mut bytes = std::mem::take(&mut self.pending);
+        bytes.extend_from_slice(line.as_bytes());
+        self.pending_events = 0;
+        self.events.push(e);
+        self.append_journal(&bytes)
+    }
+
+    /// Commit a point: its rows (or a `# no signal` comment), then its journal line.
+    #[allow(clippy::too_many_arguments)]
+    pub fn commit_point(
+        &mut self,
+        i: usize,
+        status: PointStatus,
+        rows: &[Sample],
+        comment: Option<&str>,
+        reports: u32,
+        lost: u32,
+        attempts: u32,
+    ) -> Result<()> {
+        self.begin()?;
+        let mut buf = Vec::with_capacity(64 * rows.len() + 64);
+        if let Some(c) = comment {
+            writeln!(buf, "# {c}")?;
+        }
+        for r in rows {
+            write_row(&mut buf, r)?;
+        }
+        self.csv
+            .write_all(&buf)
+            .and_then(|_| self.csv.flush())
+            .with_context(|| format!("{}: cannot write", self.dir.join(DATA).display()))?;
+        self.csv_len += buf.len() as u64;
+        self.csv_hash.update(&buf);
+        let e = Event::Point {
+            i,
+            status,
+            samples: rows.len() as u32,
+            reports,
+            lost,
+            attempts,
+            csv_end: self.csv_len,
+            csv_hash: Some(self.csv_hash.hex()),
+            at: Some(now()),
+        };
+        let mut line = serde_json::to_string(&e)?;
+        line.push('\n');
+        self.pending.extend_from_slice(line.as_bytes());
+        self.pending_events += 1;
+        self.events.push(e);
+        if !self.sync || self.last_sync.elapsed() >= SYNC_INTERVAL {
+            self.sync_now()?;
+        }
+        Ok(())
+    }
+
+    /// Write `manifest.json` (atomically: temp file + rename) from `value`.
+    pub fn write_manifest(&self, value: &serde_json::Value) -> Result<()> {
+        let mut text = serde_json::to_string_pretty(value)?;
+        text.push('\n');
+        write_atomically(&self.dir.join(MANIFEST), text.as_bytes(), self.sync)
+    }
+
+    /// Path of the measurement file.
+    pub fn data_path(&self) -> PathBuf {
+        self.dir.join(DATA)
+    }
+}
+
+/// The plan file given with `cta sweep --resume RUN --plan FILE` ([`RunDir::resume`]).
+#[derive(Debug, Clone, Copy)]
+pub struct GivenPlan<'a> {
+    /// The file.
+    pub path: &'a Path,
+    /// Its text, as parsed into the plan.
+    pub text: &'a str,
+}
+
+/// `Err` with the operating system's reason when this process may not write `path`: the
+/// permission bits, a file system mounted read-only, an immutable file (`access(2)`, `W_OK`;
+/// nothing is opened or changed).
+fn writable(path: &Path) -> std::io::Result<()> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = std::ffi::CString::new(path.as_os_str().as_bytes()).map_err(std::io::Error::other)?;
+    // SAFETY: a read-only query on a NUL-terminated path we own.
+    if unsafe { libc::access(c.as_ptr(), libc::W_OK) } == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
+/// A resumed session appends to `data.csv` and the journal, rewrites the lock and (simulated
+/// runs) the truth in place, and adds files to the run directory (the manifest through a
+/// temporary file, plan.toml likewise): the first of them it may not write is refused before
+/// anything is locked, cut or written, naming it and the reason. Without this, a read-only
+/// directory with writable files failed only at the manifest, after the resume had cut the
+/// uncommitted rows and journalled a session.
+fn check_writable_run(dir: &Path) -> Result<()> {
+    let files = [DATA, JOURNAL, LOCK, TRUTH].map(|f| dir.join(f));
+    let must = std::iter::once(dir.to_path_buf()).chain(files.into_iter().filter(|p| p.exists()));
+    for p in must {
+        if let Err(e) = writable(&p) {
+            bail!(
+                "{}: cannot write: {e}. A resumed session writes in the run directory {} ({DATA}, \
+                 {JOURNAL}, {MANIFEST} through a temporary file): not resuming, nothing was \
+                 changed; make it and its files writable again (e.g. chmod -R u+w), or copy the \
+                 run to a writable place and resume the copy",
+                p.display(),
+                dir.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Write `path` whole or not at all: through `.NAME.tmp` in the same directory, synced when
+/// `sync`, renamed into place.
+fn write_atomically(path: &Path, bytes: &[u8], sync: bool) -> Result<()> {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let tmp = path.with_file_name(format!(".{name}.tmp"));
+    (|| {
+        let mut f = File::create(&tmp)?;
+        f.write_all(bytes)?;
+        if sync {
+            f.sync_all()?;
+        }
+        std::fs::rename(&tmp, path)
+    })()
+    .with_context(|| {
+        format!(
+            "{}: cannot write (through {})",
+            path.display(),
+            tmp.display()
+        )
+    })
+}
+
+impl Drop for RunDir {
+    fn drop(&mut self) {
+        // A resume that never began leaves the run directory as it found it.
+        if self.unapplied.is_none() {
+            let _ = self.sync_now();
+        }
+    }
+}
+
+/// Check `data.csv`'s committed bytes (up to `end`) against the prefix hashes journalled with
+/// the points; returns the hash of the first `end` bytes. Nothing is modified.
+fn verify_committed(path: &Path, events: &[Event], end: u64) -> Result<Fnv> {
+    let f = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    let mut r = BufReader::with_capacity(1 << 16, f);
+    let mut hash = Fnv::new();
+    let mut pos = 0u64;
+    let feed = |r: &mut BufReader<File>, hash: &mut Fnv, mut n: u64| -> Result<()> {
+        while n > 0 {
+            let buf = r
+                .fill_buf()
+                .with_context(|| format!("{}: cannot read", path.display()))?;
+            if buf.is_empty() {
+                bail!("{}: shorter than the journal says", path.display());
+            }
+            let k = buf.len().min(n as usize);
+            hash.update(&buf[..k]);
+            r.consume(k);
+            n -= k as u64;
+        }
+        Ok(())
+    };
+    let mut good: Option<(usize, u64)> = None;
+    for e in events {
+        let Event::Point {
+            i,
+            csv_end,
+            csv_hash: Some(h),
+            ..
+        } = e
+        else {
+            continue;
+        };
+        if *csv_end < pos || *csv_end > end {
+            bail!(
+                "{}: point {i} ends at byte {csv_end}, out of order with the other points: the \
+                 journal was edited; not resuming",
+                path.parent().unwrap_or(path).join(JOURNAL).display()
+            );
+        }
+        feed(&mut r, &mut hash, csv_end - pos)?;
+        pos = *csv_end;
+        if hash.hex() != *h {
+            bail!(
+                "{}: the committed data are not what was written: the file differs from the journal \
+                 within its first {csv_end} bytes (the rows up to point {i}; {}): it was edited or \
+                 replaced since. Not resuming, nothing was changed: restore {DATA} as it was \
+                 written, or start a new run with --out",
+                path.display(),
+                match good {
+                    Some((k, b)) => format!("it matches up to point {k}, byte {b}"),
+                    None => "already at the first committed point".into(),
+                }
+            );
+        }
+        good = Some((*i, *csv_end));
+    }
+    feed(&mut r, &mut hash, end - pos)?;
+    Ok(hash)
+}
+
+/// The folder a recovery of `dir` moves what it cuts to: `recovered-N`, the first N not taken.
+fn recovery_folder(dir: &Path) -> PathBuf {
+    (1..)
+        .map(|n| dir.join(format!("recovered-{n}")))
+        .find(|p| !p.exists())
+        .expect("a free name")
+}
+
+/// Copy `from`'s bytes past `start` to a new file `to`, synced (an empty tail makes an empty
+/// file: the folder says what was cut, even when nothing of the data was).
+fn copy_tail(from: &Path, start: u64, to: &Path) -> Result<()> {
+    (|| -> std::io::Result<()> {
+        let mut src = File::open(from)?;
+        src.seek(SeekFrom::Start(start))?;
+        let mut dst = OpenOptions::new().write(true).create_new(true).open(to)?;
+        std::io::copy(&mut src, &mut dst)?;
+        dst.sync_all()
+    })()
+    .with_context(|| {
+        format!(
+            "{}: cannot keep what the recovery cuts from {}",
+            to.display(),
+            from.display()
+        )
+    })
+}
+
+/// For a data file cut short to `len` bytes (the journal committed `end`, through
+/// `last_point`): the last point it still holds whole, as (its event's index in `events`, its
+/// point index, its end), once its first bytes are checked against the hash journalled with
+/// it (which covers every earlier point's). Refused, saying why, when none is whole, when the
+/// journal has no hash to check with (an older version), or when the bytes differ.
+fn whole_points(
+    dp: &Path,
+    events: &[Event],
+    len: u64,
+    end: u64,
+    last_point: Option<(usize, u64)>,
+) -> Result<(usize, usize, u64)> {
+    let last = last_point.map_or(0, |(l, _)| l);
+    let short = format!(
+        "{}: {len} bytes, but the journal committed {end} (through point {last}): the data file \
+         was cut short",
+        dp.display()
+    );
+    let whole = events.iter().enumerate().rev().find_map(|(k, e)| match e {
+        Event::Point { i, csv_end, .. } if *csv_end <= len => Some((k, *i, *csv_end)),
+        _ => None,
+    });
+    let Some((k, i, whole_end)) = whole else {
+        bail!(
+            "{short}, and holds no committed point whole (point 0 ends at byte {}). Not \
+             resuming, nothing was changed: put back a copy of {DATA} that holds the committed \
+             points, or start a new run with --out",
+            events
+                .iter()
+                .find_map(|e| match e {
+                    Event::Point { csv_end, .. } => Some(*csv_end),
+                    _ => None,
+                })
+                .unwrap_or(end)
+        );
+    };
+    if !matches!(
+        &events[k],
+        Event::Point {
+            csv_hash: Some(_),
+            ..
+        }
+    ) {
+        bail!(
+            "{short}. The journal (of an older version) has no hash to check what the file still \
+             holds against. Not resuming, nothing was changed: put back a copy of {DATA} that \
+             holds the committed points, or start a new run with --out"
+        );
+    }
+    // Every hashed point up to it: a file replaced or edited within them is refused here.
+    verify_committed(dp, &events[..=k], whole_end).with_context(|| short.clone())?;
+    Ok((k, i, whole_end))
+}
+
+/// Data rows and comment lines (blank lines aside) in `path` from byte `from`.
+fn data_lines(path: &Path, from: u64) -> Result<(u64, u64)> {
+    let mut f = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    f.seek(SeekFrom::Start(from))
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let mut r = BufReader::new(f);
+    let mut line = Vec::new();
+    let (mut rows, mut comments) = (0, 0);
+    loop {
+        line.clear();
+        let n = r
+            .read_until(b'\n', &mut line)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        if n == 0 {
+            return Ok((rows, comments));
+        }
+        if line.starts_with(b"#") {
+            comments += 1;
+        } else if !line.trim_ascii().is_empty() {
+            rows += 1;
+        }
+    }
+}
+
+/// Length of the comment and header lines at the top of a measurement file.
+fn csv_header_len(path: &Path) -> Result<u64> {
+    let f = File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    let mut r = BufReader::new(f);
+    let mut len = 0u64;
+    let mut line = String::new();
+    loop {
+        line.clear();
+        let n = r
+            .read_line(&mut line)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        if n == 0 {
+            bail!("{}: no header line", path.display());
+        }
+        len += n as u64;
+        if !line.starts_with('#') && !line.trim().is_empty() {
+            return Ok(len);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Corners within +/-5 mils of their mean pass; one 6 mils high is asked about.
+    #[test]
+    fn corners_beyond_ch_iv_levelness_are_questioned() {
+        assert!(levelness_question(&[10.0, 10.004, 9.996, 10.0]).is_none());
+        // Exactly 5 mils at any separation (unrounded, 10.005 - 10 is above 0.005).
+        for sep in [10.0, 12.0, 20.0, 30.0] {
+            let c = [sep + 0.005, sep - 0.005, sep, sep];
+            assert!(levelness_question(&c).is_none(), "{c:?}");
+            assert_eq!(corner_uncertainty(&c), 0.005);
+        }
+        assert!(levelness_question(&[]).is_none());
+        let q = levelness_question(&[10.008, 10.0, 10.0, 10.0]).unwrap();
+        assert!(
+            q.contains("up to 6.0 mils") && q.contains("Keep them?"),
+            "{q}"
+        );
+    }
+
+    fn tmp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("cta-store-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    fn plan() -> Plan {
+        Plan::parse("plan.toml", "separations_in = [10]\nsamples = 1\n").unwrap()
+    }
+
+    fn new_run(d: &Path) -> RunDir {
+        RunDir::create(d, "samples = 1\n", &["test".into()], false, false).unwrap()
+    }
+
+    /// A `separation` line of an earlier version, with `spread` (the corners' standard
+    /// deviation), still loads: its uncertainty is Ch IV's, derived again from the corners, and
+    /// it is written back under the new name.
+    #[test]
+    fn an_older_separation_line_loads_with_the_ch_iv_uncertainty() {
+        let old = r#"{"event":"separation","sep_idx":2,"nominal":10.0,"corners":[10.006,9.998,9.998,9.998],"mean":10.0,"spread":0.004,"source":"operator"}"#;
+        let Event::Separation(e) = serde_json::from_str::<Event>(old).unwrap() else {
+            panic!("not a separation");
+        };
+        assert_eq!((e.sep_idx, e.mean, e.corners.len()), (2, 10.0, 4));
+        assert!((e.uncertainty - 0.006).abs() < 1e-9, "{e:?}");
+        let line = serde_json::to_string(&Event::Separation(e.clone())).unwrap();
+        assert!(
+            line.contains("\"uncertainty\":") && !line.contains("spread"),
+            "{line}"
+        );
+        assert_eq!(
+            serde_json::from_str::<Event>(&line).unwrap(),
+            Event::Separation(e)
+        );
+        // Not measured (`--yes`): nothing to derive, the recorded 0 is kept.
+        let scripted = r#"{"event":"separation","sep_idx":0,"nominal":5.0,"corners":[],"mean":5.0,"spread":0.0,"source":"scripted (--yes): nominal, not measured"}"#;
+        let Event::Separation(e) = serde_json::from_str::<Event>(scripted).unwrap() else {
+            panic!("not a separation");
+        };
+        assert_eq!((e.mean, e.uncertainty), (5.0, 0.0));
+    }
+
+    #[test]
+    fn one_session_at_a_time_and_a_dead_holder_is_taken_over() {
+        let d = tmp("lock");
+        let a = new_run(&d);
+        let me = std::process::id().to_string();
+        assert_eq!(std::fs::read_to_string(d.join(LOCK)).unwrap().trim(), me);
+        // A second session (a second process, or a second open here: flock locks are per
+        // open file) is refused, naming the lock file and the holder.
+        for e in [
+            RunDir::open(&d, false, &plan()).err().unwrap(),
+            RunDir::create(&d, "samples = 1\n", &[], true, false)
+                .err()
+                .unwrap(),
+        ] {
+            let e = format!("{e:#}");
+            assert!(e.contains(&d.join(LOCK).display().to_string()), "{e}");
+            assert!(e.contains(&format!("pid {me}")), "{e}");
+        }
+        assert!(d.join(DATA).exists(), "--force did not remove a live run");
+        // Released at the end of the session: the next one opens without a note.
+        drop(a);
+        assert_eq!(std::fs::read_to_string(d.join(LOCK)).unwrap(), "");
+        let b = RunDir::open(&d, false, &plan()).unwrap();
+        assert!(b.notes.is_empty(), "{:?}", b.notes);
+        drop(b);
+        // A holder killed with SIGKILL leaves its pid but no lock: taken over, with a note.
+        std::fs::write(d.join(LOCK), "4000000\n").unwrap();
+        let c = RunDir::open(&d, false, &plan()).unwrap();
+        assert!(
+            c.notes
+                .iter()
+                .any(|n| n.contains("took over") && n.contains("4000000")),
+            "{:?}",
+            c.notes
+        );
+        assert_eq!(std::fs::read_to_string(d.join(LOCK)).unwrap().trim(), me);
+        drop(c);
+        let _ = std::fs::remove_dir_all(&d);
+    }
+}
