@@ -985,7 +985,7 @@ fn fit_names_its_spread_by_the_weighting() {
     let near = sim("near.csv", &[]);
     let f = json(&cta(&["fit", s(&near), "--weights", "repeat", "--json"]));
     let c = f["chi2_per_dof"].as_f64().unwrap();
-    assert!(c > cta_lab::fit::calibrate::CHI2_WARN, "{f}");
+    assert!(c > cta_lab::data::weights::CHI2_WARN, "{f}");
     let w = f["warnings"].to_string();
     assert!(
         w.contains(&format!("chi2/dof {c:.2}"))

@@ -3,7 +3,8 @@
 //! recorded positions, which the fit turned into H = 4,173 instead of 18,919).
 
 use cta_lab::data::Dataset;
-use cta_lab::fit::{self, Weights};
+use cta_lab::data::weights::Weights;
+use cta_lab::fit;
 use cta_lab::sweep::{self, engine::Ending, SweepArgs};
 use cta_tests::{sweep_args, write_plan, TestDir};
 

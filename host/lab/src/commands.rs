@@ -1,7 +1,8 @@
 //! The thesis subcommands: `nearfield`, `uncertainty`, `simulate`, `fit`, `evaluate`.
 
+use crate::data::weights::{self, Weights};
 use crate::data::{fmt_list, parse_separations, Dataset};
-use crate::fit::{self, FitReport, Weights};
+use crate::fit::{self, FitReport};
 use crate::plot::{write_svg, Panel, Series};
 use crate::sim::effects::Effect;
 use crate::sim::{describe_pattern, parse_grid, SimConfig, Truth};
@@ -857,7 +858,7 @@ pub struct FitArgs {
 
 /// Load and restrict a dataset.
 pub fn load(file: &Path, separations: Option<&str>) -> Result<Dataset> {
-    let (ds, warnings) = Dataset::read_warned(file).map_err(|e| anyhow!("{e}"))?;
+    let (ds, warnings) = crate::sweep::read_measurements(file).map_err(|e| anyhow!("{e}"))?;
     for w in warnings {
         eprintln!("warning: {w}");
     }
@@ -912,7 +913,7 @@ pub fn fit_cmd(a: &FitArgs) -> Result<()> {
     rep.warnings.extend(fit::chi2_warning(
         &rep,
         &a.file,
-        fit::repeat_chi2_expected(&ds),
+        weights::repeat_chi2_expected(&ds),
     ));
     let json = serde_json::to_string_pretty(&rep)?;
     if a.json {

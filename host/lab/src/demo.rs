@@ -1,7 +1,7 @@
 //! `cta demo`: the whole job on the built-in simulated CTA, no hardware.
 
+use crate::data::weights::Weights;
 use crate::commands::{self, EvaluateArgs, FitArgs, NearfieldArgs, Profile, UncertaintyArgs};
-use crate::fit::Weights;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use std::path::PathBuf;

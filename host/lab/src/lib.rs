@@ -11,6 +11,7 @@ pub mod demo;
 pub mod fit;
 pub mod noise;
 pub mod plot;
+pub mod progress;
 pub mod pose;
 pub mod sim;
 pub mod sweep;

@@ -962,7 +962,7 @@ fn panel(f: &Factor, log_x: bool) -> Panel {
 
 /// Run `cta noise`.
 pub fn run(args: &NoiseArgs) -> anyhow::Result<()> {
-    let (ds, warnings) = Dataset::read_warned(&args.file).map_err(anyhow::Error::msg)?;
+    let (ds, warnings) = crate::sweep::read_measurements(&args.file).map_err(anyhow::Error::msg)?;
     for w in warnings {
         eprintln!("warning: {w}");
     }

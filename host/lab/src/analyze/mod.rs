@@ -2093,7 +2093,7 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<()> {
         b
     };
     bar.set_message(format!("reading {}", args.file.display()));
-    let (mut ds, warnings) = Dataset::read_warned(&args.file).map_err(anyhow::Error::msg)?;
+    let (mut ds, warnings) = crate::sweep::read_measurements(&args.file).map_err(anyhow::Error::msg)?;
     for w in warnings {
         bar.suspend(|| eprintln!("warning: {w}"));
     }

@@ -6,6 +6,8 @@
 //! `sample`, `magnitude`. Unknown columns are ignored; lines starting with `#` are comments.
 //! Beacon positions are in the N frame (inches); `x`, `y` are NorthStar counts.
 
+pub mod weights;
+
 use std::collections::{BTreeMap, HashMap};
 use std::fmt;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -591,14 +593,13 @@ impl Dataset {
         Self::from_reader_warned(path, Self::open(path)?)
     }
 
-    /// Open a measurement file (a folder given instead is refused, naming the run's data
-    /// file when it is one).
+    /// Open a measurement file (a folder given instead is refused; `sweep::read_measurements`
+    /// names the run's data file when it is a run directory).
     fn open(path: &Path) -> Result<std::fs::File, ReadError> {
         if path.is_dir() {
-            let data = crate::sweep::data_path(path);
             return Err(ReadError::Folder {
                 path: path.to_path_buf(),
-                data: data.is_file().then_some(data),
+                data: None,
             });
         }
         std::fs::File::open(path).map_err(|e| ReadError::Io(path.to_path_buf(), e))

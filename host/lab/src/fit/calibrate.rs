@@ -44,35 +44,18 @@ use cta_core::pose::{CalField, Calibration, ConfigError, NearField, PinholeHead}
 use nalgebra::{DVector, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::data::weights::{self, misfit_warning, Pooled, Weights, CHI2_WARN};
 use crate::data::{any_sample_pinned, fmt_list, mean_near_rail, parse_separations, Dataset};
 use crate::fit::magnitude::{LedBrightness, MagnitudeReport, Outcome};
 use crate::fit::wiring;
-use crate::fit::{self, Weights};
+use crate::fit;
 
-/// Near-field chi2/dof above which the report warns that the data hold structure the chip's
-/// model cannot represent.
-pub const CHI2_WARN: f64 = 1.2;
 
 /// A separation whose near-field chi-square lies more than this many standard deviations
 /// above what the noise gives is reported as one where the model misses the data (see
 /// [`SeparationRms::near_field_z`]).
 pub const MISFIT_Z: f64 = 5.0;
 
-/// The warning for a fit whose chi-square exceeds what the noise gives by `ratio` (above
-/// [`CHI2_WARN`]), shared by `cta calibrate` and `cta fit`: `head` states the figure, `model`
-/// names the model that cannot represent the data, `file` is the file to analyze.
-pub fn misfit_warning(head: &str, ratio: f64, model: &str, file: &Path) -> String {
-    format!(
-        "{head}: the residuals are {:.1}x the noise, so the data hold structure the {model} \
-         cannot represent. The 1-sigma above assume it can: that structure biases the \
-         parameters by an amount they do not bound (it can be many 1-sigma; scaling them by \
-         that factor, {:.1}x, covers the scatter, not the bias). `cta analyze {}` names what \
-         it is.",
-        ratio.sqrt(),
-        ratio.sqrt(),
-        file.display()
-    )
-}
 
 /// What `--out` files carry in `fitted` (and how an earlier one is recognised).
 pub const WRITER: &str = "cta calibrate";
@@ -533,25 +516,7 @@ pub struct CalibrationReport {
     pub magnitude_note: Option<String>,
 }
 
-/// The pooled one-sample noise per separation ([`fit::pooled_noise`], the rule `cta fit
-/// --weights pooled` uses): its variance and degrees of freedom, and the file's overall noise.
-struct Pooled(BTreeMap<u64, ([f64; 2], usize)>);
 
-impl Pooled {
-    fn var(&self, sep: f64, axis: usize) -> Option<f64> {
-        fit::pooled_variance(&self.0, sep, axis)
-    }
-    /// The degrees of freedom behind [`Self::var`] (0 without it).
-    fn dof(&self, sep: f64) -> usize {
-        self.0.get(&sep.to_bits()).map_or(0, |(_, dof)| *dof)
-    }
-    fn overall(&self) -> Option<f64> {
-        let (ss, dof) = self.0.values().fold((0.0, 0), |(s, d), (ss, dof)| {
-            (s + ss[0] + ss[1], d + 2 * dof)
-        });
-        (dof > 0).then(|| (ss / dof as f64).sqrt())
-    }
-}
 
 /// Calibrate from a dataset (already restricted to the near-field separations). `all` is
 /// the whole file, for the pinhole fit's separations.
@@ -580,7 +545,7 @@ pub fn calibrate(
         n: usize,
     }
     let mut pts = Vec::new();
-    let pooled = Pooled(fit::pooled_noise(ds));
+    let pooled = Pooled(weights::pooled_noise(ds));
     let mut pinned = 0;
     for p in ds.points() {
         let rows: Vec<_> = p.rows.iter().map(|&i| &ds.samples[i]).collect();
@@ -669,24 +634,24 @@ pub fn calibrate(
     // --noise), never each point's own few samples, whose inverse variances are too rough to
     // weight by (with 2 samples H came out 18 sigma low). A pinhole separation outside
     // --separations has its noise pooled from the pinhole data.
-    let far_pool = fit::pooled_noise(&far);
+    let far_pool = weights::pooled_noise(&far);
     let var_ph = |sep: f64, axis: usize| -> f64 {
         measured
             .then(|| {
                 pooled
                     .var(sep, axis)
-                    .or_else(|| fit::pooled_variance(&far_pool, sep, axis))
+                    .or_else(|| weights::pooled_variance(&far_pool, sep, axis))
             })
             .flatten()
             .unwrap_or(noise * noise)
     };
-    let mut ph = fit::fit_observations(&far, Weights::Pooled, fit::point_means(&far, &var_ph))
+    let mut ph = fit::fit_observations(&far, Weights::Pooled, weights::point_means(&far, &var_ph))
         .map_err(|e| anyhow!("pinhole fit at {} in: {e}", fmt_list(&pinhole_seps)))
         .map_err(|e| anyhow!("{}", wiring::explain(all, e.to_string())))?;
     // Judged as `cta fit --weights pooled` judges the same data: the same weights, the same
     // expectation (1 with --noise), the same warning line.
     ph.chi2_expected = if measured {
-        fit::chi2_expected(&far, Weights::Pooled)
+        weights::chi2_expected(&far, Weights::Pooled)
     } else {
         Some(1.0)
     };
@@ -1072,7 +1037,7 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
             bail!("--noise {v}: a positive number of counts");
         }
     }
-    let (mut all, warnings) = Dataset::read_warned(&a.file).map_err(|e| anyhow!("{e}"))?;
+    let (mut all, warnings) = crate::sweep::read_measurements(&a.file).map_err(|e| anyhow!("{e}"))?;
     for w in warnings {
         eprintln!("warning: {w}");
     }

@@ -5,6 +5,7 @@ pub mod calibrate;
 pub mod magnitude;
 pub mod wiring;
 
+use crate::data::weights::{chi2_expected, misfit_warning, observations, Weights, CHI2_FAR, CHI2_WARN};
 use crate::data::Dataset;
 use cta_core::collinearity::{self, Fit, Obs, Params, ParamsExt, NAMES};
 use cta_core::emulator::{Head, Pose};
@@ -15,54 +16,9 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// How residuals are weighted (eq 56's `W`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Weights {
-    /// `W = I`: every sample is one observation (the thesis's choice).
-    None,
-    /// Point means weighted by `n / variance` from the repeated samples of each point, with
-    /// a floor of 1/12 count^2 (the quantisation of integer counts). Needs at least 6
-    /// samples per point (`REPEAT_MIN_SAMPLES`).
-    Repeat,
-    /// Point means weighted by `n / variance` with the one-sample variance pooled per
-    /// separation and axis (over the points with no sample at the 16-bit rail), floored at
-    /// 1/12 count^2: `cta calibrate`'s and `cta analyze`'s weights, good from 2 samples.
-    Pooled,
-}
 
-/// The fewest samples per point `--weights repeat` takes. A variance from `n` samples has
-/// `n - 1` degrees of freedom; its inverse (the weight) has an infinite mean with 3 samples
-/// or fewer, and two equal integer samples give a zero variance (floored at 1/12 count^2): a
-/// few points whose samples happen to agree then carry the fit, tens of sigma off. Below 6
-/// samples the weight's variance is infinite: a few points still carry the fit, and even
-/// the sandwich 1-sigma (see [`fit`]) were 1.6x too small with 4 samples (far-field data,
-/// 20 seeds; 1.1x with 5, 6 and 10).
-pub const REPEAT_MIN_SAMPLES: usize = 6;
 
-/// A chi2/dof above this is warned about even when no expectation is known.
-pub const CHI2_FAR: f64 = 2.0;
 
-impl Weights {
-    /// How the text output names the weighting.
-    pub fn describe(self) -> &'static str {
-        match self {
-            Weights::None => "unweighted",
-            Weights::Repeat => "weighted by the spread of the repeated samples of each point",
-            Weights::Pooled => {
-                "weighted by the noise of the repeated samples pooled per separation and axis"
-            }
-        }
-    }
-
-    /// What one observation is under this weighting, plural (`6000 reports`).
-    pub fn observations(self) -> &'static str {
-        match self {
-            Weights::None => "reports",
-            Weights::Repeat | Weights::Pooled => "point means",
-        }
-    }
-}
 
 /// Why GLSDC stopped, in words (the JSON keeps the name, `FitReport::stop`).
 pub fn describe_stop(stop: &str) -> String {
@@ -109,7 +65,7 @@ pub struct FitReport {
     #[serde(default)]
     pub residual_variance_counts2: Option<f64>,
     /// With `repeat` or `pooled` weights: chi-square per degree of freedom (about
-    /// `chi2_expected` when the model holds; above [`crate::fit::calibrate::CHI2_WARN`] times it
+    /// `chi2_expected` when the model holds; above [`CHI2_WARN`] times it
     /// the 1-sigma are too small by about the square root of the ratio); `null` with `none`
     /// weights.
     #[serde(default)]
@@ -249,51 +205,9 @@ fn split_variance(weights: Weights, variance_factor: f64) -> (Option<f64>, Optio
     }
 }
 
-/// The chi2/dof a right model gives with `repeat` weights: each point is weighted by the
-/// inverse of its own sample variance from `n` samples, whose mean is `(n - 1) / (n - 3)`
-/// times the inverse true variance (an inverse chi-square), so chi2/dof averages that over
-/// the points (1.29 with 10 samples, 1.67 with 6). `None` when a point has 3 samples or fewer
-/// (the mean is infinite: no line to compare with; `--weights repeat` refuses such files).
-pub fn repeat_chi2_expected(ds: &Dataset) -> Option<f64> {
-    let (mut sum, mut k) = (0.0, 0usize);
-    for p in ds.points() {
-        let n = p.rows.len() as f64;
-        if n <= 3.0 {
-            return None;
-        }
-        sum += (n - 1.0) / (n - 3.0);
-        k += 1;
-    }
-    (k > 0).then(|| sum / k as f64)
-}
 
-/// The chi2/dof a right model gives with `weights` on `ds`: with `repeat`
-/// [`repeat_chi2_expected`]; with `pooled` the same law for a variance pooled over `nu`
-/// degrees of freedom, `nu / (nu - 2)`, averaged over the points and axes (1.02 with 100
-/// points of 2 samples at a separation); `None` with `none` weights (no noise to compare with).
-pub fn chi2_expected(ds: &Dataset, weights: Weights) -> Option<f64> {
-    match weights {
-        Weights::None => None,
-        Weights::Repeat => repeat_chi2_expected(ds),
-        Weights::Pooled => {
-            let pool = pooled_noise(ds);
-            let (mut sum, mut k) = (0.0, 0usize);
-            for p in ds.points() {
-                let nu = pool
-                    .get(&p.first.separation_in.to_bits())
-                    .map_or(0, |(_, dof)| *dof) as f64;
-                if nu <= 2.0 {
-                    return None;
-                }
-                sum += nu / (nu - 2.0);
-                k += 1;
-            }
-            (k > 0).then(|| sum / k as f64)
-        }
-    }
-}
 
-/// The warning for a weighted fit whose chi2/dof is above [`crate::fit::calibrate::CHI2_WARN`]
+/// The warning for a weighted fit whose chi2/dof is above [`CHI2_WARN`]
 /// times what a right model gives with these weights (the fit's `chi2_expected`, else
 /// `expected`), in `cta calibrate`'s words; `file` is the measurement file to analyze.
 /// Without an expectation, above [`CHI2_FAR`]: far above anything a right model gives. `None`
@@ -306,8 +220,8 @@ pub fn chi2_warning(rep: &FitReport, file: &Path, expected: Option<f64>) -> Opti
         _ => "each point's own samples",
     };
     match rep.chi2_expected.or(expected) {
-        Some(e) => (c > crate::fit::calibrate::CHI2_WARN * e).then(|| {
-            crate::fit::calibrate::misfit_warning(
+        Some(e) => (c > CHI2_WARN * e).then(|| {
+            misfit_warning(
                 &format!("chi2/dof {c:.2} (a right model gives {e:.2} with weights from {whose})"),
                 c / e,
                 model,
@@ -315,7 +229,7 @@ pub fn chi2_warning(rep: &FitReport, file: &Path, expected: Option<f64>) -> Opti
             )
         }),
         None => (c > CHI2_FAR).then(|| {
-            crate::fit::calibrate::misfit_warning(
+            misfit_warning(
                 &format!(
                     "chi2/dof {c:.2} (far above the 1 a right model gives with weights from \
                      {whose})"
@@ -328,137 +242,9 @@ pub fn chi2_warning(rep: &FitReport, file: &Path, expected: Option<f64>) -> Opti
     }
 }
 
-/// The one-sample noise pooled per separation over the points with no sample at the 16-bit
-/// rail ([`crate::data::any_sample_pinned`], as `cta calibrate` pools it): separation
-/// (as bits) to `([sum of squared deviations X, Y], degrees of freedom)`.
-pub fn pooled_noise(ds: &Dataset) -> BTreeMap<u64, ([f64; 2], usize)> {
-    let mut out: BTreeMap<u64, ([f64; 2], usize)> = BTreeMap::new();
-    for p in ds.points() {
-        let rows: Vec<_> = p.rows.iter().map(|&i| &ds.samples[i]).collect();
-        if crate::data::any_sample_pinned(rows.iter().copied()) {
-            continue;
-        }
-        let n = rows.len() as f64;
-        let mean = [
-            rows.iter().map(|s| s.x).sum::<f64>() / n,
-            rows.iter().map(|s| s.y).sum::<f64>() / n,
-        ];
-        let e = out.entry(p.first.separation_in.to_bits()).or_default();
-        for s in &rows {
-            e.0[0] += (s.x - mean[0]).powi(2);
-            e.0[1] += (s.y - mean[1]).powi(2);
-        }
-        e.1 += rows.len() - 1;
-    }
-    out
-}
 
-/// The one-sample variance of `axis` pooled at separation `sep` in `pool`
-/// ([`pooled_noise`]), `None` without repeated samples there.
-pub fn pooled_variance(
-    pool: &BTreeMap<u64, ([f64; 2], usize)>,
-    sep: f64,
-    axis: usize,
-) -> Option<f64> {
-    let (ss, dof) = pool.get(&sep.to_bits())?;
-    (*dof > 0).then(|| ss[axis] / *dof as f64)
-}
 
-/// The point means of `ds`, each weighted by `n / var(separation, axis)` floored at 1/12
-/// count^2 (absolute weights).
-pub fn point_means(ds: &Dataset, var: &dyn Fn(f64, usize) -> f64) -> Vec<Obs<f64>> {
-    ds.points()
-        .iter()
-        .map(|p| {
-            let n = p.rows.len() as f64;
-            let mut mean = [0.0; 2];
-            for &i in &p.rows {
-                mean[0] += ds.samples[i].x / n;
-                mean[1] += ds.samples[i].y / n;
-            }
-            let sep = p.first.separation_in;
-            Obs {
-                r: Vector3::from(p.first.r),
-                y: mean,
-                w: [0, 1].map(|a| n / var(sep, a).max(1.0 / 12.0)),
-            }
-        })
-        .collect()
-}
 
-/// Build the GLSDC observations from a dataset.
-pub fn observations(ds: &Dataset, weights: Weights) -> Result<Vec<Obs<f64>>, String> {
-    match weights {
-        Weights::None => Ok(ds
-            .samples
-            .iter()
-            .map(|s| Obs {
-                r: Vector3::from(s.r),
-                y: [s.x, s.y],
-                w: [1.0; 2],
-            })
-            .collect()),
-        Weights::Repeat => {
-            let mut out = Vec::new();
-            for p in ds.points() {
-                let n = p.rows.len();
-                if n < REPEAT_MIN_SAMPLES {
-                    let many = if n == 1 {
-                        "one".to_string()
-                    } else {
-                        n.to_string()
-                    };
-                    return Err(format!(
-                        "{}:{}: --weights repeat needs repeated samples, at least {REPEAT_MIN_SAMPLES} \
-                         per point, and this point has {many}: a variance from so few samples is \
-                         too rough to weight by (its inverse has an infinite variance, or mean; \
-                         two equal integer samples give a variance of 0), so the points whose \
-                         samples happen to agree would carry the fit. Use --weights pooled (the \
-                         noise pooled per separation, as `cta calibrate` weights) or --weights \
-                         none",
-                        ds.path.display(),
-                        p.first.line
-                    ));
-                }
-                let mut mean = [0.0; 2];
-                for &i in &p.rows {
-                    mean[0] += ds.samples[i].x / n as f64;
-                    mean[1] += ds.samples[i].y / n as f64;
-                }
-                let mut var = [0.0; 2];
-                for &i in &p.rows {
-                    var[0] += (ds.samples[i].x - mean[0]).powi(2) / (n - 1) as f64;
-                    var[1] += (ds.samples[i].y - mean[1]).powi(2) / (n - 1) as f64;
-                }
-                let w = var.map(|v| n as f64 / v.max(1.0 / 12.0));
-                out.push(Obs {
-                    r: Vector3::from(p.first.r),
-                    y: mean,
-                    w,
-                });
-            }
-            Ok(out)
-        }
-        Weights::Pooled => {
-            let pool = pooled_noise(ds);
-            if let Some(sep) = ds
-                .separations()
-                .into_iter()
-                .find(|&s| pooled_variance(&pool, s, 0).is_none())
-            {
-                return Err(format!(
-                    "{}: --weights pooled needs repeated samples at every separation, and {sep} \
-                     in has none (one sample per point, or every point at the 16-bit rail): use \
-                     --weights none",
-                    ds.path.display()
-                ));
-            }
-            Ok(point_means(ds, &|sep, a| {
-                pooled_variance(&pool, sep, a).unwrap_or(f64::NAN)
-            }))
-        }
-    }
-}
 
 /// Fit eq 65 to `ds` (already restricted to the wanted separations).
 pub fn fit(ds: &Dataset, weights: Weights) -> Result<FitReport, String> {
@@ -848,7 +634,7 @@ mod tests {
         assert_eq!(chi2_warning(&r, f, Some(1.0)), None);
         r.weights = Weights::Repeat;
         r.residual_variance_counts2 = None;
-        r.chi2_per_dof = Some(crate::fit::calibrate::CHI2_WARN);
+        r.chi2_per_dof = Some(CHI2_WARN);
         assert_eq!(chi2_warning(&r, f, Some(1.0)), None);
         // 10 samples per point: a right model gives 9/7 = 1.29.
         r.chi2_per_dof = Some(1.31);

@@ -33,8 +33,9 @@
 //! calibrate`): more than [`TURNED_DEG`] from square, the turn about the boresight, and the
 //! reading of X and Y that squares it.
 
+use crate::data::weights::Weights;
 use crate::data::{any_sample_pinned, fmt_list, Dataset};
-use crate::fit::{self, Weights};
+use crate::fit;
 use cta_core::collinearity::{Obs, ParamsExt};
 use cta_core::emulator::Head;
 use cta_core::mrp;

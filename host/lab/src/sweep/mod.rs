@@ -12,6 +12,8 @@
 //!
 //! The user documentation is `host/SWEEP.md`.
 
+use crate::data::{Dataset, ReadError};
+
 pub mod corners;
 pub mod engine;
 pub mod plan;
@@ -987,4 +989,19 @@ fn write_manifest(store: &RunDir, plan: &Plan, state: &str) -> Result<()> {
 /// The run directory's measurement file.
 pub fn data_path(dir: &Path) -> PathBuf {
     dir.join(store::DATA)
+}
+
+/// Read a measurement file with the warnings every analysis command prints on load
+/// ([`Dataset::read_warned`]); a run directory given instead is refused, naming its data file.
+pub fn read_measurements(path: &Path) -> Result<(Dataset, Vec<String>), ReadError> {
+    Dataset::read_warned(path).map_err(|e| match e {
+        ReadError::Folder { path, data: None } => {
+            let data = data_path(&path);
+            ReadError::Folder {
+                data: data.is_file().then_some(data),
+                path,
+            }
+        }
+        e => e,
+    })
 }
