@@ -1,6 +1,8 @@
 //! The `cta` command line: argument parsing, dispatch and rendering over the `cta_lab` library.
 
 use clap::{Parser, Subcommand};
+
+pub mod cmd;
 use cta_lab::commands;
 
 #[derive(Parser)]
@@ -52,7 +54,7 @@ pub enum Cmd {
     /// The main job on the built-in simulated CTA (no hardware): near-field errors,
     /// uncertainty, a simulated characterization with a hidden effect, calibration and
     /// evaluation, with plots, in one folder.
-    Demo(cta_lab::demo::DemoArgs),
+    Demo(cmd::demo::DemoArgs),
     /// Autonomous CTA data collection over serial (or on the simulated CTA with --sim):
     /// a plan of separations, beacons, frequencies, power levels and sensitivities,
     /// resumable after any interruption, never losing or duplicating a point.
@@ -117,7 +119,7 @@ pub fn main() {
         Cmd::Fit(a) => commands::fit_cmd(a),
         Cmd::Evaluate(a) => commands::evaluate_cmd(a),
         Cmd::Calibrate(a) => cta_lab::fit::calibrate::run(a),
-        Cmd::Demo(a) => cta_lab::demo::run(a),
+        Cmd::Demo(a) => cmd::demo::run(a),
         Cmd::Sweep(a) => cta_lab::sweep::run(a),
         Cmd::Analyze(a) => cta_lab::analyze::run(a),
         Cmd::Noise(a) => cta_lab::noise::run(a),

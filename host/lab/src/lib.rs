@@ -7,7 +7,6 @@ pub mod analyze;
 pub mod boards;
 pub mod commands;
 pub mod data;
-pub mod demo;
 pub mod fit;
 pub mod noise;
 pub mod plot;

@@ -631,7 +631,7 @@ fn read_head(path: &Path) -> std::io::Result<String> {
 
 /// Whether the file at `path` is one `cta` wrote ([`written_by_cta`]); false when it cannot be
 /// read.
-pub(crate) fn is_cta_output(path: &Path) -> bool {
+pub fn is_cta_output(path: &Path) -> bool {
     read_head(path).is_ok_and(|h| written_by_cta(&h))
 }
 

@@ -578,7 +578,7 @@ pub struct SimHead {
 
 /// Whether an effect acts on the sensor head (and so on `cta sensor sim`'s NorthStar), not on
 /// the CTA's beacon plate (its tilt, lateral offsets and separation errors).
-pub(crate) fn acts_on_the_head(e: &crate::sim::effects::Effect) -> bool {
+pub fn acts_on_the_head(e: &crate::sim::effects::Effect) -> bool {
     use crate::sim::effects::Effect;
     !matches!(
         e,

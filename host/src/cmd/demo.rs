@@ -1,7 +1,7 @@
 //! `cta demo`: the whole job on the built-in simulated CTA, no hardware.
 
-use crate::data::weights::Weights;
-use crate::commands::{self, EvaluateArgs, FitArgs, NearfieldArgs, Profile, UncertaintyArgs};
+use cta_lab::data::weights::Weights;
+use cta_lab::commands::{self, EvaluateArgs, FitArgs, NearfieldArgs, Profile, UncertaintyArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use std::path::PathBuf;
@@ -95,7 +95,7 @@ fn remove_earlier_demo(out: &std::path::Path) -> Result<()> {
     let ours = std::fs::read_to_string(&readme).is_ok_and(|t| t.starts_with(DEMO_README_HEAD));
     // A demo folder of an older cta (before README.txt) is known by its report; an empty
     // folder holds nothing to lose.
-    let older = crate::plot::is_cta_output(&out.join("report").join("index.html"));
+    let older = cta_lab::plot::is_cta_output(&out.join("report").join("index.html"));
     let empty = std::fs::read_dir(out).is_ok_and(|mut d| d.next().is_none());
     if !(ours || older || empty) {
         bail!(
@@ -112,7 +112,7 @@ fn remove_earlier_demo(out: &std::path::Path) -> Result<()> {
 /// Run `cta demo`.
 pub fn run(a: &DemoArgs) -> Result<()> {
     // Refuse a bad effect before anything is deleted or written.
-    crate::sim::effects::Effect::parse(&a.effect).map_err(|e| anyhow::anyhow!("--effect: {e}"))?;
+    cta_lab::sim::effects::Effect::parse(&a.effect).map_err(|e| anyhow::anyhow!("--effect: {e}"))?;
     if a.out.exists() {
         if !a.force {
             bail!("{} exists; pass --force to replace it", a.out.display());
@@ -121,7 +121,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}", a.out.display()))?;
     let p = |f: &str| a.out.join(f);
-    crate::data::write_output(
+    cta_lab::data::write_output(
         &p(DEMO_README),
         format!(
             "{DEMO_README_HEAD}\n\nThe walkthrough of `cta demo` on the built-in simulated CTA (see the \
@@ -161,7 +161,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         a.effect
     );
     let seed = a.seed.to_string();
-    let sweep = parse_args::<crate::sweep::SweepArgs>(&[
+    let sweep = parse_args::<cta_lab::sweep::SweepArgs>(&[
         "--plan",
         path_str(&plan)?,
         "--out",
@@ -177,7 +177,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         &seed,
         "--yes",
     ])?;
-    crate::sweep::run(&sweep)?;
+    cta_lab::sweep::run(&sweep)?;
     let data = run_dir.join("data.csv");
     println!("\n== 4. Ch V: calibrate the pinhole model at 20-30 in (thesis recommendation)");
     let fit = p("fit.json");
@@ -206,7 +206,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         "\n== 6. The sensor board's calibration from the sweep (pinhole, then the chip's near-field model)"
     );
     let cal = p("cal.json");
-    crate::fit::calibrate::run(&parse_args::<crate::fit::calibrate::CalibrateArgs>(&[
+    cta_lab::fit::calibrate::run(&parse_args::<cta_lab::fit::calibrate::CalibrateArgs>(&[
         path_str(&data)?,
         "--out",
         path_str(&cal)?,
@@ -215,12 +215,12 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     ])?)?;
     println!("\n== 7. What the simulation gets wrong, why, and the gain of the extended model");
     let report = p("report");
-    let analyze = parse_args::<crate::analyze::AnalyzeArgs>(&[
+    let analyze = parse_args::<cta_lab::analyze::AnalyzeArgs>(&[
         path_str(&data)?,
         "--report",
         path_str(&report)?,
     ])?;
-    crate::analyze::run(&analyze)?;
+    cta_lab::analyze::run(&analyze)?;
     println!(
         "\nDemo output in {}: nearfield.svg, uncertainty.svg, run/ (sweep data, manifest, truth), fit.json, \
          figure57.svg, cal.json (for `cta sensor load-calibration`) and calibration.svg, and the analysis report: open {}",
@@ -236,8 +236,8 @@ pub fn run(a: &DemoArgs) -> Result<()> {
 /// separation errors, LED boresights) is no part of the head, and `cta sensor sim` leaves it
 /// out.
 fn hidden_effect_words(effect: &str) -> String {
-    let on_head = crate::sim::effects::Effect::parse(effect)
-        .map(|e| crate::boards::sensor::acts_on_the_head(&e))
+    let on_head = cta_lab::sim::effects::Effect::parse(effect)
+        .map(|e| cta_lab::boards::sensor::acts_on_the_head(&e))
         .unwrap_or(true);
     if on_head {
         format!(
@@ -274,9 +274,9 @@ fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> 
         ),
         None => String::new(),
     };
-    let truth = crate::sim::Truth::path_for(&run_dir.join("data.csv"));
+    let truth = cta_lab::sim::Truth::path_for(&run_dir.join("data.csv"));
     // The simulated board's own scene, as `cta sensor sim` takes it by default.
-    let scene = parse_args::<crate::boards::sensor::SimArgs>(&[])?;
+    let scene = parse_args::<cta_lab::boards::sensor::SimArgs>(&[])?;
     let [x, y] = scene.offset;
     let hidden = hidden_effect_words(effect);
     Ok(format!(
