@@ -35,12 +35,11 @@ use stm32f1xx_hal::{
     watchdog::IndependentWatchdog,
 };
 
-use cta_core::schedule::{
-    lost_ticks, Gpio, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS, TICK_HZ,
-};
+use cta_core::schedule::{lost_ticks, Gpio, Modulator, NORTHSTAR_TABLE_MHZ, TICK_HZ};
 use cta_core::wire::beacon::{LedMode, LED_COUNT};
 use cta_core::wire::{ResetCause, MAX_FRAME};
 use cta_firmware_beacon::board::{Board, Outputs};
+use cta_firmware_beacon::pins::{BEACON_LINES, BEACON_PINS, PORTS};
 
 /// Core clock, Hz (8 MHz crystal x 9).
 const SYSCLK_HZ: u32 = 72_000_000;
@@ -59,7 +58,7 @@ static RX_BYTES: Mutex<RefCell<Deque<u16, RX_QUEUE>>> = Mutex::new(RefCell::new(
 /// the board.
 static RX_ERRORS: AtomicU32 = AtomicU32::new(0);
 
-/// GPIO ports A..G (port index of [`cta_core::schedule::Pin`]), padded to 8 entries so
+/// GPIO ports A..G (port index of [`cta_firmware_beacon::pins::Pin`]), padded to 8 entries so
 /// that `GPIO[p & 7]` needs no bounds check in the tick interrupt (the modulator only
 /// passes p < 7).
 const GPIO: [*const pac::gpioa::RegisterBlock; 8] = [
@@ -342,7 +341,7 @@ fn main() -> ! {
     let loaded = critical_section::with(|cs| {
         MODULATOR
             .borrow_ref_mut(cs)
-            .load(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS)
+            .load(&NORTHSTAR_TABLE_MHZ, &BEACON_LINES)
     });
     if loaded.is_err() {
         panic!("default table rejected");
