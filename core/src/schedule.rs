@@ -489,7 +489,7 @@ pub fn tick_features(
     [edges, legs, combo_ticks, combo_ticks * combos, writes]
 }
 
-/// Instructions of the tick interrupt on a tick with nothing due (measured: 28).
+/// Instructions of the tick interrupt on a tick with nothing due (its QEMU count).
 pub const TICK_COST_BASE: u64 = 28;
 /// Tenths of an instruction per unit of each of [`tick_features`]: fitted to the
 /// Cortex-M3 counts of `tests/qemu/src/bin/beacon_tick.rs` over its cases (about 38 per

@@ -103,7 +103,9 @@ impl NearField {
         [self.alpha_deg, self.alpha_y_deg.unwrap_or(self.alpha_deg)]
     }
 
-    /// The per-cell gains of [`Effects::gain`](crate::emulator::Effects::gain): `[1 + gain[0], 1, 1 + gain[1], 1]`.
+    /// The per-cell gains of [`Effects::gain`]: `[1 + gain[0], 1, 1 + gain[1], 1]`.
+    ///
+    /// [`Effects::gain`]: crate::emulator::Effects::gain
     pub fn cell_gains<T: Real>(&self) -> [T; 4] {
         let one = T::one();
         [
@@ -114,7 +116,9 @@ impl NearField {
         ]
     }
 
-    /// The per-cell offsets of [`Effects::bias`](crate::emulator::Effects::bias): `[bias[0], 0, bias[1], 0]`.
+    /// The per-cell offsets of [`Effects::bias`]: `[bias[0], 0, bias[1], 0]`.
+    ///
+    /// [`Effects::bias`]: crate::emulator::Effects::bias
     pub fn cell_biases<T: Real>(&self) -> [T; 4] {
         let z = T::zero();
         [
@@ -126,23 +130,19 @@ impl NearField {
     }
 }
 
-/// The spot magnitude model: how the NorthStar's reported magnitude `M` follows the light
-/// its four cells collect, so that the near-field pose can use the magnitudes as a further
-/// measurement (beyond the thesis: its model is the spots' `X, Y` only).
+/// The spot magnitude law, with which the near-field pose also fits the NorthStar's
+/// magnitudes (beyond the thesis, whose model is the spots' `X, Y`):
+/// `M = offset + A (b S)^exponent`, with `S` the summed cell signal of eq 63
+/// (`sum_k c_k I_k V_k`, 1/in^2: [`Emulator::magnitude`]), `b` the beacon's relative
+/// brightness ([`Beacon::brightness`]) and `A` a scale common to the frame that every pose
+/// estimates. Only the ratios between beacons count: they carry the beacons' relative
+/// distances, which a flat target's tilt changes and the spots show only through perspective.
 ///
-/// `M = offset + A (b S)^exponent`, with `S` the summed cell signal of eq 63 (`sum_k c_k I_k
-/// V_k`, 1/in^2: the emulator's [`Emulator::magnitude`](crate::emulator::Emulator::magnitude)), `b` the beacon's relative
-/// brightness ([`Beacon::brightness`]) and `A` unknown: every pose estimates it with the
-/// position and attitude (LED drive, drift, power setting: a scale common to the frame's
-/// beacons), so only the magnitudes' ratios between beacons count. They carry the beacons'
-/// relative distances and angles, which is what a flat target's tilt changes and the spots
-/// show only through perspective (see `cta sensor floor`).
+/// The NorthStar's real magnitude output is not public: the law is an assumption wide enough
+/// for a linear, compressive or offset response, which `cta calibrate` fits to a sweep's
+/// `magnitude` column, its scatter about the fit giving [`Self::noise_percent`].
 ///
-/// The NorthStar's real magnitude output is not public and has not been measured here: the
-/// law is an assumption wide enough to hold a linear (exponent 1), compressive or offset
-/// response, which `cta calibrate` fits to a sweep's `magnitude` column, measuring
-/// [`Self::noise_percent`] from the scatter about the fit (repeatability and model misfit
-/// alike), so that the pose weighs the magnitudes by what they proved to be worth.
+/// [`Emulator::magnitude`]: crate::emulator::Emulator::magnitude
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
 pub struct Magnitude {
     /// The reading with no signal, counts (0 ..= 60000).
@@ -169,9 +169,11 @@ pub struct Magnitude {
 }
 
 impl Magnitude {
-    /// The simulated NorthStar's law ([`simulate_spots`](super::simulate_spots): `M = SIM_MAGNITUDE_SCALE x S`,
+    /// The simulated NorthStar's law ([`simulate_spots`]: `M = SIM_MAGNITUDE_SCALE x S`,
     /// linear, no offset, saturating at 65535), with `noise_percent` of scatter, at
     /// sensitivity 4 (the board's start-up setting).
+    ///
+    /// [`simulate_spots`]: super::simulate_spots
     pub fn simulated(noise_percent: f32) -> Self {
         Magnitude {
             offset: 0.0,
@@ -185,15 +187,16 @@ impl Magnitude {
 }
 
 /// The pinhole model's own head pose: the `d, p` of a 7-parameter eq 65 fit (`d, p, H`,
-/// thesis eqs 64-66, at the far separations), which the [`ModelKind::Pinhole`](super::ModelKind::Pinhole) solve uses
+/// thesis eqs 64-66, at the far separations), which the [`ModelKind::Pinhole`] solve uses
 /// with [`Calibration::h`] when the calibration has it.
 ///
-/// The pinhole fit's `d` is not the head's: it is the pinhole's eye point, which the fit
-/// moves about 1 in above the head to hold the near-field structure of the data (README,
-/// "virtual eye"). A calibration fitted with both models (`cta calibrate`) therefore has two
-/// head poses: the near-field fit's in [`Calibration::d`], [`Calibration::p`] (the head
-/// itself) and the pinhole fit's here. Solving eq 65 with the head's `d, p` and the pinhole
-/// fit's `H` reads ranges short (about 0.9 in at 12 in).
+/// The fit's `d` is the pinhole's eye point, about 1 in above the head (it absorbs the
+/// data's near-field structure: README, "virtual eye"), so a calibration fitted with both
+/// models holds two poses: the head's in [`Calibration::d`], [`Calibration::p`], the eye's
+/// here. Eq 65 with the head's pose and the pinhole's `H` reads ranges short (about 0.9 in
+/// at 12 in).
+///
+/// [`ModelKind::Pinhole`]: super::ModelKind::Pinhole
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
 pub struct PinholeHead {
     /// N origin -> the pinhole's eye point, in N, inches (eq 65's `d`).
@@ -218,8 +221,10 @@ pub struct Calibration {
     /// Near-field parameters (when calibrated with the eq 63 physics).
     pub near_field: Option<NearField>,
     /// The pinhole model's own `d, p` (eq 65, fitted with [`Self::h`]), when they differ from
-    /// the head's [`Self::d`], [`Self::p`]: [`ModelKind::Pinhole`](super::ModelKind::Pinhole) solves with them. `None`
+    /// the head's [`Self::d`], [`Self::p`]: [`ModelKind::Pinhole`] solves with them. `None`
     /// (and a calibration file without it): the pinhole model uses `d, p`.
+    ///
+    /// [`ModelKind::Pinhole`]: super::ModelKind::Pinhole
     #[serde(default)]
     pub pinhole: Option<PinholeHead>,
     /// The spot magnitude model: with it the near-field pose also fits the magnitudes

@@ -12,7 +12,9 @@ use nalgebra::Vector3;
 
 /// The simulated NorthStar's magnitude per unit of summed cell signal, counts per 1/in^2: a
 /// beacon 1 in away on the boresight reads about 60000, at 10 in about 520, at 30 in about
-/// 58 (the real detector's scale is unknown: see [`Magnitude`](super::Magnitude)).
+/// 58 (the real detector's scale is unknown: see [`Magnitude`]).
+///
+/// [`Magnitude`]: super::Magnitude
 pub const SIM_MAGNITUDE_SCALE: f64 = 15000.0;
 
 /// Spots a NorthStar with the physics of `em` (the head on the board) would report for

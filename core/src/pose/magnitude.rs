@@ -45,9 +45,9 @@ impl<T: Real> MagSolve<T> {
 
     /// `(m, weight)` of a reading (see [`Obs::m`]; `ln_b` the beacon's `ln` brightness), or
     /// `None` when it is not used: saturated (at or above `max`), below the law's range
-    /// (`min`), or not a whole count above the offset. `M - offset = D` has the variance `(rel D)^2 + 1/12` (the scatter and the
-    /// rounding to counts), so `ln S = ln D / exponent` has `(rel^2 + 1/(12 D^2)) /
-    /// exponent^2`.
+    /// (`min`), or not a whole count above the offset. `M - offset = D` has the variance
+    /// `(rel D)^2 + 1/12` (the scatter and the rounding to counts), so `ln S = ln D /
+    /// exponent` has `(rel^2 + 1/(12 D^2)) / exponent^2`.
     pub(super) fn reading(&self, magnitude: u16, ln_b: T) -> Option<(T, T)> {
         let mv = T::lit(magnitude as f64);
         let d = mv - self.offset;

@@ -26,10 +26,10 @@
 //!   calibration's `H` and its pinhole head's `d, p` ([`Calibration::pinhole`]; the
 //!   calibration's `d, p` when it has none) (analytic Jacobian: `dy/dt = -dy/dd`, and
 //!   `dy/dq_i = dy/dr . (dC/dq_i)^T r_T`, evaluated as `dy/dq = K ((C^T r_T) x dy/dr)`
-//!   with [`mrp::gradient_map`](crate::mrp::gradient_map)).
-//! - [`ModelKind::NearField`]: the eq 60-63 emulator ([`Emulator`](crate::emulator::Emulator)) with the calibration's
+//!   with [`mrp::gradient_map`]).
+//! - [`ModelKind::NearField`]: the eq 60-63 emulator ([`Emulator`]) with the calibration's
 //!   near-field parameters; analytic Jacobian by the chain rule through
-//!   [`Emulator::output_gradient`](crate::emulator::Emulator::output_gradient) (beacon position and LED boresight) and the same `K`.
+//!   [`Emulator::output_gradient`] (beacon position and LED boresight) and the same `K`.
 //!
 //! # Solve
 //!
@@ -51,7 +51,7 @@
 //! residual variance, so model misfit shows in the 1-sigma.
 //!
 //! A warm solve also starts from the last solve's linearisation when the same coordinates
-//! of the same beacons are in view ([`glsdc::solve_with`](crate::glsdc::solve_with)): its first step uses the model
+//! of the same beacons are in view ([`glsdc::solve_with`]): its first step uses the model
 //! values that linearisation predicts at the last solution (the warm start) against the new
 //! spots, so it evaluates no model at all; the point it reaches is linearised afresh before
 //! any stop, so the answer is Gauss-Newton's. A last step predicted to gain less than 0.1
@@ -91,6 +91,11 @@
 //! [`PoseSolver`]; `problem`: the least-squares rows GLSDC solves; `magnitude`: the spot
 //! magnitudes' readings and contrasts; `fixtures`: simulated spots, the built-in
 //! constellations and the benchmark frames. Everything public is re-exported here.
+//!
+//! [`mrp::gradient_map`]: crate::mrp::gradient_map
+//! [`Emulator`]: crate::emulator::Emulator
+//! [`Emulator::output_gradient`]: crate::emulator::Emulator::output_gradient
+//! [`glsdc::solve_with`]: crate::glsdc::solve_with
 
 mod config;
 mod fixtures;
@@ -132,12 +137,10 @@ pub const RAIL: i16 = i16::MAX;
 pub const RAIL_SIGMAS: f32 = 3.0;
 /// The constellation's far limit: the range at which its radius about its centroid
 /// subtends this many noise sigmas of the pinhole (`radius x H / (3 noise)`: 908 in for
-/// [`cta_constellation`] and 2,860 in for [`four_array_constellation`] (2,874 in for the
-/// host's `four-19`, which leaves its channel 19 out) with [`Calibration::table3`], 30 and 95
-/// times the CTA's 30 in). There its beacons' spots are
-/// barely apart in the noise and the position 1-sigma is a quarter of the range (the one-10
-/// constellation at 1,000 in: 0.2 median, 0.36 at most): a solution beyond it is a false
-/// minimum, reported diverged.
+/// [`cta_constellation`], 2,860 in for [`four_array_constellation`], with
+/// [`Calibration::table3`]). There its spots are barely apart in the noise and the position
+/// 1-sigma is a quarter of the range: a solution beyond it is a false minimum, reported
+/// diverged.
 pub const FAR_SIGMAS: f32 = 3.0;
 
 /// One IR spot as the NorthStar reports it.

@@ -23,7 +23,9 @@ pub struct Obs<T: Real> {
     /// Which of `X`, `Y` are used (`false`: at or near the 16-bit rail).
     pub used: [bool; 2],
     /// The magnitude as a measured log signal, `ln(M - offset) / exponent - ln b`
-    /// ([`Magnitude`](super::Magnitude)), to set against the model's `ln S` (up to the frame's common scale).
+    /// ([`Magnitude`]), to set against the model's `ln S` (up to the frame's common scale).
+    ///
+    /// [`Magnitude`]: super::Magnitude
     pub m: T,
     /// The magnitude's weight, `(noise / sigma_ln)^2` with `noise` the spots' 1-sigma in
     /// counts and `sigma_ln` the magnitude's in `ln S`: its row is in counts as the spots'

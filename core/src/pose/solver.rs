@@ -134,7 +134,9 @@ pub struct PoseSolver<T: Real> {
     max_sigma_fraction2: T,
     /// The magnitude model in `T`, when the magnitudes are fitted.
     pub(super) mag: Option<MagSolve<T>>,
-    /// `ln b` of each beacon's brightness ([`Beacon::brightness`](super::Beacon::brightness)), in the order of `beacons`.
+    /// `ln b` of each beacon's brightness ([`Beacon::brightness`]), in the order of `beacons`.
+    ///
+    /// [`Beacon::brightness`]: super::Beacon::brightness
     ln_brightness: [T; MAX_BEACONS],
     /// [`SolverSettings::max_condition`] and [`SolverSettings::max_rms`] in `T`, converted
     /// once by [`Self::configure`]: no double-precision conversion (a soft-float routine of
@@ -415,7 +417,9 @@ impl<T: Real> PoseSolver<T> {
 
     /// [`Self::solve`] for a frame the NorthStar reported at light-sensitivity setting
     /// `sensitivity`: the magnitudes are used only at the setting their law was fitted at
-    /// ([`Magnitude::sensitivity`](super::Magnitude::sensitivity)); at another, the spots alone.
+    /// ([`Magnitude::sensitivity`]); at another, the spots alone.
+    ///
+    /// [`Magnitude::sensitivity`]: super::Magnitude::sensitivity
     pub fn solve_frame(&mut self, spots: &[Spot], sensitivity: u8) -> PoseSolution<T> {
         let mut obs = Vec::new();
         let same = self

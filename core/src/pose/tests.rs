@@ -302,7 +302,7 @@ fn near_field_cold_start_recovers_pose_f64_and_f32() {
 /// A calibration's pinhole head (the eq 65 fit's own eye point, about 1 in above the
 /// head) is what the pinhole model solves with; the near-field model ignores it. Spots
 /// of the pinhole model with that eye at 12 in: solved exactly with it, and 1 in short
-/// with the head's `d, p` (the file `cta calibrate` wrote before it held the eye).
+/// with the head's `d, p` (a calibration without a pinhole head).
 #[test]
 fn pinhole_head_is_the_pinhole_models_eye() {
     let con = cta_constellation();
@@ -443,15 +443,12 @@ fn railed_coordinates_are_dropped_and_the_rest_used() {
 }
 
 /// At 30 in the one-array target's attitude is barely observed (floor ~4 deg): the cost
-/// valley is flat and curved on the scale of one sigma, and Gauss-Newton zig-zags
-/// across it (successive steps of ~2 deg in opposite directions, each gaining a few
-/// hundredths of chi-square). About 1 frame in 400 once ran out of its 20 iterations
-/// within a fraction of a sigma of the minimum and was reported Diverged (7 pinhole and 8
-/// near-field of these 3000); stopping on a step that gains less than 0.01 left 0 and 2.
-/// Now the Gauss-Newton step's predicted gain is checked whatever the damping, and a step
-/// that gains less than a quarter of its prediction keeps the damping on (the gain ratio
-/// rule, in `glsdc`): none fails, and no frame needs more than 12 iterations (9 and 10 here; 17-20
-/// before).
+/// valley is flat and curved on the scale of one sigma, and Gauss-Newton zig-zags across
+/// it (steps of ~2 deg in opposite directions, each gaining a few hundredths of
+/// chi-square). The Gauss-Newton step's predicted gain is checked whatever the damping, and
+/// a step that gains less than a quarter of its prediction keeps the damping on (the gain
+/// ratio rule, in `glsdc`): none of these 3000 frames fails, and none needs more than 12
+/// iterations.
 #[test]
 fn flat_valley_at_30_in_converges() {
     let em = truth_emulator();
@@ -651,8 +648,7 @@ fn board_physics() -> Emulator<f64> {
 /// Targets out of view (the reviewer's `cta sensor sim --offset 30,30 --range 3`, and
 /// others to the side): the simulated NorthStar still reports every beacon, with
 /// coordinates a few noise sigmas from the rail. No frame is ever Ok, with a fresh
-/// solver or a running one. (Before the rail margin and the plausibility gate, 4 of
-/// the reviewer's 40 frames were Ok at 5,800 in, and 262 of 400 at `(30, 0, 5)`.)
+/// solver or a running one (the rail margin and the plausibility gate).
 #[test]
 fn out_of_view_frames_are_never_ok() {
     let em = board_physics();
@@ -689,7 +685,7 @@ fn out_of_view_frames_are_never_ok() {
 }
 
 /// The plausibility gate on its own: the reviewer's out-of-view frames with every
-/// coordinate off the exact rail used (the rule before the margin) give solutions
+/// coordinate off the exact rail used (no rail margin) give solutions
 /// hundreds to thousands of inches away, none of them Ok; a solution beyond the
 /// constellation's far limit is diverged, one whose position 1-sigma exceeds the
 /// settings' fraction of the range ill-conditioned (with its 1-sigma), and a target

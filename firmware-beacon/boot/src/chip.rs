@@ -8,21 +8,18 @@ use stm32f1xx_hal::pac;
 /// reset, about 0.2 s (a crystal starts in a few milliseconds).
 const HSE_POLLS: u32 = 200_000;
 
-/// Take the reset cause, then start and check the crystal; call it first in `main`, with
-/// the DWT cycle counter on and the core still on the internal oscillator (before the HAL's
-/// `freeze`).
-///
-/// The reset cause is read from `RCC_CSR`, then the flags are cleared (`RMVF`) so that the
-/// next reset is told apart; it is read before the crystal check, whose retries are
-/// software resets. A crystal that does not start, or runs at another frequency than
-/// 8 MHz, is logged and the chip reset (a cold crystal slow to start gets another chance,
-/// and a probe shows the line each time). One whose frequency cannot be measured (the RTC
-/// did not count) is taken for 8 MHz, with a warning.
+/// Take the reset cause from `RCC_CSR` and clear its flags (`RMVF`) so that the next reset is
+/// told apart, then start and check the crystal, logging and resetting on a dead or wrong
+/// one; a crystal the RTC cannot measure is taken for 8 MHz, with a warning. Call it first in
+/// `main`, with the DWT cycle counter on and the core still on the internal oscillator (the
+/// reset cause comes first: the crystal check's retries are software resets).
 pub fn start(rcc: &pac::RCC, pwr: &pac::PWR, rtc: &pac::RTC) -> ResetCause {
     let reset_cause = ResetCause::from_rcc_csr(rcc.csr().read().bits());
     rcc.csr().modify(|_, w| w.rmvf().set_bit());
 
     if !crystal_starts(rcc) {
+        // Retry from reset: a crystal that is slow to start (cold) gets another chance, and
+        // a probe shows this line each time.
         defmt::error!("the 8 MHz crystal (HSE) did not start within ~0.2 s: check it and its load capacitors; resetting to retry");
         reset_after_log();
     }

@@ -26,4 +26,3 @@
 mod chip;
 #[cfg(target_os = "none")]
 pub use chip::start;
-
