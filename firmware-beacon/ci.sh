@@ -5,7 +5,8 @@
 #     LEDs modulated, and print the interrupt load at 72 MHz; fail above 25 %; check the
 #     tick cost model the board uses to refuse overloads against the counts (three cases);
 #  3. run the QEMU board program (the board's own code, as the chip's main calls it,
-#     through every request) and measure its peak stack by painting;
+#     through every request), measure its peak stack by painting, and print the most
+#     instructions one received byte holds the main loop for;
 #  4. print flash and RAM use and fail if over the root memory.x budget.
 #
 # RAM = static (.data + .bss + .uninit: the board and the modulator are statics)
@@ -86,17 +87,22 @@ out=$(CARGO_TARGET_DIR="$target_dir/qemu" bash tests/qemu/run.sh beacon_board)
 echo "$out"
 peak=$(echo "$out" | sed -n 's/^STACK beacon_board_peak_bytes=\([0-9]*\).*/\1/p')
 [ -n "$peak" ] || { echo "ci.sh: QEMU board run printed no stack figure" >&2; exit 1; }
+# The costliest received byte of the session (the one that completes the largest request):
+# how long the main loop is held at most.
+byte_max=$(echo "$out" | sed -n 's/^beacon_board: segments=.* max=\([0-9]*\).*/\1/p')
+[ -n "$byte_max" ] || { echo "ci.sh: QEMU board run printed no instruction count" >&2; exit 1; }
 main_frame=$(bash tests/qemu/main_frame.sh "$elf")
 ram_total=$(( ram + main_frame + peak + tick_stack + 32 + ENTRY_IRQ_ALLOWANCE ))
 
 echo "== firmware-beacon figures"
-printf 'firmware-beacon flash: %d bytes of %d (%.1f %%)\n' "$flash" "$flash_budget" "$(echo "$flash $flash_budget" | awk '{print 100*$1/$2}')"
+printf 'firmware-beacon flash: %d bytes of %d (%.1f %%), %d B left\n' "$flash" "$flash_budget" "$(echo "$flash $flash_budget" | awk '{print 100*$1/$2}')" "$(( flash_budget - flash ))"
 printf 'RAM static                   %6d B\n' "$ram"
 printf 'RAM stack: main frame        %6d B\n' "$main_frame"
 printf 'RAM stack: board below main  %6d B (QEMU)\n' "$peak"
 printf 'RAM stack: tick interrupt    %6d B (QEMU, + 32 B exception frame)\n' "$tick_stack"
 printf 'RAM stack: entry, USART      %6d B (allowance)\n' "$ENTRY_IRQ_ALLOWANCE"
-printf 'firmware-beacon RAM: %d bytes of %d (%.1f %%)\n' "$ram_total" "$ram_budget" "$(echo "$ram_total $ram_budget" | awk '{print 100*$1/$2}')"
+printf 'firmware-beacon RAM: %d bytes of %d (%.1f %%), %d B left\n' "$ram_total" "$ram_budget" "$(echo "$ram_total $ram_budget" | awk '{print 100*$1/$2}')" "$(( ram_budget - ram_total ))"
+printf 'main loop held at most %d instructions by one received byte (%.2f ms at 72 MHz, one per cycle)\n' "$byte_max" "$(awk -v n="$byte_max" 'BEGIN { print n / 72e3 }')"
 if [ "$flash" -gt "$flash_budget" ] || [ "$ram_total" -gt "$ram_budget" ]; then
   echo "firmware-beacon: over the memory.x budget" >&2
   exit 1

@@ -18,8 +18,9 @@
 #     cosine (cta_core::trig, fixed point) against libm's sinf/cosf on the target;
 #  4. run the QEMU board program: the board's own code (Board::init and Board::poll, as
 #     the chip's main calls them) through a session that reaches every deep path (requests,
-#     flash writes, the 20-beacon near-field pose with the magnitudes and without), and
-#     measure its peak stack by painting;
+#     flash writes, the 20-beacon near-field pose with the magnitudes and without), measure
+#     its peak stack by painting, and count its warm 20-beacon frames from the NorthStar's
+#     bytes to the pose report, with the magnitudes and from the spots alone (reported);
 #  5. fail when over budget: flash <= 48 KiB, RAM <= 12 KiB, one warm 10-beacon solve
 #     <= 1,000,000 instructions, for each model (the issue's budget), and the warm
 #     20-beacon near-field solve from the spots under the same line (ours: so that four-19
@@ -122,6 +123,12 @@ out=$(bash "$root/tests/qemu/run.sh" board)
 echo "$out"
 peak=$(echo "$out" | sed -n 's/^STACK board_peak_bytes=\([0-9]*\).*/\1/p')
 [ -n "$peak" ] || { echo "ci.sh: QEMU board run printed no stack figure" >&2; exit 1; }
+# Warm 20-beacon frames through the board: segments 1-3 with the magnitudes, 4-5 from the
+# spots alone (tests/qemu/src/bin/board.rs).
+counts=$(echo "$out" | sed -n 's/^board: counts=\([0-9,]*\)$/\1/p')
+read -r frame_mag frame_spots < <(echo "$counts" | awk -F, 'NF == 5 {
+  a = $1; for (i = 2; i <= 3; i++) if ($i > a) a = $i; b = ($4 > $5) ? $4 : $5; print a, b }')
+[ -n "${frame_spots:-}" ] || { echo "ci.sh: QEMU board run printed no frame counts (\"$counts\")" >&2; exit 1; }
 # The chip main's own frame: its prologue's pushed registers and stack adjustment.
 main_frame=$(bash "$root/tests/qemu/main_frame.sh" "$elf")
 ram=$(( ram_static + main_frame + peak + ENTRY_IRQ_ALLOWANCE ))
@@ -131,9 +138,9 @@ check "$flash" "$FLASH_BUDGET"; check "$ram" "$RAM_BUDGET"
 # The instruction budget holds for both models: the pinhole (calibrated eq 65) and the
 # near-field (eq 60-63) solve from the spots, for 10 beacons and (ours) 20; see
 # firmware-sensor/README.md, "Budgets". The 10-beacon solve with the magnitudes is held to
-# it too (since the carried linearisation keeps its magnitudes' weights, one Jacobian pass as
-# from the spots: 1.35 M before); the 20-beacon one with the magnitudes cannot meet it (its
-# 59 rows do not fit the 40 the solver carries) and is reported only.
+# it too (the carried linearisation keeps its magnitudes' weights: one Jacobian pass, as
+# from the spots); the 20-beacon one with the magnitudes cannot meet it (its 59 rows do not
+# fit the 40 the solver carries) and is reported only.
 enforced=(pinhole nearfield nearfield-mag nearfield20)
 for run in "${enforced[@]}"; do
   check "${insn[$run]}" "$INSN_BUDGET"
@@ -146,18 +153,19 @@ insn_verdict() {
   else echo "OVER it (reported, not enforced)"; fi
 }
 echo "== firmware-sensor figures"
-printf 'flash                        %6d B (%.1f KiB) / %d B: %s\n' "$flash" "$(awk -v f="$flash" 'BEGIN { print f / 1024 }')" "$FLASH_BUDGET" "$(verdict "$flash" "$FLASH_BUDGET")"
+printf 'flash                        %6d B (%.1f KiB) / %d B: %s, %d B left\n' "$flash" "$(awk -v f="$flash" 'BEGIN { print f / 1024 }')" "$FLASH_BUDGET" "$(verdict "$flash" "$FLASH_BUDGET")" "$(( FLASH_BUDGET - flash ))"
 printf 'RAM static                   %6d B\n' "$ram_static"
 printf 'RAM stack: main frame        %6d B\n' "$main_frame"
 printf 'RAM stack: board below main  %6d B (QEMU: solve-only peak %d B, 20 beacons; %d B with the magnitudes)\n' "$peak" "${stack[nearfield20]}" "${stack[nearfield-mag20]}"
 printf 'RAM stack: entry, interrupt  %6d B (allowance)\n' "$ENTRY_IRQ_ALLOWANCE"
-printf 'RAM total                    %6d B / %d B: %s\n' "$ram" "$RAM_BUDGET" "$(verdict "$ram" "$RAM_BUDGET")"
+printf 'RAM total                    %6d B / %d B: %s, %d B left\n' "$ram" "$RAM_BUDGET" "$(verdict "$ram" "$RAM_BUDGET")" "$(( RAM_BUDGET - ram ))"
 hz() { awk -v n="$1" 'BEGIN { printf "%.0f", 72e6 / n }'; }
 for run in "${runs[@]}"; do
   model=${run%20}
   beacons=10; [ "$run" = "$model" ] || beacons=20
   printf 'warm %d-beacon solve, %-13s %8d instructions / %d (%s Hz at 72 MHz): %s\n' "$beacons" "$model" "${insn[$run]}" "$INSN_BUDGET" "$(hz "${insn[$run]}")" "$(insn_verdict "$run")"
 done
+printf 'warm 20-beacon frame through the board (NorthStar bytes to pose report): %d instructions with the magnitudes, %d from the spots alone (reported)\n' "$frame_mag" "$frame_spots"
 if [ "$over" -ne 0 ]; then
   if [ "$mode" = report ]; then
     echo "firmware-sensor: OVER BUDGET (CTA_SENSOR_BUDGETS=report: not failing)"

@@ -1,4 +1,4 @@
-//! The crystal check both boards run at boot (firmware `chip.rs`, `crystal_khz`): the crystal's
+//! The crystal check both boards run at boot (`cta_firmware_boot::start`): the crystal's
 //! frequency, measured against the internal 8 MHz RC oscillator (HSI), which clocks the core
 //! from reset until the clock tree is set up. The RTC, clocked by HSE / 128, counts down its
 //! prescaler (`RTC_DIV`) while the DWT counts HSI cycles. The HSI is within -2 .. +2.5 % of

@@ -31,10 +31,10 @@ pub mod pattern;
 pub mod trig;
 pub mod uncertainty;
 
-// On-chip 6-dof pose solution (issue: firmware-sensor). Plain comments here: an outer doc
-// comment would make rustdoc resolve the module's own intra-doc links from the crate root.
+// On-chip 6-dof pose solution. Plain comments here: an outer doc comment would make rustdoc
+// resolve the module's own intra-doc links from the crate root.
 pub mod pose;
-// Beacon modulation schedule (issue: firmware-beacon).
+// Beacon modulation schedule.
 pub mod schedule;
-// Wire protocol shared by the boards and the host (issue: firmware-beacon / firmware-sensor).
+// Wire protocol shared by the boards and the host.
 pub mod wire;

@@ -1,4 +1,4 @@
-//! Beacon modulation schedule: which pins change on which tick (firmware-beacon issue).
+//! Beacon modulation schedule: which LED output lines change on which tick.
 //!
 //! The beacon board (thesis Ch IV, Table 1; REFERENCE.md section 4) square-wave modulates
 //! each of its 100 LEDs at frequencies of a table (default: the 10 NorthStar ID pairs,
@@ -16,28 +16,28 @@
 //! that tick), so a tick only touches the frequencies due on it: ~1.6 on average with the 20
 //! NorthStar frequencies, instead of scanning all 20 every tick. On a toggle of `f`:
 //!
-//! * every LED modulated at `f` alone flips: one `ODR ^= mask` per GPIO port holding such
-//!   LEDs ([`Gpio::toggle`]), which leaves the USART / SWD / crystal pins sharing the port
-//!   untouched;
+//! * every LED modulated at `f` alone flips: one `ODR ^= mask` per output bank (a GPIO port
+//!   on the chip) holding such LEDs ([`Gpio::toggle`]), which leaves the other lines of the
+//!   bank (the USART, SWD and crystal pins) untouched;
 //! * every LED modulated at several frequencies (OR of their square waves) is set or reset
 //!   from the current wave levels with a `BSRR` write ([`Gpio::write`]; rare, kept in a
 //!   separate list).
 //!
 //! [`Modulator::levels`] computes the outputs from the wave levels alone; the tests check on
-//! every tick that the incremental pin changes reproduce them.
+//! every tick that the incremental line changes reproduce them.
 //!
-//! # Pin map
+//! # Lines, not pins
 //!
-//! [`BEACON_PINS`] maps LED id `row * 10 + column` to a GPIO of the STM32F103ZET6
-//! (see [`grid_position`] for the board coordinates); [`RESERVED_PINS`] lists the pins it
-//! leaves free.
+//! The modulator drives LED `id` (`row * 10 + column`, [`grid_position`]) on the output
+//! [`Line`] it is given for it: a bit of one of [`BANKS`] 16-bit banks. Which GPIO pin that
+//! is belongs to the board: firmware-beacon's pin map.
 
 use crate::wire::beacon::{LedMode, FREQ_MAX_MHZ, FREQ_MIN_MHZ, LED_COUNT, MAX_FREQS};
 
 /// Modulator tick rate, Hz: TIM2 update interrupt at 72 MHz / 576 (8 us per tick).
 pub const TICK_HZ: u32 = 125_000;
-/// GPIO ports A..G of the STM32F103ZET6 (LQFP144).
-pub const PORTS: usize = 7;
+/// Output banks of 16 lines the modulator drives (on the beacon board: its seven GPIO ports).
+pub const BANKS: usize = 7;
 /// Slots of the timing wheel; every half period must be shorter than this many ticks.
 pub const WHEEL: usize = 256;
 
@@ -60,87 +60,22 @@ const fn northstar_table() -> [u32; 20] {
     t
 }
 
-/// A GPIO pin: port (0 = A .. 6 = G) and bit (0..16).
+/// An LED's output line: bit `bit` (0..16) of output bank `bank` (0..[`BANKS`]). The board
+/// maps banks to its GPIO ports and bits to their pins (firmware-beacon's pin map); the
+/// modulator writes whole banks, so that one write changes every LED of a bank at a frequency.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct Pin {
-    /// Port index, 0 = GPIOA .. 6 = GPIOG.
-    pub port: u8,
-    /// Pin number within the port, 0..16.
+pub struct Line {
+    /// Output bank, 0..[`BANKS`].
+    pub bank: u8,
+    /// Bit within the bank, 0..16.
     pub bit: u8,
 }
 
-impl Pin {
-    /// Pin `P<port><bit>`.
-    pub const fn new(port: u8, bit: u8) -> Self {
-        Pin { port, bit }
+impl Line {
+    /// Bit `bit` of bank `bank`.
+    pub const fn new(bank: u8, bit: u8) -> Self {
+        Line { bank, bit }
     }
-    /// Port letter, `'A'..='G'`.
-    pub fn port_letter(self) -> char {
-        (b'A' + self.port) as char
-    }
-}
-
-impl core::fmt::Display for Pin {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "P{}{}", self.port_letter(), self.bit)
-    }
-}
-
-/// Pins the LEDs must not use, with the reason: the RS-232 USART, the debug header
-/// (SWD, and the rest of JTAG so a JTAG probe also works), the 32 kHz crystal, the
-/// tamper pin (3 mA drive only) and BOOT1. The 8 MHz crystal has dedicated OSC_IN / OSC_OUT
-/// pins on the LQFP144 package.
-pub const RESERVED_PINS: [(Pin, &str); 11] = [
-    (Pin::new(0, 9), "USART1 TX (RS-232 to the PC)"),
-    (Pin::new(0, 10), "USART1 RX (RS-232 from the PC)"),
-    (Pin::new(0, 13), "SWDIO / JTMS"),
-    (Pin::new(0, 14), "SWCLK / JTCK"),
-    (Pin::new(0, 15), "JTDI"),
-    (Pin::new(1, 2), "BOOT1"),
-    (Pin::new(1, 3), "JTDO / TRACESWO"),
-    (Pin::new(1, 4), "NJTRST"),
-    (Pin::new(2, 13), "TAMPER-RTC (3 mA drive)"),
-    (Pin::new(2, 14), "OSC32_IN (32.768 kHz crystal)"),
-    (Pin::new(2, 15), "OSC32_OUT (32.768 kHz crystal)"),
-];
-
-/// The one GPIO left over after the 100 LEDs and the reserved pins (PG15: spare).
-pub const SPARE_PIN: Pin = Pin::new(6, 15);
-
-/// LED id -> GPIO. LED `id = row * 10 + column` (row, column 0..10; see [`grid_position`])
-/// takes the `id`-th free pin in port order PA0.. PG14, skipping [`RESERVED_PINS`]:
-/// PA0-8, PA11-12 (ids 0-10), PB0-1, PB5-15 (11-23), PC0-12 (24-36), PD0-15 (37-52),
-/// PE0-15 (53-68), PF0-15 (69-84), PG0-14 (85-99).
-pub const BEACON_PINS: [Pin; LED_COUNT] = beacon_pins();
-
-const fn is_reserved(p: Pin) -> bool {
-    let mut i = 0;
-    while i < RESERVED_PINS.len() {
-        if RESERVED_PINS[i].0.port == p.port && RESERVED_PINS[i].0.bit == p.bit {
-            return true;
-        }
-        i += 1;
-    }
-    false
-}
-
-const fn beacon_pins() -> [Pin; LED_COUNT] {
-    let mut pins = [Pin::new(0, 0); LED_COUNT];
-    let mut n = 0;
-    let mut port = 0;
-    while port < PORTS as u8 {
-        let mut bit = 0;
-        while bit < 16 {
-            let p = Pin::new(port, bit);
-            if n < LED_COUNT && !is_reserved(p) {
-                pins[n] = p;
-                n += 1;
-            }
-            bit += 1;
-        }
-        port += 1;
-    }
-    pins
 }
 
 /// Grid cell and board position of LED `id`: `(row, column, x, y)` with x, y in inches in
@@ -165,40 +100,40 @@ pub fn half_period_q24(mhz: u32) -> Option<u32> {
 /// An LED modulated at several frequencies (lit while any is high).
 #[derive(Debug, Clone, Copy)]
 struct Combo {
-    port: u8,
+    bank: u8,
     bit: u16,
     freqs: u32,
 }
 
-/// The LED pins of one port that a frequency toggles.
+/// The LED lines of one bank that a frequency toggles.
 #[derive(Debug, Clone, Copy, Default)]
 struct Leg {
-    port: u8,
+    bank: u8,
     mask: u16,
 }
 
-/// Where [`Modulator::tick`] sends its pin changes: the GPIO ports on the chip, a
+/// Where [`Modulator::tick`] sends its line changes: the GPIO ports on the chip, a
 /// [`Levels`] image on the host.
 pub trait Gpio {
-    /// Invert the pins `mask` of port `port` (`ODR ^= mask` on the STM32: a read-modify-write
-    /// that leaves the port's other pins untouched; only the tick interrupt writes `ODR`).
-    fn toggle(&mut self, port: usize, mask: u16);
-    /// Write a `BSRR` word (low half: pins to set, high half: pins to reset) to port `port`.
-    fn write(&mut self, port: usize, bsrr: u32);
+    /// Invert the lines `mask` of bank `bank` (`ODR ^= mask` on the STM32: a read-modify-write
+    /// that leaves the bank's other lines untouched; only the tick interrupt writes `ODR`).
+    fn toggle(&mut self, bank: usize, mask: u16);
+    /// Write a `BSRR` word (low half: lines to set, high half: lines to reset) to bank `bank`.
+    fn write(&mut self, bank: usize, bsrr: u32);
 }
 
-/// Output levels of the seven ports (bit set = pin high = LED lit), as a [`Gpio`].
+/// Output levels of the banks (bit set = line high = LED lit), as a [`Gpio`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct Levels(pub [u16; PORTS]);
+pub struct Levels(pub [u16; BANKS]);
 
 impl Gpio for Levels {
     #[inline]
-    fn toggle(&mut self, port: usize, mask: u16) {
-        self.0[port] ^= mask;
+    fn toggle(&mut self, bank: usize, mask: u16) {
+        self.0[bank] ^= mask;
     }
     #[inline]
-    fn write(&mut self, port: usize, bsrr: u32) {
-        self.0[port] = (self.0[port] | bsrr as u16) & !((bsrr >> 16) as u16);
+    fn write(&mut self, bank: usize, bsrr: u32) {
+        self.0[bank] = (self.0[bank] | bsrr as u16) & !((bsrr >> 16) as u16);
     }
 }
 
@@ -219,18 +154,18 @@ pub struct Modulator {
     now: u32,
     /// Bit f: square wave f is in its "on" half.
     high: u32,
-    /// Pins of the LEDs modulated at exactly frequency f: `legs[f][..nlegs[f]]`.
-    legs: [[Leg; PORTS]; MAX_FREQS],
+    /// Lines of the LEDs modulated at exactly frequency f: `legs[f][..nlegs[f]]`.
+    legs: [[Leg; BANKS]; MAX_FREQS],
     nlegs: [u8; MAX_FREQS],
-    /// Steadily lit pins per port.
-    steady: [u16; PORTS],
+    /// Steadily lit lines per bank.
+    steady: [u16; BANKS],
     combos: heapless::Vec<Combo, LED_COUNT>,
     /// Frequencies used by combos.
     combo_freqs: u32,
-    /// LED id -> pin.
-    pins: [Pin; LED_COUNT],
-    /// All LED pins per port (the only bits ever written).
-    owned: [u16; PORTS],
+    /// LED id -> line.
+    lines: [Line; LED_COUNT],
+    /// All LED lines per bank (the only bits ever written).
+    owned: [u16; BANKS],
 }
 
 /// Why [`Modulator::new`] or [`Modulator::set_table`] refused a table.
@@ -250,7 +185,7 @@ pub enum TableError {
 }
 
 impl Modulator {
-    /// A modulator that drives nothing (no table, no pins): the initial value of the
+    /// A modulator that drives nothing (no table, no lines): the initial value of the
     /// firmware's static, loaded at boot by [`Modulator::load`]. Its tick does nothing.
     pub const EMPTY: Modulator = Modulator {
         half_period: [0; MAX_FREQS],
@@ -259,30 +194,31 @@ impl Modulator {
         wheel: [0; WHEEL],
         now: 0,
         high: 0,
-        legs: [[Leg { port: 0, mask: 0 }; PORTS]; MAX_FREQS],
+        legs: [[Leg { bank: 0, mask: 0 }; BANKS]; MAX_FREQS],
         nlegs: [0; MAX_FREQS],
-        steady: [0; PORTS],
+        steady: [0; BANKS],
         combos: heapless::Vec::new(),
         combo_freqs: 0,
-        pins: [Pin::new(0, 0); LED_COUNT],
-        owned: [0; PORTS],
+        lines: [Line::new(0, 0); LED_COUNT],
+        owned: [0; BANKS],
     };
 
-    /// All LEDs off, frequency table `table_mhz`, LED pins `pins` (normally [`BEACON_PINS`]).
-    pub fn new(table_mhz: &[u32], pins: &[Pin; LED_COUNT]) -> Result<Self, TableError> {
+    /// All LEDs off, frequency table `table_mhz`, LED `id` on `lines[id]` (on the board, its pin
+    /// map).
+    pub fn new(table_mhz: &[u32], lines: &[Line; LED_COUNT]) -> Result<Self, TableError> {
         let mut m = Modulator::EMPTY;
-        m.load(table_mhz, pins)?;
+        m.load(table_mhz, lines)?;
         Ok(m)
     }
 
     /// [`Modulator::new`] in place, over whatever this modulator held: the firmware loads
     /// its static this way at boot, without a 2.6 KiB temporary on the stack.
-    pub fn load(&mut self, table_mhz: &[u32], pins: &[Pin; LED_COUNT]) -> Result<(), TableError> {
-        let mut owned = [0u16; PORTS];
-        for p in pins {
-            owned[p.port as usize % PORTS] |= 1 << (p.bit & 15);
+    pub fn load(&mut self, table_mhz: &[u32], lines: &[Line; LED_COUNT]) -> Result<(), TableError> {
+        let mut owned = [0u16; BANKS];
+        for p in lines {
+            owned[p.bank as usize % BANKS] |= 1 << (p.bit & 15);
         }
-        self.pins = *pins;
+        self.lines = *lines;
         self.owned = owned;
         // A new table clears the rest: the waves, the assignment and the tick count.
         self.set_table(table_mhz)
@@ -328,10 +264,10 @@ impl Modulator {
         self.now
     }
 
-    /// Assign every LED its mode (`modes[id]`, LED `id` on the pin given to
+    /// Assign every LED its mode (`modes[id]`, LED `id` on the line given to
     /// [`Modulator::new`]). The caller has validated the modes (frequency indices within the
     /// table); unknown indices are ignored. Modulated LEDs join their running wave in phase;
-    /// the caller then drives the ports to [`Modulator::all_bsrr`] (with the tick excluded).
+    /// the caller then drives the banks to [`Modulator::all_bsrr`] (with the tick excluded).
     pub fn configure(&mut self, modes: &[LedMode; LED_COUNT]) {
         self.clear_assignment();
         let valid = if self.table_len as usize >= 32 {
@@ -339,24 +275,24 @@ impl Modulator {
         } else {
             (1u32 << self.table_len) - 1
         };
-        let mut xor = [[0u16; PORTS]; MAX_FREQS];
-        let pins = self.pins;
-        for (mode, pin) in modes.iter().zip(pins.iter()) {
-            let (port, bit) = (pin.port as usize % PORTS, 1u16 << (pin.bit & 15));
+        let mut xor = [[0u16; BANKS]; MAX_FREQS];
+        let lines = self.lines;
+        for (mode, line) in modes.iter().zip(lines.iter()) {
+            let (bank, bit) = (line.bank as usize % BANKS, 1u16 << (line.bit & 15));
             match *mode {
                 LedMode::Off => {}
-                LedMode::On => self.steady[port] |= bit,
+                LedMode::On => self.steady[bank] |= bit,
                 LedMode::Modulated(set) => {
                     let freqs = set.0 & valid;
                     if freqs == 0 {
                         continue;
                     }
                     if freqs.is_power_of_two() {
-                        xor[freqs.trailing_zeros() as usize][port] |= bit;
+                        xor[freqs.trailing_zeros() as usize][bank] |= bit;
                     } else {
                         // Capacity is LED_COUNT: cannot overflow.
                         let _ = self.combos.push(Combo {
-                            port: port as u8,
+                            bank: bank as u8,
                             bit,
                             freqs,
                         });
@@ -365,11 +301,11 @@ impl Modulator {
                 }
             }
         }
-        for (f, ports) in xor.iter().enumerate() {
-            for (port, &mask) in ports.iter().enumerate() {
+        for (f, banks) in xor.iter().enumerate() {
+            for (bank, &mask) in banks.iter().enumerate() {
                 if mask != 0 {
                     self.legs[f][self.nlegs[f] as usize] = Leg {
-                        port: port as u8,
+                        bank: bank as u8,
                         mask,
                     };
                     self.nlegs[f] += 1;
@@ -381,44 +317,44 @@ impl Modulator {
     /// Every LED off (the waves keep running).
     fn clear_assignment(&mut self) {
         self.nlegs = [0; MAX_FREQS];
-        self.steady = [0; PORTS];
+        self.steady = [0; BANKS];
         self.combos.clear();
         self.combo_freqs = 0;
     }
 
-    /// Output level of every port (bit set = LED lit), computed from the wave levels.
-    pub fn levels(&self) -> [u16; PORTS] {
+    /// Output level of every bank (bit set = LED lit), computed from the wave levels.
+    pub fn levels(&self) -> [u16; BANKS] {
         let mut out = self.steady;
         for f in 0..MAX_FREQS {
             if self.high & (1 << f) != 0 {
                 for leg in &self.legs[f][..self.nlegs[f] as usize] {
-                    out[leg.port as usize] |= leg.mask;
+                    out[leg.bank as usize] |= leg.mask;
                 }
             }
         }
         for c in &self.combos {
             if self.high & c.freqs != 0 {
-                out[c.port as usize] |= c.bit;
+                out[c.bank as usize] |= c.bit;
             }
         }
         out
     }
 
-    /// `BSRR` words that drive every port to [`Modulator::levels`] (LED pins only); written
+    /// `BSRR` words that drive every bank to [`Modulator::levels`] (LED lines only); written
     /// after every reconfiguration.
-    pub fn all_bsrr(&self) -> [u32; PORTS] {
+    pub fn all_bsrr(&self) -> [u32; BANKS] {
         let levels = self.levels();
-        let mut w = [0u32; PORTS];
-        for p in 0..PORTS {
+        let mut w = [0u32; BANKS];
+        for p in 0..BANKS {
             let (o, owned) = (levels[p], self.owned[p]);
             w[p] = (o & owned) as u32 | (((!o & owned) as u32) << 16);
         }
         w
     }
 
-    /// One tick: advance the waves due on this tick and send the pin changes to `gpio`. This
-    /// is the body of the firmware's timer interrupt. Ports passed to `gpio` are below
-    /// [`PORTS`]. Most ticks have nothing due and return after a few instructions.
+    /// One tick: advance the waves due on this tick and send the line changes to `gpio`. This
+    /// is the body of the firmware's timer interrupt. Banks passed to `gpio` are below
+    /// [`BANKS`]. Most ticks have nothing due and return after a few instructions.
     #[inline(always)]
     pub fn tick(&mut self, gpio: &mut impl Gpio) {
         let slot = self.now as u8;
@@ -429,16 +365,16 @@ impl Modulator {
         }
     }
 
-    /// One tick without driving any pin: the firmware catches up, inside the critical
+    /// One tick without driving any line: the firmware catches up, inside the critical
     /// section of a reconfiguration, the ticks its timer raised while the interrupt was
-    /// masked ([`lost_ticks`]), then drives every port to [`Modulator::all_bsrr`].
+    /// masked ([`lost_ticks`]), then drives every bank to [`Modulator::all_bsrr`].
     pub fn tick_silently(&mut self) {
-        struct NoPins;
-        impl Gpio for NoPins {
-            fn toggle(&mut self, _port: usize, _mask: u16) {}
-            fn write(&mut self, _port: usize, _bsrr: u32) {}
+        struct NoLines;
+        impl Gpio for NoLines {
+            fn toggle(&mut self, _bank: usize, _mask: u16) {}
+            fn write(&mut self, _bank: usize, _bsrr: u32) {}
         }
-        self.tick(&mut NoPins);
+        self.tick(&mut NoLines);
     }
 
     /// The edges due on tick `slot` (mask `due`).
@@ -449,11 +385,11 @@ impl Modulator {
         while pending != 0 {
             let f = pending.trailing_zeros() as usize & (MAX_FREQS - 1);
             pending &= pending - 1;
-            // Pin changes first (an edge leaves ~60 instructions after the previous
+            // Line changes first (an edge leaves ~60 instructions after the previous
             // frequency's), then the next edge of f: the fractional time accumulates in Q0.24.
             let n = self.nlegs[f] as usize;
-            for leg in &self.legs[f][..n.min(PORTS)] {
-                gpio.toggle(leg.port as usize, leg.mask);
+            for leg in &self.legs[f][..n.min(BANKS)] {
+                gpio.toggle(leg.bank as usize, leg.mask);
             }
             let t = self.frac[f] + self.half_period[f];
             self.frac[f] = t & 0x00ff_ffff;
@@ -469,7 +405,7 @@ impl Modulator {
                     } else {
                         bit << 16
                     };
-                    gpio.write(c.port as usize, w);
+                    gpio.write(c.bank as usize, w);
                 }
             }
         }
@@ -493,7 +429,7 @@ pub fn lost_ticks(pending_at_entry: bool, count_at_entry: u32, elapsed: u32, per
 ///
 /// * `edges`: frequency edges (`sum 2 f / TICK_HZ` over the table: every wave runs, lit or
 ///   not);
-/// * `legs`: port toggles (each edge of `f` toggles one port per port holding LEDs at `f`
+/// * `legs`: bank toggles (each edge of `f` toggles one bank per bank holding LEDs at `f`
 ///   alone);
 /// * `combo_ticks`: ticks with an edge of a frequency some multi-frequency LED uses (at
 ///   most 1; the sum of their rates bounds it);
@@ -506,7 +442,7 @@ pub fn lost_ticks(pending_at_entry: bool, count_at_entry: u32, elapsed: u32, per
 pub fn tick_features(
     table_mhz: &[u32],
     modes: &[LedMode; LED_COUNT],
-    pins: &[Pin; LED_COUNT],
+    lines: &[Line; LED_COUNT],
 ) -> [u64; 5] {
     const ONE: u64 = 1 << 16;
     let n = table_mhz.len().min(MAX_FREQS);
@@ -527,17 +463,17 @@ pub fn tick_features(
         sum
     };
     let valid = if n >= 32 { u32::MAX } else { (1u32 << n) - 1 };
-    let mut ports = [0u8; MAX_FREQS];
+    let mut banks = [0u8; MAX_FREQS];
     let mut combos = 0u64;
     let mut combo_freqs = 0u32;
     let mut writes = 0u64;
-    for (mode, pin) in modes.iter().zip(pins) {
+    for (mode, line) in modes.iter().zip(lines) {
         let LedMode::Modulated(set) = *mode else {
             continue;
         };
         let freqs = set.0 & valid;
         if freqs.is_power_of_two() {
-            ports[freqs.trailing_zeros() as usize] |= 1 << (pin.port as usize % PORTS);
+            banks[freqs.trailing_zeros() as usize] |= 1 << (line.bank as usize % BANKS);
         } else if freqs != 0 {
             combos += 1;
             combo_freqs |= freqs;
@@ -547,17 +483,17 @@ pub fn tick_features(
     }
     let edges = (0..n).map(rate).sum();
     let legs = (0..n)
-        .map(|f| rate(f) * u64::from(ports[f].count_ones()))
+        .map(|f| rate(f) * u64::from(banks[f].count_ones()))
         .sum();
     let combo_ticks = rates_of(combo_freqs).min(ONE);
     [edges, legs, combo_ticks, combo_ticks * combos, writes]
 }
 
-/// Instructions of the tick interrupt on a tick with nothing due (measured: 28).
+/// Instructions of the tick interrupt on a tick with nothing due (its QEMU count).
 pub const TICK_COST_BASE: u64 = 28;
 /// Tenths of an instruction per unit of each of [`tick_features`]: fitted to the
 /// Cortex-M3 counts of `tests/qemu/src/bin/beacon_tick.rs` over its cases (about 38 per
-/// edge, 9 per port toggle, 6 per multi-frequency LED looked at and per write) and
+/// edge, 9 per bank toggle, 6 per multi-frequency LED looked at and per write) and
 /// rounded up, so that the model is not below any case (`firmware-beacon/ci.sh` checks
 /// three of them on every run).
 pub const TICK_COST_PER_TENTH: [u64; 5] = [400, 100, 50, 70, 65];
@@ -566,8 +502,12 @@ pub const TICK_COST_PER_TENTH: [u64; 5] = [400, 100, 50, 70, 65];
 /// not included) for a table and an LED assignment: the model of [`TICK_COST_BASE`] and
 /// [`TICK_COST_PER_TENTH`] over [`tick_features`]. The beacon board refuses assignments
 /// and tables above its budget ([`TICK_BUDGET`]).
-pub fn tick_cost(table_mhz: &[u32], modes: &[LedMode; LED_COUNT], pins: &[Pin; LED_COUNT]) -> u32 {
-    let x = tick_features(table_mhz, modes, pins);
+pub fn tick_cost(
+    table_mhz: &[u32],
+    modes: &[LedMode; LED_COUNT],
+    lines: &[Line; LED_COUNT],
+) -> u32 {
+    let x = tick_features(table_mhz, modes, lines);
     let sum: u64 = x.iter().zip(TICK_COST_PER_TENTH).map(|(x, c)| x * c).sum();
     (TICK_COST_BASE + sum.div_ceil(10 << 16)) as u32
 }
@@ -582,7 +522,7 @@ pub const TICK_BUDGET: u32 = 288;
 pub mod measure {
     use alloc::vec::Vec;
 
-    use super::{Gpio, Levels, Modulator, PORTS, TICK_HZ};
+    use super::{Gpio, Levels, Modulator, BANKS, TICK_HZ};
     use crate::wire::beacon::{LedMode, LED_COUNT};
 
     /// What the tick stream of one LED modulated at a single frequency showed.
@@ -611,13 +551,13 @@ pub mod measure {
     pub struct TickLoad {
         /// Ticks run.
         pub ticks: u64,
-        /// Mean port operations ([`Gpio::toggle`] or [`Gpio::write`]) per tick.
+        /// Mean bank operations ([`Gpio::toggle`] or [`Gpio::write`]) per tick.
         pub mean_writes: f64,
-        /// Most port operations in one tick.
+        /// Most bank operations in one tick.
         pub max_writes: u32,
     }
 
-    /// Run `m` for `ticks` ticks, following every pin through the changes it sends, and
+    /// Run `m` for `ticks` ticks, following every line through the changes it sends, and
     /// return the statistics of every LED modulated at exactly one frequency (with
     /// `table_mhz[i]` the frequency of index `i`), plus the write load. The caller has
     /// configured `m` with `modes`. Also checks on every tick that the incremental outputs
@@ -628,26 +568,26 @@ pub mod measure {
         table_mhz: &[u32],
         ticks: u32,
     ) -> Result<(Vec<WaveStats>, TickLoad), u32> {
-        let mut led_at = [[u8::MAX; 16]; PORTS];
-        for (id, p) in m.pins.iter().enumerate() {
-            led_at[p.port as usize][p.bit as usize] = id as u8;
+        let mut led_at = [[u8::MAX; 16]; BANKS];
+        for (id, p) in m.lines.iter().enumerate() {
+            led_at[p.bank as usize][p.bit as usize] = id as u8;
         }
-        /// Follows the pins and records every LED edge.
+        /// Follows the lines and records every LED edge.
         struct Probe<'a> {
-            level: [u16; PORTS],
-            led_at: &'a [[u8; 16]; PORTS],
+            level: [u16; BANKS],
+            led_at: &'a [[u8; 16]; BANKS],
             edges: &'a mut Vec<Vec<u32>>,
             tick: u32,
             writes: u32,
         }
         impl Probe<'_> {
-            fn change(&mut self, port: usize, new: u16) {
-                let mut changed = self.level[port] ^ new;
-                self.level[port] = new;
+            fn change(&mut self, bank: usize, new: u16) {
+                let mut changed = self.level[bank] ^ new;
+                self.level[bank] = new;
                 while changed != 0 {
                     let b = changed.trailing_zeros() as usize;
                     changed &= changed - 1;
-                    let id = self.led_at[port][b];
+                    let id = self.led_at[bank][b];
                     if (id as usize) < LED_COUNT {
                         // The change happens during tick n (time n / TICK_HZ).
                         self.edges[id as usize].push(self.tick);
@@ -656,16 +596,16 @@ pub mod measure {
             }
         }
         impl Gpio for Probe<'_> {
-            fn toggle(&mut self, port: usize, mask: u16) {
+            fn toggle(&mut self, bank: usize, mask: u16) {
                 self.writes += 1;
-                self.change(port, self.level[port] ^ mask);
+                self.change(bank, self.level[bank] ^ mask);
             }
-            fn write(&mut self, port: usize, bsrr: u32) {
+            fn write(&mut self, bank: usize, bsrr: u32) {
                 self.writes += 1;
-                let mut l = Levels([0; PORTS]);
-                l.0[port] = self.level[port];
-                l.write(port, bsrr);
-                self.change(port, l.0[port]);
+                let mut l = Levels([0; BANKS]);
+                l.0[bank] = self.level[bank];
+                l.write(bank, bsrr);
+                self.change(bank, l.0[bank]);
             }
         }
         let mut edges: Vec<Vec<u32>> = (0..LED_COUNT).map(|_| Vec::new()).collect();
@@ -753,6 +693,19 @@ pub mod measure {
     }
 }
 
+/// The tests' line map: LED `id` on the `id`-th line in bank order, leaving bit 15 of every
+/// bank to other uses (a board's pin map leaves gaps too).
+#[cfg(test)]
+const LINES: [Line; LED_COUNT] = {
+    let mut lines = [Line::new(0, 0); LED_COUNT];
+    let mut id = 0;
+    while id < LED_COUNT {
+        lines[id] = Line::new((id / 15) as u8, (id % 15) as u8);
+        id += 1;
+    }
+    lines
+};
+
 #[cfg(test)]
 mod catch_up_tests {
     use super::*;
@@ -783,23 +736,23 @@ mod catch_up_tests {
             _ => LedMode::Off,
         });
         let new = || {
-            let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+            let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &LINES).unwrap();
             m.configure(&modes);
             m
         };
         let (mut a, mut b) = (new(), new());
-        let mut pins = Levels(a.levels());
+        let mut lines = Levels(a.levels());
         for _ in 0..1000 {
-            a.tick(&mut pins);
-            b.tick(&mut Levels([0; PORTS]));
+            a.tick(&mut lines);
+            b.tick(&mut Levels([0; BANKS]));
         }
         for k in 0..40 {
-            a.tick(&mut pins);
+            a.tick(&mut lines);
             b.tick_silently();
             assert_eq!(a.now(), b.now());
             assert_eq!(a.levels(), b.levels(), "tick {k}");
         }
-        assert_eq!(pins.0, b.levels());
+        assert_eq!(lines.0, b.levels());
     }
 }
 
@@ -824,27 +777,6 @@ mod tests {
     }
 
     #[test]
-    fn pin_map_has_100_distinct_unreserved_pins() {
-        let mut seen = [[false; 16]; PORTS];
-        for p in BEACON_PINS {
-            assert!((p.port as usize) < PORTS && p.bit < 16, "{p}");
-            assert!(!seen[p.port as usize][p.bit as usize], "{p} used twice");
-            seen[p.port as usize][p.bit as usize] = true;
-            assert!(
-                RESERVED_PINS.iter().all(|(r, _)| *r != p),
-                "{p} is reserved"
-            );
-            assert_ne!(p, SPARE_PIN);
-        }
-        // Every pin of the 7 ports is an LED, reserved or the spare.
-        let free = PORTS * 16 - LED_COUNT - RESERVED_PINS.len();
-        assert_eq!(free, 1);
-        assert_eq!(BEACON_PINS[0], Pin::new(0, 0));
-        assert_eq!(BEACON_PINS[9], Pin::new(0, 11));
-        assert_eq!(BEACON_PINS[99], Pin::new(6, 14));
-    }
-
-    #[test]
     fn grid_positions_are_centred() {
         assert_eq!(grid_position(0), (0, 0, -4.5, -4.5));
         assert_eq!(grid_position(99), (9, 9, 4.5, 4.5));
@@ -853,20 +785,17 @@ mod tests {
 
     #[test]
     fn table_validation() {
+        assert_eq!(Modulator::new(&[], &LINES).err(), Some(TableError::Empty));
         assert_eq!(
-            Modulator::new(&[], &BEACON_PINS).err(),
-            Some(TableError::Empty)
-        );
-        assert_eq!(
-            Modulator::new(&[1_000_000, 100_000], &BEACON_PINS).err(),
+            Modulator::new(&[1_000_000, 100_000], &LINES).err(),
             Some(TableError::OutOfRange {
                 index: 1,
                 mhz: 100_000
             })
         );
-        assert!(Modulator::new(&[FREQ_MIN_MHZ, FREQ_MAX_MHZ], &BEACON_PINS).is_ok());
+        assert!(Modulator::new(&[FREQ_MIN_MHZ, FREQ_MAX_MHZ], &LINES).is_ok());
         assert_eq!(
-            Modulator::new(&[1_000_000; 33], &BEACON_PINS).err(),
+            Modulator::new(&[1_000_000; 33], &LINES).err(),
             Some(TableError::TooLong)
         );
     }
@@ -877,7 +806,7 @@ mod tests {
 
     #[test]
     fn off_and_steady_leds_never_change() {
-        let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+        let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &LINES).unwrap();
         let mut modes = [LedMode::Off; LED_COUNT];
         modes[5] = LedMode::On;
         modes[50] = LedMode::On;
@@ -897,13 +826,13 @@ mod tests {
             m.tick(&mut Untouchable);
         }
         assert_eq!(m.levels(), lvl);
-        let p5 = BEACON_PINS[5];
-        assert_ne!(want[p5.port as usize] & (1 << p5.bit), 0);
+        let p5 = LINES[5];
+        assert_ne!(want[p5.bank as usize] & (1 << p5.bit), 0);
     }
 
     #[test]
     fn every_table_frequency_is_exact_and_jitter_is_below_one_tick() {
-        let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+        let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &LINES).unwrap();
         let modes = all_modulated();
         m.configure(&modes);
         // One simulated second.
@@ -920,7 +849,7 @@ mod tests {
 
     #[test]
     fn several_frequencies_on_one_led_and_reconfiguration_stay_consistent() {
-        let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+        let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &LINES).unwrap();
         let mut modes = all_modulated();
         modes[3] = LedMode::Modulated(FreqSet(0b11));
         modes[4] = LedMode::Modulated(FreqSet((1 << 19) | (1 << 7) | 1));
@@ -936,7 +865,7 @@ mod tests {
         assert!(stats.iter().all(|s| s.led != 3 && s.led != 4));
         // A new table restarts with everything dark.
         m.set_table(&[1_000_000]).unwrap();
-        assert_eq!(m.levels(), [0; PORTS]);
+        assert_eq!(m.levels(), [0; BANKS]);
     }
 
     #[test]
@@ -944,18 +873,18 @@ mod tests {
         let mut modes = all_modulated();
         modes[4] = LedMode::Modulated(FreqSet((1 << 19) | (1 << 7) | 1));
         modes[5] = LedMode::On;
-        // A used modulator (other pins, table, assignment and phase) loaded in place...
-        let mut reused = Modulator::new(&[1_000_000, 2_000_000], &BEACON_PINS).unwrap();
-        let mut other = BEACON_PINS;
+        // A used modulator (other lines, table, assignment and phase) loaded in place...
+        let mut reused = Modulator::new(&[1_000_000, 2_000_000], &LINES).unwrap();
+        let mut other = LINES;
         other.swap(0, 1);
         reused.load(&[1_000_000], &other).unwrap();
         reused.configure(&[LedMode::On; LED_COUNT]);
         for _ in 0..777 {
             reused.tick(&mut Levels::default());
         }
-        reused.load(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
-        // ...drives the pins exactly as a fresh one, tick by tick.
-        let mut fresh = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+        reused.load(&NORTHSTAR_TABLE_MHZ, &LINES).unwrap();
+        // ...drives the lines exactly as a fresh one, tick by tick.
+        let mut fresh = Modulator::new(&NORTHSTAR_TABLE_MHZ, &LINES).unwrap();
         assert_eq!(reused.all_bsrr(), fresh.all_bsrr());
         reused.configure(&modes);
         fresh.configure(&modes);
@@ -971,7 +900,7 @@ mod tests {
     #[test]
     fn duty_cycle_is_half() {
         let table = [2_010_000, 5_130_000, FREQ_MAX_MHZ, FREQ_MIN_MHZ];
-        let mut m = Modulator::new(&table, &BEACON_PINS).unwrap();
+        let mut m = Modulator::new(&table, &LINES).unwrap();
         let modes: [LedMode; LED_COUNT] =
             core::array::from_fn(|i| LedMode::Modulated(FreqSet::single((i % 4) as u8)));
         m.configure(&modes);
@@ -980,8 +909,8 @@ mod tests {
         for _ in 0..n {
             m.tick(&mut Levels::default());
             for (f, c) in on.iter_mut().enumerate() {
-                let p = BEACON_PINS[f];
-                if m.levels()[p.port as usize] & (1 << p.bit) != 0 {
+                let p = LINES[f];
+                if m.levels()[p.bank as usize] & (1 << p.bit) != 0 {
                     *c += 1;
                 }
             }

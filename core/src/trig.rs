@@ -4,8 +4,8 @@
 //! near-field calibration (validated to 5-85 deg), once per configuration. libm's `sinf`
 //! and `cosf` (what `f32::sin`/`cos` are without `std`) work in double precision and carry a
 //! general argument reduction for arguments up to 2^127 (`rem_pio2f`): with the
-//! double-precision soft-float routines nothing else on the board needs, 5,596 B of its
-//! 48 KiB of flash (measured: firmware-sensor/README.md, "Budgets"). [`sin_cos_f32`]
+//! double-precision soft-float routines nothing else on the board needs, over 5 KiB of its
+//! 48 KiB of flash. [`sin_cos_f32`]
 //! evaluates the same polynomials (libm's `k_sinf` and `k_cosf`, from FreeBSD's k_sinf.c and
 //! k_cosf.c: Copyright (C) 1993 by Sun Microsystems, Inc.) after the same reduction (at most
 //! one `pi / 2` away, as libm's `sinf` and `cosf` do for `|x| <= 3 pi / 4`) in 64-bit fixed

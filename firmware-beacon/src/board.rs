@@ -14,9 +14,8 @@
 
 use core::mem::MaybeUninit;
 
-use cta_core::schedule::{
-    half_period_q24, tick_cost, BEACON_PINS, NORTHSTAR_TABLE_MHZ, TICK_BUDGET, TICK_HZ,
-};
+use crate::pins::BEACON_LINES;
+use cta_core::schedule::{half_period_q24, tick_cost, NORTHSTAR_TABLE_MHZ, TICK_BUDGET, TICK_HZ};
 use cta_core::wire::beacon::{
     BeaconError, BeaconRequest, BeaconResponse, BeaconStatus, LedMode, LedSetting, Limits,
     DEADMAN_MAX_MS, DEADMAN_MIN_MS, LED_COUNT, MAX_FREQS,
@@ -307,7 +306,7 @@ impl Board {
 /// the watchdog (the board resets) while ticks are lost (every wave runs slow). The cost is
 /// the conservative model of [`tick_cost`], fitted to the interrupt's instruction counts.
 fn overload(table: &[u32], modes: &[LedMode; LED_COUNT]) -> Result<(), ErrorReply<BeaconError>> {
-    let instructions = tick_cost(table, modes, &BEACON_PINS);
+    let instructions = tick_cost(table, modes, &BEACON_LINES);
     if instructions > TICK_BUDGET {
         return Err(ErrorReply::Board(BeaconError::TickOverload {
             instructions,
@@ -326,7 +325,7 @@ mod tests {
     use std::vec::Vec;
 
     fn setup() -> (Board, Modulator) {
-        let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+        let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_LINES).unwrap();
         let mut b = Board::new(true, ResetCause::PowerOn);
         b.start(&mut m);
         (b, m)

@@ -1,8 +1,9 @@
 //! Wiring of the beacon board (STM32F103ZET6): clocks, GPIO, USART1, TIM2, IWDG and fault
 //! handlers around the library's [`Board`] and [`Modulator`]. Compiled for the chip only.
 //!
-//! * Boot: the 8 MHz crystal (HSE) must start and measure 8 MHz against the internal RC
-//!   oscillator ([`crystal_khz`]), or the board logs why and resets to try again (LEDs off).
+//! * Boot: the reset cause is read, and the 8 MHz crystal (HSE) must start and measure 8 MHz
+//!   against the internal RC oscillator, or the board logs why and resets to try again (LEDs
+//!   off): [`cta_firmware_boot::start`], shared with the sensor board.
 //! * Boot: every LED pin is driven low before it becomes an output (the MOSFET gates are
 //!   pulled down until then), so the LEDs are off from reset.
 //! * TIM2 update interrupt at [`TICK_HZ`] (72 MHz / 576), highest priority: one
@@ -18,7 +19,6 @@
 use core::cell::RefCell;
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
-use cta_core::crystal;
 
 use cortex_m::peripheral::NVIC;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
@@ -35,12 +35,11 @@ use stm32f1xx_hal::{
     watchdog::IndependentWatchdog,
 };
 
-use cta_core::schedule::{
-    lost_ticks, Gpio, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS, TICK_HZ,
-};
+use cta_core::schedule::{lost_ticks, Gpio, Modulator, NORTHSTAR_TABLE_MHZ, TICK_HZ};
 use cta_core::wire::beacon::{LedMode, LED_COUNT};
-use cta_core::wire::{ResetCause, MAX_FRAME};
+use cta_core::wire::MAX_FRAME;
 use cta_firmware_beacon::board::{Board, Outputs};
+use cta_firmware_beacon::pins::{BEACON_LINES, BEACON_PINS, PORTS};
 
 /// Core clock, Hz (8 MHz crystal x 9).
 const SYSCLK_HZ: u32 = 72_000_000;
@@ -59,7 +58,7 @@ static RX_BYTES: Mutex<RefCell<Deque<u16, RX_QUEUE>>> = Mutex::new(RefCell::new(
 /// the board.
 static RX_ERRORS: AtomicU32 = AtomicU32::new(0);
 
-/// GPIO ports A..G (port index of [`cta_core::schedule::Pin`]), padded to 8 entries so
+/// GPIO ports A..G (port index of [`cta_firmware_beacon::pins::Pin`]), padded to 8 entries so
 /// that `GPIO[p & 7]` needs no bounds check in the tick interrupt (the modulator only
 /// passes p < 7).
 const GPIO: [*const pac::gpioa::RegisterBlock; 8] = [
@@ -220,57 +219,6 @@ impl Clock {
     }
 }
 
-/// Polls of `HSERDY` before the crystal is given up on: at the 8 MHz the chip runs at from
-/// reset, about 0.2 s (a crystal starts in a few milliseconds).
-const HSE_POLLS: u32 = 200_000;
-
-/// Start the 8 MHz crystal (HSE) and wait for it, for at most [`HSE_POLLS`] reads. The HAL's
-/// `freeze` waits for it without a limit, silently; this names the fault first.
-fn crystal_starts(rcc: &pac::RCC) -> bool {
-    rcc.cr().modify(|_, w| w.hseon().set_bit());
-    (0..HSE_POLLS).any(|_| rcc.cr().read().hserdy().bit_is_set())
-}
-
-/// Run [`crystal::measure_khz`] on the chip (before `freeze`: the core on the HSI, the DWT
-/// cycle counter on). The RTC is in the backup domain, which this firmware does not use
-/// otherwise: it is reset before (so that the RTC's clock can be chosen) and after (the RTC
-/// stopped again), and the backup-domain access and clocks are switched off again.
-fn crystal_khz(rcc: &pac::RCC, pwr: &pac::PWR, rtc: &pac::RTC) -> Option<u32> {
-    rcc.apb1enr()
-        .modify(|_, w| w.pwren().set_bit().bkpen().set_bit());
-    pwr.cr().modify(|_, w| w.dbp().set_bit());
-    let reset_backup_domain = || {
-        rcc.bdcr().modify(|_, w| w.bdrst().set_bit());
-        rcc.bdcr().modify(|_, w| w.bdrst().clear_bit());
-    };
-    reset_backup_domain();
-    rcc.bdcr().modify(|_, w| w.rtcsel().hse().rtcen().set_bit());
-    // Registers read through the RTC's APB interface are valid once it has resynchronised.
-    rtc.crl().modify(|_, w| w.rsf().clear_bit());
-    let synced = (0..crystal::MAX_PASSES).any(|_| rtc.crl().read().rsf().bit_is_set());
-    let khz = if synced {
-        crystal::measure_khz(
-            || rtc.divl().read().bits(),
-            cortex_m::peripheral::DWT::cycle_count,
-        )
-    } else {
-        None
-    };
-    reset_backup_domain();
-    pwr.cr().modify(|_, w| w.dbp().clear_bit());
-    rcc.apb1enr()
-        .modify(|_, w| w.pwren().clear_bit().bkpen().clear_bit());
-    khz
-}
-
-/// Reset after a fatal start-up log line, ~150 ms later (`delay`: 3 cycles a count on the
-/// Cortex-M3, at the HSI's 8 MHz; at least 50 ms): the probe reads the RTT buffer by
-/// polling, and the reset starts it afresh, so a reset at once would lose the line.
-fn reset_after_log() -> ! {
-    cortex_m::asm::delay(400_000);
-    cortex_m::peripheral::SCB::sys_reset()
-}
-
 #[entry]
 fn main() -> ! {
     let dp = pac::Peripherals::take().unwrap();
@@ -278,30 +226,9 @@ fn main() -> ! {
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();
 
-    // Reset cause, then clear the flags (RMVF) so that the next reset is told apart. Read
-    // before the crystal check, whose retries are software resets.
-    let reset_cause = ResetCause::from_rcc_csr(dp.RCC.csr().read().bits());
-    dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
-
-    if !crystal_starts(&dp.RCC) {
-        // Retry from reset: a crystal that is slow to start (cold) gets another chance, and
-        // a probe shows this line each time.
-        defmt::error!("the 8 MHz crystal (HSE) did not start within ~0.2 s: check it and its load capacitors; resetting to retry");
-        reset_after_log();
-    }
-    // The clock tree below multiplies the crystal by 9 for 72 MHz: refuse another crystal.
-    match crystal_khz(&dp.RCC, &dp.PWR, &dp.RTC) {
-        Some(khz) if crystal::ACCEPTED_KHZ.contains(&khz) => {
-            defmt::info!("crystal (HSE): {} kHz against the internal oscillator", khz);
-        }
-        Some(khz) => {
-            defmt::error!("the crystal (HSE) runs at ~{} kHz against the internal oscillator, not 8 MHz: this firmware needs an 8 MHz crystal (src/chip.rs); resetting", khz);
-            reset_after_log();
-        }
-        None => defmt::warn!(
-            "the crystal (HSE) could not be measured (the RTC did not count): taken for 8 MHz"
-        ),
-    }
+    // What reset the chip, then the crystal (before the clock tree below, which multiplies
+    // it by 9 for 72 MHz).
+    let reset_cause = cta_firmware_boot::start(&dp.RCC, &dp.PWR, &dp.RTC);
     let mut flash = dp.FLASH.constrain();
     let mut rcc = dp.RCC.freeze(
         rcc::Config::hse(8.MHz())
@@ -342,7 +269,7 @@ fn main() -> ! {
     let loaded = critical_section::with(|cs| {
         MODULATOR
             .borrow_ref_mut(cs)
-            .load(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS)
+            .load(&NORTHSTAR_TABLE_MHZ, &BEACON_LINES)
     });
     if loaded.is_err() {
         panic!("default table rejected");

@@ -10,9 +10,10 @@
 //! * [`board`]: protocol handling (the [`cta_core::wire`] framing with the
 //!   [`cta_core::wire::beacon`] messages), LED state and the safety rules (lit-LED cap,
 //!   dead-man timeout).
-//! * The modulation schedule and the pin map live in [`cta_core::schedule`]
-//!   ([`cta_core::schedule::Modulator`], [`cta_core::schedule::BEACON_PINS`]); the
-//!   modulator is this board's [`board::Outputs`].
+//! * [`pins`]: the pin map (LED id -> GPIO, the reserved pins) and its output lines.
+//! * The modulation schedule lives in [`cta_core::schedule`]
+//!   ([`cta_core::schedule::Modulator`], driving [`pins::BEACON_LINES`]); the modulator is
+//!   this board's [`board::Outputs`].
 //! * `sim` (feature `sim`): the simulated board behind a pseudo-terminal, running the
 //!   same [`board::Board`] and [`cta_core::schedule::Modulator`].
 #![cfg_attr(not(feature = "sim"), no_std)]
@@ -21,10 +22,12 @@
 extern crate std;
 
 pub mod board;
+pub mod pins;
 #[cfg(feature = "sim")]
 pub mod sim;
 
-pub use cta_core::schedule::{Modulator, BEACON_PINS, RESERVED_PINS, TICK_HZ};
+pub use cta_core::schedule::{Modulator, TICK_HZ};
+pub use pins::{BEACON_LINES, BEACON_PINS, RESERVED_PINS};
 
 use cta_core::wire::beacon::{LedMode, LED_COUNT};
 

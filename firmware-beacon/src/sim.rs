@@ -14,11 +14,12 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use cta_core::schedule::{Levels, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS, TICK_HZ};
+use cta_core::schedule::{Levels, Modulator, NORTHSTAR_TABLE_MHZ, TICK_HZ};
 use cta_core::wire::{ResetCause, MAX_FRAME};
 use serialport::{SerialPort, TTYPort};
 
 use crate::board::Board;
+use crate::pins::{BEACON_LINES, PORTS};
 
 /// What the simulated board's outputs look like right now (for tests and the CLI).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -104,7 +105,7 @@ impl Drop for SimBoard {
 
 fn run(port: &mut TTYPort, stop: &AtomicBool, snapshot: &Mutex<Snapshot>) -> io::Result<()> {
     // Every table in NORTHSTAR_TABLE_MHZ is valid.
-    let mut modulator = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS)
+    let mut modulator = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_LINES)
         .map_err(|e| io::Error::other(format!("{e:?}")))?;
     let mut board = Board::new(true, ResetCause::PowerOn);
     board.start(&mut modulator);

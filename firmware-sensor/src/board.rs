@@ -23,9 +23,9 @@ use crate::storage::{self, FlashPages};
 pub const TX_FRAME: usize = 512;
 
 /// Largest frame the board receives (announced as `max_frame` by identify): the largest
-/// request, a 20-beacon constellation with its beacons' brightness, takes 366 bytes (287
-/// before protocol 7's brightness; a test checks it fits). Half the protocol's
-/// [`MAX_FRAME`]: RAM is the board's tightest budget.
+/// request, a 20-beacon constellation with its beacons' brightness, takes 366 bytes (a
+/// test checks it fits). Half the protocol's
+/// [`MAX_FRAME`](cta_core::wire::MAX_FRAME): RAM is the board's tightest budget.
 pub const RX_FRAME: usize = 512;
 
 /// Size of the chip's PC-link transmit queue (a `heapless::spsc::Queue`, which holds one

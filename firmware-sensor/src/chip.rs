@@ -13,15 +13,14 @@
 //! * Flash pages 62 and 63 (the last 2 KiB of the 64 KiB) hold the A/B configuration
 //!   records ([`crate::storage`]); the firmware itself is budgeted to 48 KiB.
 //! * Independent watchdog (~1 s), fed by the main loop. What reset the chip (RCC_CSR's
-//!   flags, [`ResetCause`]) is read at boot, then cleared, and the status reports it.
+//!   flags, [`cta_core::wire::ResetCause`]) is read at boot, then cleared, and the status reports it.
 //! * Boot: the 8 MHz crystal (HSE) must start and measure 8 MHz against the internal RC
-//!   oscillator ([`crystal_khz`]), or the board logs why and resets to try again.
+//!   oscillator, or the board logs why and resets to try again; this and the reset cause are
+//!   [`cta_firmware_boot::start`], shared with the beacon board.
 
 use core::cell::RefCell;
 use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
-use cta_core::crystal;
-use cta_core::wire::ResetCause;
 
 use cortex_m::peripheral::NVIC;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
@@ -144,57 +143,6 @@ impl Io for ChipIo {
     }
 }
 
-/// Polls of `HSERDY` before the crystal is given up on: at the 8 MHz the chip runs at from
-/// reset, about 0.2 s (a crystal starts in a few milliseconds).
-const HSE_POLLS: u32 = 200_000;
-
-/// Start the 8 MHz crystal (HSE) and wait for it, for at most [`HSE_POLLS`] reads. The HAL's
-/// `freeze` waits for it without a limit, silently; this names the fault first.
-fn crystal_starts(rcc: &pac::RCC) -> bool {
-    rcc.cr().modify(|_, w| w.hseon().set_bit());
-    (0..HSE_POLLS).any(|_| rcc.cr().read().hserdy().bit_is_set())
-}
-
-/// Run [`crystal::measure_khz`] on the chip (before `freeze`: the core on the HSI, the DWT
-/// cycle counter on). The RTC is in the backup domain, which this firmware does not use
-/// otherwise: it is reset before (so that the RTC's clock can be chosen) and after (the RTC
-/// stopped again), and the backup-domain access and clocks are switched off again.
-fn crystal_khz(rcc: &pac::RCC, pwr: &pac::PWR, rtc: &pac::RTC) -> Option<u32> {
-    rcc.apb1enr()
-        .modify(|_, w| w.pwren().set_bit().bkpen().set_bit());
-    pwr.cr().modify(|_, w| w.dbp().set_bit());
-    let reset_backup_domain = || {
-        rcc.bdcr().modify(|_, w| w.bdrst().set_bit());
-        rcc.bdcr().modify(|_, w| w.bdrst().clear_bit());
-    };
-    reset_backup_domain();
-    rcc.bdcr().modify(|_, w| w.rtcsel().hse().rtcen().set_bit());
-    // Registers read through the RTC's APB interface are valid once it has resynchronised.
-    rtc.crl().modify(|_, w| w.rsf().clear_bit());
-    let synced = (0..crystal::MAX_PASSES).any(|_| rtc.crl().read().rsf().bit_is_set());
-    let khz = if synced {
-        crystal::measure_khz(
-            || rtc.divl().read().bits(),
-            cortex_m::peripheral::DWT::cycle_count,
-        )
-    } else {
-        None
-    };
-    reset_backup_domain();
-    pwr.cr().modify(|_, w| w.dbp().clear_bit());
-    rcc.apb1enr()
-        .modify(|_, w| w.pwren().clear_bit().bkpen().clear_bit());
-    khz
-}
-
-/// Reset after a fatal start-up log line, ~150 ms later (`delay`: 3 cycles a count on the
-/// Cortex-M3, at the HSI's 8 MHz; at least 50 ms): the probe reads the RTT buffer by
-/// polling, and the reset starts it afresh, so a reset at once would lose the line.
-fn reset_after_log() -> ! {
-    cortex_m::asm::delay(400_000);
-    cortex_m::peripheral::SCB::sys_reset()
-}
-
 #[entry]
 fn main() -> ! {
     let dp = pac::Peripherals::take().unwrap();
@@ -202,30 +150,9 @@ fn main() -> ! {
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();
 
-    // Reset cause, then clear the flags (RMVF) so that the next reset is told apart. Read
-    // before the crystal check, whose retries are software resets.
-    let reset_cause = ResetCause::from_rcc_csr(dp.RCC.csr().read().bits());
-    dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
-
-    if !crystal_starts(&dp.RCC) {
-        // Retry from reset: a crystal that is slow to start (cold) gets another chance, and
-        // a probe shows this line each time.
-        defmt::error!("the 8 MHz crystal (HSE) did not start within ~0.2 s: check it and its load capacitors; resetting to retry");
-        reset_after_log();
-    }
-    // The clock tree below multiplies the crystal by 9 for 72 MHz: refuse another crystal.
-    match crystal_khz(&dp.RCC, &dp.PWR, &dp.RTC) {
-        Some(khz) if crystal::ACCEPTED_KHZ.contains(&khz) => {
-            defmt::info!("crystal (HSE): {} kHz against the internal oscillator", khz);
-        }
-        Some(khz) => {
-            defmt::error!("the crystal (HSE) runs at ~{} kHz against the internal oscillator, not 8 MHz: this firmware needs an 8 MHz crystal (src/chip.rs); resetting", khz);
-            reset_after_log();
-        }
-        None => defmt::warn!(
-            "the crystal (HSE) could not be measured (the RTC did not count): taken for 8 MHz"
-        ),
-    }
+    // What reset the chip, then the crystal (before the clock tree below, which multiplies
+    // it by 9 for 72 MHz).
+    let reset_cause = cta_firmware_boot::start(&dp.RCC, &dp.PWR, &dp.RTC);
     let mut flash = dp.FLASH.constrain();
     let mut rcc = dp.RCC.freeze(
         rcc::Config::hse(8.MHz())

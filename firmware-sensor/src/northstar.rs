@@ -176,9 +176,8 @@ pub struct NsDecoder {
     buf: Vec<u8, MAX_FRAME>,
     /// Where the sync word starts in `buf` after the head: the only places a frame embedded
     /// in a false start can begin. Kept as bytes arrive, so that looking for one costs a
-    /// few checks per byte, not a scan of the buffer (that was O(n^2) per frame: 140,000
-    /// instructions for a 20-spot frame on the chip). `None` after more than fit (noise
-    /// full of sync words): then the buffer is scanned.
+    /// few checks per byte, not a scan of the buffer at every byte (O(n^2) per frame).
+    /// `None` after more than fit (noise full of sync words): then the buffer is scanned.
     syncs: Option<Vec<u8, SYNCS>>,
     stats: NsStats,
 }

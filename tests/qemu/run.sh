@@ -15,7 +15,9 @@
 # Output: the program's own output, then a line
 #   BIN: segments=N overhead=O mean=M max=X min=Y (instructions per segment, marker overhead subtracted)
 # where the overhead O (instructions of an empty segment: the first segments of every
-# program are empty on purpose) has been subtracted from mean/max/min.
+# program are empty on purpose) has been subtracted from mean/max/min; with 16 segments or
+# fewer, also a line
+#   BIN: counts=C1,C2,... (each segment's, in order, overhead subtracted)
 # Needs qemu-system-arm, the thumbv7m-none-eabi target and llvm-tools (installed here
 # if missing). Set CARGO_TARGET_DIR to share a target dir.
 set -euo pipefail
@@ -63,6 +65,7 @@ awk -v mark="$mark" -v done_="$done_" -v bin="$bin" '
     sum = 0; mx = 0; mn = -1; m = 0
     for (i = 1; i <= n; i++) { if (i <= 4) continue; v = segs[i] - ovh; sum += v; m++; if (v > mx) mx = v; if (mn < 0 || v < mn) mn = v }
     printf "%s: segments=%d overhead=%d mean=%.1f max=%d min=%d\n", bin, m, ovh, sum / m, mx, mn
+    if (m <= 16) { list = ""; for (i = 5; i <= n; i++) list = list (i > 5 ? "," : "") (segs[i] - ovh); print bin ": counts=" list }
   }' "$fifo" &
 awk_pid=$!
 qemu-system-arm -machine lm3s6965evb -cpu cortex-m3 -nographic \

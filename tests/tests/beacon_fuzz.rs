@@ -2,10 +2,11 @@
 //! decoder and at the full board (`Board::feed`, dispatch and reply encoding). Nothing may
 //! panic, and a valid frame sent after any garbage must always come through intact.
 
-use cta_core::schedule::{Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ};
+use cta_core::schedule::{Modulator, NORTHSTAR_TABLE_MHZ};
 use cta_core::wire::beacon::{BeaconRequest, FreqSet, LedMode, LedSetting, Limits};
 use cta_core::wire::{encode_frame, FrameDecoder, Header, Request, ResetCause, MAX_FRAME};
 use cta_firmware_beacon::board::{BeaconReply, Board};
+use cta_firmware_beacon::pins::BEACON_LINES;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -177,7 +178,7 @@ fn a_million_garbage_frames_never_hide_the_next_valid_frame() {
 #[test]
 fn the_board_answers_every_frame_and_never_panics() {
     let mut rng = StdRng::seed_from_u64(42);
-    let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+    let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_LINES).unwrap();
     let mut board = Board::new(true, ResetCause::PowerOn);
     board.start(&mut m);
     let mut tx = [0u8; MAX_FRAME];

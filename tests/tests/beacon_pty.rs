@@ -4,12 +4,12 @@
 use std::io::Write;
 use std::time::Duration;
 
-use cta_core::schedule::BEACON_PINS;
 use cta_core::wire::beacon::{
     Beacon, BeaconError, BeaconRequest, BeaconResponse, BeaconStatus, FreqSet, LedMode, LedSetting,
     Limits,
 };
 use cta_core::wire::{encode_frame, BoardKind, Header, Request, MAX_FRAME};
+use cta_firmware_beacon::pins::BEACON_PINS;
 use cta_firmware_beacon::sim::SimBoard;
 use cta_lab::boards::link::{open_serial, Link, LinkConfig, LinkError};
 

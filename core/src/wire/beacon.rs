@@ -1,4 +1,4 @@
-//! Beacon-board messages (firmware-beacon issue), carried by the framing of [`crate::wire`].
+//! Beacon-board messages, carried by the framing of [`crate::wire`].
 //!
 //! The board drives [`LED_COUNT`] LEDs (the 10 x 10 grid; id = `row * 10 + column`, see the
 //! firmware's pin map). Each LED is off, steadily on, or square-wave modulated at one or

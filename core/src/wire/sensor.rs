@@ -1,4 +1,4 @@
-//! Sensor-board messages (firmware-sensor issue), carried by the framing of [`crate::wire`].
+//! Sensor-board messages, carried by the framing of [`crate::wire`].
 //!
 //! The envelope's [`Request::Identify`](super::Request::Identify) and
 //! [`Request::Heartbeat`](super::Request::Heartbeat) work as on every board; the

@@ -31,14 +31,13 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
-use cta_core::schedule::{
-    grid_position, BEACON_PINS, NORTHSTAR_TABLE_MHZ, RESERVED_PINS, SPARE_PIN,
-};
+use cta_core::schedule::{grid_position, NORTHSTAR_TABLE_MHZ};
 use cta_core::wire::beacon::{
     Beacon, BeaconRequest, BeaconResponse, BeaconStatus, FreqSet, LedMode, LedSetting, Limits,
     LED_COUNT, MAX_FREQS,
 };
 use cta_core::wire::{DecoderStats, Identity};
+use cta_firmware_beacon::pins::{BEACON_LINES, BEACON_PINS, RESERVED_PINS, SPARE_PIN};
 use cta_firmware_beacon::sim::SimBoard;
 use serde::Serialize;
 
@@ -657,7 +656,7 @@ pub fn measure(seconds: f64, out: &mut dyn Write) -> Result<()> {
     if !(seconds.is_finite() && seconds > 0.0 && seconds <= 600.0) {
         bail!("--seconds {seconds}: expected 0 < seconds <= 600");
     }
-    let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS)
+    let mut m = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_LINES)
         .map_err(|e| anyhow::anyhow!("default table rejected: {e:?}"))?;
     let modes: [LedMode; LED_COUNT] =
         std::array::from_fn(|i| LedMode::Modulated(FreqSet::single((i % 20) as u8)));

@@ -30,7 +30,7 @@ use core::mem::MaybeUninit;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use critical_section::Mutex;
-use cta_core::schedule::{lost_ticks, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ, PORTS};
+use cta_core::schedule::{lost_ticks, Modulator, NORTHSTAR_TABLE_MHZ};
 use cta_core::wire::beacon::{
     BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting, Limits, LED_COUNT,
 };
@@ -38,6 +38,7 @@ use cta_core::wire::{
     encode_frame, FrameDecoder, Header, Request, ResetCause, Response, MAX_FRAME,
 };
 use cta_firmware_beacon::board::{BeaconReply, Board, Outputs};
+use cta_firmware_beacon::pins::{BEACON_LINES, PORTS};
 use cta_qemu::{done, end, fail, mark, paint_stack, stack_used};
 
 /// Stack region painted below the current stack pointer.
@@ -188,7 +189,7 @@ fn main() -> ! {
     critical_section::with(|cs| {
         if MODULATOR
             .borrow_ref_mut(cs)
-            .load(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS)
+            .load(&NORTHSTAR_TABLE_MHZ, &BEACON_LINES)
             .is_err()
         {
             fail("table")

@@ -18,10 +18,9 @@ use core::cell::RefCell;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use critical_section::Mutex;
-use cta_core::schedule::{
-    tick_cost, tick_features, Gpio, Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ,
-};
+use cta_core::schedule::{tick_cost, tick_features, Gpio, Modulator, NORTHSTAR_TABLE_MHZ};
 use cta_core::wire::beacon::{FreqSet, LedMode, FREQ_MAX_MHZ, LED_COUNT};
+use cta_firmware_beacon::pins::BEACON_LINES;
 use cta_qemu::{done, end, fail, mark, paint_stack, stack_used};
 
 /// Ticks measured (~0.1 s of modulation at 125 kHz: every frequency toggles many times).
@@ -136,15 +135,15 @@ fn case(name: &str) -> (&'static [u32], [LedMode; LED_COUNT]) {
 #[entry]
 fn main() -> ! {
     let (table, modes) = case(CASE);
-    let Ok(mut m) = Modulator::new(table, &BEACON_PINS) else {
+    let Ok(mut m) = Modulator::new(table, &BEACON_LINES) else {
         fail("table")
     };
     m.configure(&modes);
-    let x = tick_features(table, &modes, &BEACON_PINS);
+    let x = tick_features(table, &modes, &BEACON_LINES);
     hprintln!(
         "TICK case={} model_mean={} features_q16={} {} {} {} {}",
         CASE,
-        tick_cost(table, &modes, &BEACON_PINS),
+        tick_cost(table, &modes, &BEACON_LINES),
         x[0],
         x[1],
         x[2],

@@ -10,9 +10,9 @@
 //! sensitivity solved from the spots alone (with the carried linearisation), then stream
 //! mode.
 //!
-//! The instruction count (run.sh) is of one warm frame in pose mode with the magnitudes, from
-//! the NorthStar's bytes to the pose report sent: decoding, matching, the 20-beacon
-//! near-field solve and encoding.
+//! The instruction counts (run.sh) are of warm frames in pose mode, from the NorthStar's bytes
+//! to the pose report sent (decoding, matching, the 20-beacon near-field solve and encoding):
+//! segments 1-3 with the magnitudes, 4-5 from the spots alone (`board: counts=...`).
 //!
 //! Prints `STACK board_peak_bytes=N`: the bytes of stack used below this program's `main`
 //! by `init`, by the requests up to pose mode, or by the rest of the session (the NorthStar
@@ -188,7 +188,8 @@ fn main() -> ! {
     if last_pose(&io) != Some((PoseStatus::Ok, 20, 20)) {
         fail("the last NorthStar frame gave no Ok pose with the 20 magnitudes");
     }
-    // At another sensitivity: the spots alone, the linearisation carried.
+    // At another sensitivity: the spots alone, the linearisation carried; the warm frames
+    // measured too (segments 4 and 5).
     pc(
         &mut io,
         board,
@@ -197,8 +198,12 @@ fn main() -> ! {
     );
     for (k, spots) in [&f1, &f2, &f1].into_iter().enumerate() {
         let n = ns_frame(4 + k as u8, law - 1, spots, &mut bytes);
+        if k > 0 {
+            mark();
+        }
         board.poll(&[], &bytes[..n], &mut io);
     }
+    end();
     if last_pose(&io) != Some((PoseStatus::Ok, 20, 0)) {
         fail("a NorthStar frame at another sensitivity gave no Ok pose from the spots alone");
     }
