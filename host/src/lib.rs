@@ -2,7 +2,9 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod args;
 pub mod cmd;
+pub mod conn;
 use cta_lab::commands;
 
 #[derive(Parser)]

@@ -398,6 +398,15 @@ impl Protocol for AnyBoard {
     type Error = Never;
 }
 
+/// Where a one-shot command finds its board.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum BoardAt {
+    /// A serial port: a real board, or the pseudo-terminal of a simulated one.
+    Port(String),
+    /// A simulated board started in this process for the one command.
+    InProcess,
+}
+
 /// Open a board's serial port (115200 8N1, 10 ms read timeout), discarding whatever input was
 /// already waiting on it: replies to an earlier process or connection (a command that timed
 /// out, a sweep's link before it reconnected) must not be taken for answers to this one's
