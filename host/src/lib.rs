@@ -2,7 +2,9 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod args;
 pub mod cmd;
+pub mod conn;
 use cta_lab::commands;
 
 #[derive(Parser)]
@@ -68,10 +70,10 @@ pub enum Cmd {
     /// Talk to the beacon array board (STM32F103ZET6) by hand: identify, light beacons,
     /// status, heartbeat; `--sim` for an in-process simulated board, or serve one on a
     /// pseudo-terminal.
-    Beacon(cta_lab::boards::beacon::BeaconArgs),
+    Beacon(cmd::beacon::BeaconArgs),
     /// Talk to the sensor board (STM32F103C8): identify, stream spots, load a calibration
     /// and constellation, read poses; simulated board; the pose accuracy table.
-    Sensor(cta_lab::boards::sensor::SensorArgs),
+    Sensor(cmd::sensor::SensorArgs),
 }
 
 /// List options whose value may start with a minus sign (`--separations -5,3` is not a
@@ -123,8 +125,8 @@ pub fn main() {
         Cmd::Sweep(a) => cta_lab::sweep::run(a),
         Cmd::Analyze(a) => cta_lab::analyze::run(a),
         Cmd::Noise(a) => cta_lab::noise::run(a),
-        Cmd::Beacon(a) => cta_lab::boards::beacon::run(a),
-        Cmd::Sensor(a) => cta_lab::boards::sensor::run(a),
+        Cmd::Beacon(a) => cmd::beacon::run(a),
+        Cmd::Sensor(a) => cmd::sensor::run(a),
     };
     cta_lab::exit_on_error(r);
 }

@@ -395,7 +395,7 @@ fn a_calibration_fitted_to_a_sweep_solves_poses() {
 /// Ok some 5,800 in away with a 1-sigma of 2,000 in.
 #[test]
 fn an_out_of_view_target_is_never_ok() {
-    let scene = cta_lab::boards::sensor::SimArgs {
+    let scene = cta_lab::pose::head::SimScene {
         offset: [30.0, 30.0],
         range: 3.0,
         ..Default::default()

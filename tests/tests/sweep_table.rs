@@ -16,9 +16,9 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use cta_cli::cmd::beacon::{self, BeaconArgs, BeaconCommand, BeaconConn};
 use cta_core::schedule::NORTHSTAR_TABLE_MHZ;
 use cta_firmware_beacon::sim::SimBoard;
-use cta_lab::boards::beacon::{self, BeaconArgs, BeaconCommand, BeaconConn};
 use cta_lab::sweep::plan::Plan;
 use cta_lab::sweep::sim::{Faults, SimCta, SimSettings};
 use cta_lab::sweep::{self, engine::Ending, SweepArgs};

@@ -237,7 +237,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
 /// out.
 fn hidden_effect_words(effect: &str) -> String {
     let on_head = cta_lab::sim::effects::Effect::parse(effect)
-        .map(|e| cta_lab::boards::sensor::acts_on_the_head(&e))
+        .map(|e| cta_lab::pose::head::acts_on_the_head(&e))
         .unwrap_or(true);
     if on_head {
         format!(
@@ -276,7 +276,7 @@ fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> 
     };
     let truth = cta_lab::sim::Truth::path_for(&run_dir.join("data.csv"));
     // The simulated board's own scene, as `cta sensor sim` takes it by default.
-    let scene = parse_args::<cta_lab::boards::sensor::SimArgs>(&[])?;
+    let scene = parse_args::<crate::cmd::sensor::SimArgs>(&[])?;
     let [x, y] = scene.offset;
     let hidden = hidden_effect_words(effect);
     Ok(format!(

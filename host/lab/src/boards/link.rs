@@ -166,8 +166,7 @@ impl<P: Protocol, S: Read + Write> Link<P, S> {
     /// [`open_serial`] sets 10 ms) so the link can keep its own deadlines. The first request
     /// gets a random sequence number (the boards echo whatever they are sent): replies still
     /// on their way to an earlier link on the same port (another process, or this one before
-    /// a reconnection) then match a new request only by a 1 in 65535 chance, not always, as
-    /// they did when every link counted from 1.
+    /// a reconnection) then match a new request only by a 1 in 65535 chance.
     pub fn new(port: S, config: LinkConfig) -> Self {
         Link {
             port,
@@ -360,22 +359,6 @@ impl<P: Protocol, S: Read + Write> Link<P, S> {
     }
 }
 
-/// `e`, the error of a one-shot command (`cta beacon`, `cta sensor`) talking to the board of
-/// protocol `P` on `path`, with the board and the port in front when it came from the link
-/// (a port lost, no reply, a refusal): `sensor board on /dev/ttyUSB1: port lost: Broken pipe`.
-/// The command's own errors (an argument out of range, a file it cannot read) are left as
-/// they are.
-pub fn on_board<P: Protocol>(e: anyhow::Error, path: &str) -> anyhow::Error
-where
-    P::Error: Send + Sync + 'static,
-{
-    if e.chain().any(|c| c.is::<LinkError<P::Error>>()) {
-        e.context(format!("{} board on {path}", P::BOARD))
-    } else {
-        e
-    }
-}
-
 /// A message type with no values: the board messages of [`AnyBoard`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Never {}
@@ -396,6 +379,15 @@ impl Protocol for AnyBoard {
     type Request = Never;
     type Response = Never;
     type Error = Never;
+}
+
+/// Where a one-shot command finds its board.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum BoardAt {
+    /// A serial port: a real board, or the pseudo-terminal of a simulated one.
+    Port(String),
+    /// A simulated board started in this process for the one command.
+    InProcess,
 }
 
 /// Open a board's serial port (115200 8N1, 10 ms read timeout), discarding whatever input was
@@ -602,10 +594,15 @@ mod tests {
 
     #[test]
     fn a_port_error_is_said_once() {
-        // It was also the error's source: `{:#}` printed "serial port error: Broken pipe:
-        // Broken pipe".
+        // Not also the error's source: that would print it twice.
         let e: LinkError<BeaconError> = io::Error::other("Broken pipe").into();
-        let text = format!("{:#}", anyhow::Error::new(e));
+        // As the command line prints an error: its message, then each source's.
+        let mut text = e.to_string();
+        let mut source = std::error::Error::source(&e);
+        while let Some(s) = source {
+            text += &format!(": {s}");
+            source = s.source();
+        }
         assert_eq!(text, "port lost: Broken pipe");
     }
 

@@ -1,9 +1,10 @@
-//! `cta sensor floor`: the noise floor of one frame's pose, from the spots alone and with
-//! the NorthStar's spot magnitudes as a further measurement, for several magnitude noise
-//! levels: how well the magnitudes must repeat for issue 5's per-frame attitude claim,
-//! which the spots alone cannot meet at 8-10 in. The chip's near-field solve fits the
-//! magnitudes when its calibration holds their law (`cta_core::pose::Magnitude`), and
-//! reaches this bound (`cta sensor accuracy --magnitude-noise PCT`).
+//! The pose noise floor (`cta sensor floor`): the noise floor of one frame's pose, from the
+//! spots alone and with the NorthStar's spot magnitudes as a further measurement, for several
+//! magnitude noise levels: how well the magnitudes must repeat for the design target's
+//! per-frame attitude claim, which the spots alone cannot meet at 8-10 in. The chip's
+//! near-field solve fits the magnitudes when its calibration holds their law
+//! (`cta_core::pose::Magnitude`), and reaches this bound (`cta sensor accuracy
+//! --magnitude-noise PCT`).
 //!
 //! The floor is the Cramer-Rao bound: the covariance `(J^T W J)^-1` of the pose at the true
 //! pose, `J` the central-difference Jacobian of the measurements through the eq 60-63
@@ -32,8 +33,6 @@
 //! GLSDC (f64, central differences; a host prototype, not the chip's solver) with the
 //! magnitudes as extra rows.
 
-use anyhow::{bail, Context, Result};
-use clap::Args;
 use cta_core::emulator::Emulator;
 use cta_core::glsdc::{self, Settings};
 use cta_core::mrp;
@@ -46,72 +45,40 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
-use crate::boards::sensor::{
-    angle_between_deg, check_noise_fraction, check_ranges, pinhole_calibration, random_pose,
-};
-use crate::pose::plate::SceneArgs;
+use crate::pose::calibrations::{angle_between_deg, pinhole_calibration, random_pose};
+use crate::pose::error::Error;
+use crate::pose::limits::{check_noise_fraction, check_ranges};
+use crate::pose::plate::{Scene, TestScene};
 
-/// Options of `cta sensor floor`.
-#[derive(Debug, Clone, Args)]
-pub struct FloorArgs {
-    /// Ranges, inches, comma-separated (each above 0, at most 1000).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "2,4,6,8,10,15,20,30",
-        allow_hyphen_values = true
-    )]
+/// Options of the floor table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FloorOptions {
+    /// Ranges, inches (each above 0, at most 1000).
     pub ranges: Vec<f64>,
-    /// Magnitude noise levels to try, percent of the magnitude (1-sigma). 0.07 % is the
-    /// level the spot noise implies if both come from independent noise in the four cells
-    /// (near the boresight sigma_M / M = sigma_X / (sqrt 2 beta)); larger levels stand for
-    /// LED flicker, drift and the NorthStar's own processing. Each above 0 (a huge level
-    /// stands for magnitudes that carry nothing).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "0.07,0.3,1,3",
-        allow_hyphen_values = true
-    )]
+    /// Magnitude noise levels to try, percent of the magnitude (1-sigma, each above 0).
     pub magnitude_noise: Vec<f64>,
-    /// Spot noise, fraction of beta (0.001 = 0.1 %, 32.8 counts; 1e-6 to 0.3).
-    #[arg(long, default_value_t = 0.001, allow_negative_numbers = true)]
+    /// Spot noise, fraction of beta (1e-6 to 0.3).
     pub noise_fraction: f64,
-    /// Random poses per range (lateral offset +/-0.5 in, attitude up to 3 deg, as in
-    /// `cta sensor accuracy`); the floors are RMS over them (1 or more).
-    #[arg(long, default_value_t = 20)]
+    /// Random poses per range; the floors are RMS over them (1 or more).
     pub poses: usize,
-    /// Also solve this many noisy frames per pose with the magnitudes (host GLSDC) and
-    /// report the RMS error reached, to check the bound is attainable.
-    #[arg(long, default_value_t = 0)]
+    /// Noisy frames per pose solved with the magnitudes, to check the bound is reached.
     pub monte_carlo: usize,
     /// Random seed.
-    #[arg(long, default_value_t = 2010)]
     pub seed: u64,
     /// The target: constellation, plate (of the pinhole calibration sweep), raise.
-    #[command(flatten)]
-    pub scene: SceneArgs,
-    /// Draw the attitude and position floors against range (spots only, each magnitude
-    /// noise, and the attitude floor needed for 5x) to this SVG file.
-    #[arg(long, value_name = "FILE.svg")]
-    pub plot: Option<std::path::PathBuf>,
-    /// Print JSON instead of the table.
-    #[arg(long)]
-    pub json: bool,
+    pub scene: Scene,
 }
 
-impl Default for FloorArgs {
+impl Default for FloorOptions {
     fn default() -> Self {
-        FloorArgs {
+        FloorOptions {
             ranges: vec![2.0, 4.0, 6.0, 8.0, 10.0, 15.0, 20.0, 30.0],
             magnitude_noise: vec![0.07, 0.3, 1.0, 3.0],
             noise_fraction: 0.001,
             poses: 20,
             monte_carlo: 0,
             seed: 2010,
-            scene: SceneArgs::default(),
-            plot: None,
-            json: false,
+            scene: Scene::default(),
         }
     }
 }
@@ -190,12 +157,12 @@ pub struct FloorTable {
 /// The measurements of one frame as a function of the pose: for each beacon of `visible`,
 /// `[X, Y]` (counts, eq 63) and the magnitude `exp(lk) * sum of cell signals`. Parameters:
 /// `t` (3, in), MRP `q` (3, additive as in the pose solver), `lk`.
-struct Scene<'a> {
+struct Frames<'a> {
     em: &'a Emulator<f64>,
     con: &'a Constellation,
 }
 
-impl Scene<'_> {
+impl Frames<'_> {
     fn frame(&self, x: &[f64], visible: Option<&[usize]>) -> Option<Vec<(usize, [f64; 3])>> {
         let t = Vector3::new(x[0], x[1], x[2]);
         let q = Vector3::new(x[3], x[4], x[5]);
@@ -225,14 +192,14 @@ impl Scene<'_> {
     }
 }
 
-/// Issue 5's per-frame claim covers 2-10 in.
-const CLAIM_RANGE: f64 = 10.0;
+/// The design target's per-frame claim covers 2-10 in.
+pub const CLAIM_RANGE: f64 = 10.0;
 
 const STEP: [f64; 7] = [1e-6, 1e-6, 1e-6, 1e-7, 1e-7, 1e-7, 1e-7];
 
 /// A pose fit to one frame (spots, and the magnitudes when `mag_sigma` is set).
 struct PoseFit<'a> {
-    scene: &'a Scene<'a>,
+    frames: &'a Frames<'a>,
     visible: &'a [usize],
     /// Which of `X, Y` are used per visible beacon (`false`: on the 16-bit rail, as the
     /// solver's `match_spots` decides).
@@ -271,7 +238,7 @@ impl glsdc::Problem<f64> for PoseFit<'_> {
     ) -> Result<(), glsdc::ModelError> {
         let n = x.len();
         let eval = |x: &[f64]| {
-            self.scene
+            self.frames
                 .frame(x, Some(self.visible))
                 .ok_or(glsdc::ModelError::NonFinite)
         };
@@ -334,34 +301,44 @@ fn floor_of(p: &DMatrix<f64>) -> (f64, f64) {
     (pos, att.to_degrees())
 }
 
-impl FloorArgs {
+impl FloorOptions {
     /// Check every option (with an error naming the option and its allowed range).
-    pub fn check(&self) -> Result<()> {
+    pub fn check(&self) -> Result<(), Error> {
         check_ranges("--ranges", &self.ranges)?;
         for &m in &self.magnitude_noise {
             if !(m > 0.0 && m.is_finite()) {
-                bail!("--magnitude-noise {m}: a level must be a finite percentage above 0");
+                return Err(Error::Option(format!(
+                    "--magnitude-noise {m}: a level must be a finite percentage above 0"
+                )));
             }
         }
         check_noise_fraction(self.noise_fraction)?;
         if self.poses == 0 {
-            bail!("--poses 0: expected 1 or more poses per range");
+            return Err(Error::Option(
+                "--poses 0: expected 1 or more poses per range".into(),
+            ));
         }
         Ok(())
     }
 }
 
 /// Compute the floor table.
-pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
+pub fn floor_table(args: &FloorOptions) -> Result<FloorTable, Error> {
+    args.check()?;
+    floor_table_on(args, args.scene.resolve()?)
+}
+
+/// Compute the table on the target `test` (`args.scene` resolved; the caller may show its
+/// warnings first).
+pub fn floor_table_on(args: &FloorOptions, test: TestScene) -> Result<FloorTable, Error> {
     args.check()?;
     let mut truth = Calibration::table3();
     let noise = args.noise_fraction * cta_core::emulator::BETA;
     truth.noise = noise as f32;
-    let test = args.scene.scene()?;
     test.check_ranges(&args.ranges)?;
     let con = test.con;
     let em: Emulator<f64> = cta_firmware_sensor::sim::physics(&truth);
-    let scene = Scene { em: &em, con: &con };
+    let frames = Frames { em: &em, con: &con };
     let ph_cal = pinhole_calibration(&truth, test.plate)?;
     // A fresh solver per frame: every solve is a cold start, as in the accuracy table.
     let solver = |cal: &Calibration, model: ModelKind| {
@@ -373,12 +350,15 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
                 ..Default::default()
             },
         )
-        .map_err(|e| anyhow::anyhow!("{e}"))
+        .map_err(Error::Solver)
     };
     let mut rng = StdRng::seed_from_u64(args.seed);
     // The Monte Carlo noise has its own stream, so the poses are the same with or without it.
     let mut mc_rng = StdRng::seed_from_u64(args.seed ^ 0x5EED_0F4D);
-    let unit = Normal::new(0.0, 1.0).context("noise")?;
+    let unit = Normal::new(0.0, 1.0).map_err(|error| Error::Noise {
+        what: "noise",
+        error,
+    })?;
     let mut rows = Vec::new();
     for &range in &args.ranges {
         let mut seen = 0.0;
@@ -395,7 +375,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
             let (t, q) = random_pose(&mut rng, range);
             let x6 = [t[0], t[1], t[2], q[0], q[1], q[2]];
             let x7 = DVector::from_vec(vec![t[0], t[1], t[2], q[0], q[1], q[2], 0.0]);
-            let Some(clean) = scene.frame(x7.as_slice(), None) else {
+            let Some(clean) = frames.frame(x7.as_slice(), None) else {
                 continue;
             };
             // Coordinates at the 16-bit rails carry no information: the solver drops them,
@@ -425,7 +405,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
                 continue;
             }
             let spots_fit = PoseFit {
-                scene: &scene,
+                frames: &frames,
                 visible: &visible,
                 used: &used,
                 y: &y,
@@ -536,7 +516,7 @@ pub fn floor_table(args: &FloorArgs) -> Result<FloorTable> {
 impl FloorTable {
     /// Draw the floors against range: attitude (with the floor needed for 5x at 2-10 in) and
     /// position.
-    pub fn plot(&self, path: &std::path::Path) -> Result<()> {
+    pub fn plot(&self, path: &std::path::Path) -> Result<(), Error> {
         use crate::plot::{write_svg, Panel, Series};
         let rows: Vec<&FloorRow> = self.rows.iter().filter(|r| r.poses_used > 0).collect();
         let panel = |att: bool| {
@@ -587,133 +567,7 @@ impl FloorTable {
             &[panel(true), panel(false)],
             2,
         )
-    }
-
-    /// Human-readable table.
-    pub fn render(&self) -> String {
-        let mut s = String::new();
-        s += &format!(
-            "Noise floor of one frame (Cramer-Rao bound: no unbiased pose from these measurements does better),\n\
-             eq 60-63 physics, Table 3 head, spot noise {:.1} counts,\n{},\nRMS over {} poses per range \
-             (lateral offset +/-0.5 in, attitude up to 3 deg). `cta sensor accuracy` draws its own poses and \
-             calibrations,\nso the figures both print (floor, pinhole systematic) agree to the scatter of the pose sets (~10 %).\n\n",
-            self.noise_counts, self.constellation, self.poses
-        );
-        s += "Spots alone (what the chip solves with) against the attitude floor the pinhole comparison needs:\n";
-        s += "range  used |  floor, spots only       | solver's own | pinhole     | floor needed | best ratio\n";
-        s += " (in)       |  pos (in)   att (deg)    | att (deg)    | syst. (deg) | for 5x (deg) | one frame\n";
-        for r in &self.rows {
-            if r.poses_used == 0 {
-                s += &format!("{:5.1}       |  no pose with 4 usable beacons\n", r.range);
-                continue;
-            }
-            s += &format!(
-                "{:5.1} {:5.1} |  {:8.5}  {:9.4}     | {:9.4}    | {:9.4}   | {:9.4}    | {:6.1}x{}\n",
-                r.range,
-                r.beacons,
-                r.spots.position,
-                r.spots.attitude_deg,
-                r.solver_predicted.attitude_deg,
-                r.pinhole_systematic_deg,
-                r.needed_for_5x_deg,
-                r.best_ratio_spots,
-                if r.range > CLAIM_RANGE || r.spots.attitude_deg <= r.needed_for_5x_deg {
-                    ""
-                } else {
-                    "  (spots alone: out of reach)"
-                }
-            );
-        }
-        let short: Vec<String> = self
-            .rows
-            .iter()
-            .filter(|r| r.poses_used < self.poses)
-            .map(|r| format!("{} in: {} of {}", r.range, r.poses_used, self.poses))
-            .collect();
-        if !short.is_empty() {
-            s += &format!(
-                "Poses with fewer than 4 usable beacons (no bound), left out: {}.\n",
-                short.join(", ")
-            );
-        }
-        let railed: Vec<String> = self
-            .rows
-            .iter()
-            .filter(|r| r.railed > 0.05)
-            .map(|r| format!("{} in: {:.1}", r.range, r.railed))
-            .collect();
-        if !railed.is_empty() {
-            s += &format!(
-                "Coordinates per frame on the 16-bit rail (a cell in the dark), left out as the solver does: {}.\n\
-                 (With noise such a coordinate can fall just below the rail and be used; the model has no slope\n\
-                 there, so it adds nothing.)\n",
-                railed.join(", ")
-            );
-        }
-        s += "\nWith the spot magnitudes as well (ASSUMED model: magnitude = k x sum of the cell signals, k common\n\
-              and unknown, noise a fixed percentage; the real NorthStar's magnitude has not been measured;\n\
-              0.07 % is what the spot noise implies if both come from noise in the cells alone):\n";
-        let mc = self.monte_carlo > 0;
-        let width = if mc { 28 } else { 19 };
-        s += "range |";
-        if let Some(r) = self.rows.first() {
-            for m in &r.with_magnitude {
-                s += &format!(
-                    " {:>w$} |",
-                    format!("{} % noise", m.noise_percent),
-                    w = width
-                );
-            }
-        }
-        s += "\n      |";
-        if let Some(r) = self.rows.first() {
-            for _ in &r.with_magnitude {
-                let h = if mc {
-                    "att deg (pos in) [reached]"
-                } else {
-                    "att deg (pos in)"
-                };
-                s += &format!(" {:>w$} |", h, w = width);
-            }
-        }
-        s += "\n";
-        for r in &self.rows {
-            if r.poses_used == 0 {
-                s += &format!("{:5.1} |  no pose with 4 usable beacons\n", r.range);
-                continue;
-            }
-            s += &format!("{:5.1} |", r.range);
-            for m in &r.with_magnitude {
-                let mut c = format!(
-                    "{:.4}{} ({:.4})",
-                    m.floor.attitude_deg,
-                    if r.range <= CLAIM_RANGE && m.floor.attitude_deg <= r.needed_for_5x_deg {
-                        "*"
-                    } else {
-                        " "
-                    },
-                    m.floor.position,
-                );
-                if let Some(x) = &m.reached {
-                    c += &format!(" [{:.4}]", x.attitude_deg);
-                }
-                s += &format!(" {:>w$} |", c, w = width);
-            }
-            s += "\n";
-        }
-        s += "\n* = at 2-10 in, at or below the attitude floor needed for the pinhole pose to be 5x worse per frame.\n\
-              'solver's own' is the on-chip near-field solver's 1-sigma (f64 here) on the noise-free frame before its\n\
-              scaling by the residual variance: it should equal the spots-only bound. 'floor needed for 5x' =\n\
-              pinhole systematic / sqrt(24), since the pinhole's error per frame is at least\n\
-              sqrt(systematic^2 + floor^2); 'best ratio' = sqrt(1 + (systematic / spots floor)^2), the most a pose\n\
-              from the spots alone can show (try other --constellation). --json has every figure.\n";
-        if self.monte_carlo > 0 {
-            s += &format!(
-                "[reached] = RMS attitude error of a host GLSDC pose fit with magnitudes, {} noisy frames per pose.\n",
-                self.monte_carlo
-            );
-        }
-        s
+        .map_err(|e| Error::Plot(format!("{e:#}")))
     }
 }
 
@@ -725,12 +579,12 @@ mod tests {
     /// up to finite differences), and magnitudes can only add information.
     #[test]
     fn spots_bound_matches_the_solver_and_magnitudes_only_help() {
-        let args = FloorArgs {
+        let args = FloorOptions {
             // 2 in: coordinates on the rail; 3 and 10 in: none.
             ranges: vec![2.0, 3.0, 10.0],
             magnitude_noise: vec![1.0, 1e6],
             poses: 4,
-            ..FloorArgs::default()
+            ..FloorOptions::default()
         };
         let t = floor_table(&args).unwrap();
         for r in &t.rows {
@@ -753,21 +607,18 @@ mod tests {
         }
     }
 
-    /// A range without any usable pose prints no figures and is left out of the plot; the
-    /// plot has every curve and the JSON every row.
+    /// A range without any usable pose is left out of the plot; the plot has every curve and
+    /// the JSON every row.
     #[test]
-    fn empty_ranges_render_plot_and_json() {
-        let args = FloorArgs {
+    fn empty_ranges_plot_and_json() {
+        let args = FloorOptions {
             ranges: vec![0.3, 8.0],
             magnitude_noise: vec![0.3],
             poses: 2,
-            ..FloorArgs::default()
+            ..FloorOptions::default()
         };
         let t = floor_table(&args).unwrap();
         assert_eq!(t.rows[0].poses_used, 0);
-        let text = t.render();
-        assert!(text.contains("no pose with 4 usable beacons"), "{text}");
-        assert!(text.contains("0.3 in: 0 of 2"), "{text}");
         let path = std::env::temp_dir().join(format!("cta-floor-{}.svg", std::process::id()));
         t.plot(&path).unwrap();
         let svg = std::fs::read_to_string(&path).unwrap();
@@ -786,15 +637,15 @@ mod tests {
     #[test]
     fn spread_and_channels_lift_the_best_ratio_at_10_in() {
         let run = |c: &str| {
-            floor_table(&FloorArgs {
+            floor_table(&FloorOptions {
                 ranges: vec![10.0],
                 magnitude_noise: vec![],
                 poses: 20,
-                scene: SceneArgs {
+                scene: Scene {
                     constellation: Some(c.into()),
-                    ..SceneArgs::default()
+                    ..Scene::default()
                 },
-                ..FloorArgs::default()
+                ..FloorOptions::default()
             })
             .unwrap()
             .rows[0]
@@ -817,12 +668,12 @@ mod tests {
     /// attainable, not an artefact of the Jacobian).
     #[test]
     fn magnitude_bound_is_reached_by_a_fit() {
-        let args = FloorArgs {
+        let args = FloorOptions {
             ranges: vec![10.0],
             magnitude_noise: vec![1.0],
             poses: 3,
             monte_carlo: 60,
-            ..FloorArgs::default()
+            ..FloorOptions::default()
         };
         let t = floor_table(&args).unwrap();
         let m = &t.rows[0].with_magnitude[0];

@@ -12,7 +12,6 @@
 //! its plate spans; and the constellation's spread sets how well attitude is observed (the
 //! floor of `cta sensor floor`).
 
-use anyhow::{bail, Result};
 use cta_core::emulator::grid_position;
 use cta_core::pose::{
     cta_constellation, flat_constellation, four_array_constellation, Constellation,
@@ -21,10 +20,11 @@ use cta_core::schedule::NORTHSTAR_TABLE_MHZ;
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::boards::sensor::read_json;
+use crate::boards::files::read_json;
+use crate::pose::error::Error;
 
 /// Which beacon arrays are on the plate.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Plate {
     /// One 10 x 10 array centred over the sensor: x, y in -4.5 .. 4.5 in.
@@ -131,18 +131,15 @@ pub fn shared_channels() -> Vec<(u8, u8)> {
 
 /// Refuses a constellation with two beacons on channels that share a frequency
 /// ([`shared_channels`]).
-pub fn check_channels(con: &Constellation) -> Result<()> {
+pub fn check_channels(con: &Constellation) -> Result<(), Error> {
     let has = |id: u8| con.beacons.iter().any(|b| b.id == id);
     for (a, b) in shared_channels() {
         if has(a) && has(b) {
-            bail!(
-                "beacons on channels {a} and {b}: the NorthStar frequency table gives both {} Hz \
-                 (ID {}'s first LED and ID {}'s second), so the detector cannot tell them apart; \
-                 use one of them (the built-in one-19 and four-19 leave channel {b} out)",
-                NORTHSTAR_TABLE_MHZ[a as usize] as f64 / 1000.0,
-                a / 2,
-                b / 2
-            );
+            return Err(Error::SharedChannels {
+                a,
+                b,
+                hz: NORTHSTAR_TABLE_MHZ[a as usize] as f64 / 1000.0,
+            });
         }
     }
     Ok(())
@@ -154,22 +151,29 @@ pub fn check_channels(con: &Constellation) -> Result<()> {
 /// ([`check_channels`]), two beacons at one place, all beacons on one line (the attitude
 /// about it is unobservable). Beacons farther than 60 in from the target's origin are
 /// warned about (millimetres for inches?). Returns the constellation and the warnings.
-pub fn read_constellation(file: &str) -> Result<(Constellation, Vec<String>)> {
-    let text = std::fs::read_to_string(file).map_err(|e| anyhow::anyhow!("reading {file}: {e}"))?;
+pub fn read_constellation(file: &str) -> Result<(Constellation, Vec<String>), Error> {
+    let text = std::fs::read_to_string(file).map_err(|error| Error::Read {
+        file: file.to_string(),
+        error,
+    })?;
+    let refused = |why: String| Error::Constellation {
+        file: file.to_string(),
+        why,
+    };
     if let Ok(v) = serde_json::from_str::<serde_json::Value>(&text) {
         if let Some(n) = v["beacons"].as_array().map(Vec::len) {
             if n > cta_core::pose::MAX_BEACONS {
-                bail!(
-                    "{file}: {n} beacons; the board holds at most {} (the NorthStar tracks 20 \
-                     spots, 19 distinct frequencies)",
+                return Err(refused(format!(
+                    "{n} beacons; the board holds at most {} (the NorthStar tracks 20 spots, 19 \
+                     distinct frequencies)",
                     cta_core::pose::MAX_BEACONS
-                );
+                )));
             }
         }
     }
     let con: Constellation = read_json(file)?;
-    con.validate().map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
-    check_channels(&con).map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+    con.validate().map_err(|e| refused(e.to_string()))?;
+    check_channels(&con).map_err(|e| refused(e.to_string()))?;
     let r: Vec<Vector3<f64>> = con
         .beacons
         .iter()
@@ -178,13 +182,11 @@ pub fn read_constellation(file: &str) -> Result<(Constellation, Vec<String>)> {
     for i in 0..r.len() {
         for j in i + 1..r.len() {
             if (r[i] - r[j]).norm() < 0.01 {
-                bail!(
-                    "{file}: beacons {} and {} are at the same place ({:?} in): the solver \
-                     cannot tell their directions apart",
-                    con.beacons[i].id,
-                    con.beacons[j].id,
-                    con.beacons[i].r
-                );
+                return Err(refused(format!(
+                    "beacons {} and {} are at the same place ({:?} in): the solver cannot tell \
+                     their directions apart",
+                    con.beacons[i].id, con.beacons[j].id, con.beacons[i].r
+                )));
             }
         }
     }
@@ -197,11 +199,11 @@ pub fn read_constellation(file: &str) -> Result<(Constellation, Vec<String>)> {
     if r.iter()
         .all(|p| ((p - r[a]) - axis * (p - r[a]).dot(&axis)).norm() < 0.01)
     {
-        bail!(
-            "{file}: all {} beacons lie on one line: the attitude about it is unobservable; \
-             put at least one beacon off it",
+        return Err(refused(format!(
+            "all {} beacons lie on one line: the attitude about it is unobservable; put at least \
+             one beacon off it",
             r.len()
-        );
+        )));
     }
     let far = r.iter().map(|p| p.norm()).fold(0.0, f64::max);
     let mut warnings = Vec::new();
@@ -224,29 +226,26 @@ pub const BRIGHTNESS_MATCH_IN: f64 = 0.05;
 /// [`BRIGHTNESS_MATCH_IN`] of the beacon's `(x, y)` in T (for a constellation built from the
 /// plate's LEDs, T is the plate frame). Beacons without one keep theirs, and are named in a
 /// warning. Returns how many were set and the warnings.
-pub fn set_brightness(con: &mut Constellation, cal: &str) -> Result<(usize, Vec<String>)> {
-    let text = std::fs::read_to_string(cal).map_err(|e| anyhow::anyhow!("reading {cal}: {e}"))?;
-    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
-        anyhow::anyhow!(
-            "{cal}: not a JSON calibration file ({e}); --brightness takes the file `cta \
-             calibrate --out` writes"
-        )
+pub fn set_brightness(con: &mut Constellation, cal: &str) -> Result<(usize, Vec<String>), Error> {
+    let text = std::fs::read_to_string(cal).map_err(|error| Error::Read {
+        file: cal.to_string(),
+        error,
+    })?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|error| Error::NotJson {
+        file: cal.to_string(),
+        error,
     })?;
     let Some(list) = v.get("led_brightness") else {
-        bail!(
-            "{cal}: no `led_brightness` (the LEDs' brightness `cta calibrate` fits from a \
-             sweep's spot magnitudes): {}",
-            if v.get("beacons").is_some() {
-                "this is a constellation; --brightness takes a calibration".to_string()
-            } else {
-                "calibrate from a sweep that recorded magnitudes (`cta calibrate DATA.csv --out \
-                 cal.json`), without --no-magnitude"
-                    .to_string()
-            }
-        );
+        return Err(Error::NoBrightness {
+            file: cal.to_string(),
+            constellation: v.get("beacons").is_some(),
+        });
     };
     let leds: Vec<crate::fit::magnitude::LedBrightness> = serde_json::from_value(list.clone())
-        .map_err(|e| anyhow::anyhow!("{cal}: `led_brightness`: {e}"))?;
+        .map_err(|error| Error::Brightness {
+            file: cal.to_string(),
+            error,
+        })?;
     let mut set = 0;
     let mut missed = Vec::new();
     for b in con.beacons.iter_mut() {
@@ -274,8 +273,10 @@ pub fn set_brightness(con: &mut Constellation, cal: &str) -> Result<(usize, Vec<
             leds.len()
         ));
     }
-    con.validate()
-        .map_err(|e| anyhow::anyhow!("with the brightness of {cal}: {e}"))?;
+    con.validate().map_err(|error| Error::WithBrightness {
+        file: cal.to_string(),
+        error,
+    })?;
     Ok((set, warnings))
 }
 
@@ -344,33 +345,28 @@ pub fn built_in_list() -> String {
 }
 
 /// The built-in constellation `name`; an error lists the built-ins.
-pub fn built_in_constellation(name: &str) -> Result<Constellation> {
+pub fn built_in_constellation(name: &str) -> Result<Constellation, Error> {
     match BUILT_IN.iter().find(|b| b.name == name) {
         Some(b) => Ok((b.beacons)()),
-        None => bail!(
-            "no built-in constellation {name}; the built-ins:{}",
-            built_in_list()
-        ),
+        None => Err(Error::NoBuiltIn {
+            name: name.to_string(),
+            built_ins: built_in_list(),
+        }),
     }
 }
 
 /// The target of a pose analysis (`cta sensor accuracy`, `cta sensor floor`): which
 /// constellation, on which plate, raised how far.
-#[derive(Debug, Clone, Default, clap::Args)]
-pub struct SceneArgs {
-    /// The constellation: a built-in name (one-10, one-19, four-10, four-19: beacons on one
-    /// array or spread over four, 10 or all 19 NorthStar frequencies) or a JSON file (the shape
-    /// of `cta sensor template constellation`). Default one-10, the chip's benchmark.
-    #[arg(long, value_name = "NAME|FILE")]
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Scene {
+    /// A built-in constellation's name or a constellation file (`None`: one-10, the chip's
+    /// benchmark).
     pub constellation: Option<String>,
-    /// The plate the calibration sweeps see: `one` array or `four` in the quadrants.
-    /// Default: the built-in's own; for a file, `four` if a beacon lies beyond 4.5 in.
-    #[arg(long, value_enum)]
+    /// The plate the calibration sweeps see (`None`: the built-in's own; for a file, `four`
+    /// if a beacon lies beyond 4.5 in).
     pub plate: Option<Plate>,
-    /// Raise every beacon after the first five this far toward the sensor, in (beacons on
-    /// posts: a 3-D target decorrelates tilt from lateral offset), on top of the height a
-    /// file gives them. 0: as given (the built-ins are flat).
-    #[arg(long, default_value_t = 0.0)]
+    /// How far every beacon after the first five is raised toward the sensor, in, on top of
+    /// the height a file gives them.
     pub depth: f64,
 }
 
@@ -378,7 +374,7 @@ impl TestScene {
     /// Refuse ranges at which a beacon would sit at or behind the sensor (raised by `--depth`
     /// or by the file to the range or beyond): such a pose sees fewer beacons and the tables
     /// would compare something else than they say.
-    pub fn check_ranges(&self, ranges: &[f64]) -> Result<()> {
+    pub fn check_ranges(&self, ranges: &[f64]) -> Result<(), Error> {
         let highest = self
             .con
             .beacons
@@ -387,19 +383,15 @@ impl TestScene {
             .fold(f64::NEG_INFINITY, f64::max);
         let closest = ranges.iter().copied().fold(f64::INFINITY, f64::min);
         if highest >= closest {
-            bail!(
-                "a beacon stands {highest:.1} in toward the sensor (--depth, or the \
-                 constellation's heights): at the {closest} in range it would be at the sensor \
-                 or behind it; keep the ranges beyond the highest beacon"
-            );
+            return Err(Error::BeaconAtSensor { highest, closest });
         }
         Ok(())
     }
 }
 
-impl SceneArgs {
-    /// Resolve the arguments ([`test_scene`]).
-    pub fn scene(&self) -> Result<TestScene> {
+impl Scene {
+    /// The constellation, plate and label of this target ([`test_scene`]).
+    pub fn resolve(&self) -> Result<TestScene, Error> {
         test_scene(self.constellation.as_deref(), self.plate, self.depth)
     }
 }
@@ -416,6 +408,8 @@ pub struct TestScene {
     pub label: String,
     /// Plot titles: the constellation, its beacon count, the raise.
     pub short: String,
+    /// Warnings about the constellation file (beacons improbably far away).
+    pub warnings: Vec<String>,
 }
 
 /// Resolve `--constellation` (a built-in name or a JSON file; default `one-10`), `--plate`
@@ -426,19 +420,20 @@ pub fn test_scene(
     constellation: Option<&str>,
     plate: Option<Plate>,
     depth: f64,
-) -> Result<TestScene> {
+) -> Result<TestScene, Error> {
     let spec = constellation.unwrap_or("one-10");
+    let mut warnings = Vec::new();
     let (mut con, own_plate, name) = match BUILT_IN.iter().find(|b| b.name == spec) {
         Some(b) => ((b.beacons)(), b.plate, format!("constellation {spec}")),
-        None if !std::path::Path::new(spec).exists() => bail!(
-            "--constellation {spec}: no such file, and not a built-in name; the built-ins:{}",
-            built_in_list()
-        ),
+        None if !std::path::Path::new(spec).exists() => {
+            return Err(Error::NoConstellation {
+                spec: spec.to_string(),
+                built_ins: built_in_list(),
+            })
+        }
         None => {
-            let (con, warnings) = read_constellation(spec)?;
-            for w in warnings {
-                eprintln!("warning: {w}");
-            }
+            let (con, file_warnings) = read_constellation(spec)?;
+            warnings = file_warnings;
             let wide = con
                 .beacons
                 .iter()
@@ -480,6 +475,7 @@ pub fn test_scene(
         plate,
         label,
         short,
+        warnings,
     })
 }
 
