@@ -586,7 +586,9 @@ impl FloorTable {
             ),
             &[panel(true), panel(false)],
             2,
-        )
+        )?;
+        eprintln!("plot: {}", path.display());
+        Ok(())
     }
 
     /// Human-readable table.
