@@ -371,7 +371,19 @@ pub fn check_noise_fraction(f: f64) -> Result<()> {
 
 /// Parse `x,y` (two numbers, comma-separated: `--offset 0.3,-0.2`).
 fn parse_xy(s: &str) -> std::result::Result<[f64; 2], String> {
-    crate::commands::parse_floats(s, "x,y", "0.3,-0.2")
+    let bad = || format!("{s:?}: expected 2 comma-separated numbers x,y (e.g. 0.3,-0.2)");
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 2 {
+        return Err(bad());
+    }
+    let mut v = [0.0f64; 2];
+    for (x, p) in v.iter_mut().zip(parts) {
+        *x = p.trim().parse().map_err(|_| bad())?;
+        if !x.is_finite() {
+            return Err(bad());
+        }
+    }
+    Ok(v)
 }
 
 /// The simulated board's scene.
@@ -1977,7 +1989,9 @@ impl AccuracyTable {
             ),
             &[panel("position", "in", false), panel("attitude", "deg", true)],
             2,
-        )
+        )?;
+        eprintln!("plot: {}", path.display());
+        Ok(())
     }
 
     /// `Ok` when every claim of [`Self::claims`] holds; the failures otherwise.
