@@ -5,7 +5,6 @@ use clap::{Parser, Subcommand};
 pub mod args;
 pub mod cmd;
 pub mod conn;
-use cta_lab::commands;
 
 #[derive(Parser)]
 #[command(
@@ -35,19 +34,19 @@ pub struct Cli {
 pub enum Cmd {
     /// Ch II: how far away each near-field effect (proximity, intensity, beacon pattern)
     /// falls below the sensor noise, in sensor diameters (2-D model, eqs 1-22).
-    Nearfield(commands::NearfieldArgs),
+    Nearfield(cmd::nearfield::NearfieldArgs),
     /// Ch IV: the apparatus uncertainty budget (root-sum-square, eq 26; default Table 2)
     /// and the 2-D angle uncertainty it causes (eq 40) against the near-field error.
-    Uncertainty(commands::UncertaintyArgs),
+    Uncertainty(cmd::uncertainty::UncertaintyArgs),
     /// Ch V: emulated NorthStar reports of the CTA beacon grid (eqs 60-63), optionally with
     /// noise and hidden effects; the truth is written next to the data.
-    Simulate(commands::SimulateArgs),
+    Simulate(cmd::simulate::SimulateArgs),
     /// Ch V: fit the 7-parameter collinearity model (d, MRP p, scale height H; eq 65) by
     /// GLSDC (eqs 56-59): parameters, 1-sigma, residual RMS, condition number.
-    Fit(commands::FitArgs),
+    Fit(cmd::fit::FitArgs),
     /// Ch V: the error in angle of a saved fit per separation (eq 67), the Figure 57 curve,
     /// against the truth when the data carries it.
-    Evaluate(commands::EvaluateArgs),
+    Evaluate(cmd::evaluate::EvaluateArgs),
     /// The sensor board's calibration from a measured sweep: the pinhole (eq 65) and
     /// near-field (eqs 60-63: d, p, face angles, cell offset, cell gains and offsets) fits,
     /// the residual RMS of both per separation (flagging where the model misses), and the
@@ -115,11 +114,11 @@ pub fn main() {
     }
     let cli = parse();
     let r = match &cli.cmd {
-        Cmd::Nearfield(a) => commands::nearfield(a),
-        Cmd::Uncertainty(a) => commands::uncertainty_cmd(a),
-        Cmd::Simulate(a) => commands::simulate(a),
-        Cmd::Fit(a) => commands::fit_cmd(a),
-        Cmd::Evaluate(a) => commands::evaluate_cmd(a),
+        Cmd::Nearfield(a) => cmd::nearfield::run(a),
+        Cmd::Uncertainty(a) => cmd::uncertainty::run(a),
+        Cmd::Simulate(a) => cmd::simulate::run(a),
+        Cmd::Fit(a) => cmd::fit::run(a),
+        Cmd::Evaluate(a) => cmd::evaluate::run(a),
         Cmd::Calibrate(a) => cta_lab::fit::calibrate::run(a),
         Cmd::Demo(a) => cmd::demo::run(a),
         Cmd::Sweep(a) => cta_lab::sweep::run(a),

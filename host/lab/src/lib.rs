@@ -5,15 +5,17 @@
 
 pub mod analyze;
 pub mod boards;
-pub mod commands;
+pub mod budget;
 pub mod data;
 pub mod fit;
+pub mod nearfield;
 pub mod noise;
 pub mod plot;
 pub mod progress;
 pub mod pose;
 pub mod sim;
 pub mod sweep;
+pub mod uncertainty;
 
 /// What the binary does with a command's error: prints `cta: error: ...` with its causes and
 /// exits with 1, or an interrupted sweep's [`sweep::Interrupted::exit_code`] (128 + the

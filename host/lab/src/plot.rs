@@ -4,7 +4,64 @@
 use plotters::coord::combinators::BindKeyPoints;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+use crate::data::OutputError;
+
+/// Why a plot or report was not written, or may not be.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    /// The path is a folder.
+    #[error("{}: is a folder; give a file name for the output", .path.display())]
+    IsFolder {
+        /// The path.
+        path: PathBuf,
+    },
+    /// An existing file that cannot be read, so it is not known to be `cta`'s.
+    #[error(
+        "{}: exists and cannot be read ({error}), so it is not known to be an earlier cta \
+         output: not replacing it (choose another name, or remove the file)",
+        .path.display()
+    )]
+    Unreadable {
+        /// The file.
+        path: PathBuf,
+        /// Why it cannot be read.
+        error: std::io::Error,
+    },
+    /// An existing file `cta` did not write.
+    #[error(
+        "{}: exists and is not a plot or report cta wrote: not replacing it (choose another \
+         name, or remove the file)",
+        .path.display()
+    )]
+    NotOurs {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A plot named other than `.svg`.
+    #[error("{}: plots are SVG files: give a name ending in .svg", .path.display())]
+    NotSvg {
+        /// The path.
+        path: PathBuf,
+    },
+    /// The chart could not be drawn.
+    #[error("{}: plotting failed: {error}", .path.display())]
+    Render {
+        /// The plot's path.
+        path: PathBuf,
+        /// What plotters said.
+        error: RenderError,
+    },
+    /// The file could not be written.
+    #[error(transparent)]
+    Write(#[from] OutputError),
+}
+
+/// A chart plotters could not draw (its message).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct RenderError(pub String);
 
 /// One curve.
 #[derive(Debug, Clone)]
@@ -384,11 +441,11 @@ fn plot_size(title: &str, (w, h): (u32, u32)) -> (i32, i32) {
 fn draw_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, plotters::coord::Shift>,
     p: &Panel,
-) -> Result<(), String>
+) -> Result<(), RenderError>
 where
     DB::ErrorType: 'static,
 {
-    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| RenderError(e.to_string());
     let keep = |x: f64, y: f64| {
         x.is_finite() && y.is_finite() && (!p.log_x || x > 0.0) && (!p.log_y || y > 0.0)
     };
@@ -586,22 +643,21 @@ pub fn tick(v: f64) -> String {
 }
 
 /// Render panels on a grid (`cols` wide) to an SVG string.
-pub fn render_svg(title: &str, panels: &[Panel], cols: usize) -> Result<String, String> {
+pub fn render_svg(title: &str, panels: &[Panel], cols: usize) -> Result<String, RenderError> {
     let cols = cols.max(1);
     let rows = panels.len().div_ceil(cols).max(1);
     let (w, h) = (520 * cols as u32, 380 * rows as u32 + 40);
     let mut buf = String::new();
     {
         let root = SVGBackend::with_string(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let root = root
-            .titled(title, ("sans-serif", 20))
-            .map_err(|e| e.to_string())?;
+        let e = |e: DrawingAreaErrorKind<_>| RenderError(e.to_string());
+        root.fill(&WHITE).map_err(e)?;
+        let root = root.titled(title, ("sans-serif", 20)).map_err(e)?;
         let areas = root.split_evenly((rows, cols));
         for (a, p) in areas.iter().zip(panels) {
             draw_panel(a, p)?;
         }
-        root.present().map_err(|e| e.to_string())?;
+        root.present().map_err(e)?;
     }
     Ok(buf)
 }
@@ -649,31 +705,30 @@ fn written_by_cta(head: &str) -> bool {
 }
 
 /// Render panels to an SVG file, written as every `cta` output is
-/// ([`crate::data::write_output`]: missing folders created, `cannot write PATH: reason`),
-/// marked as `cta`'s ([`MARK`]); refused when `path` holds a file `cta` did not write.
-/// Says so on stderr (`plot: PATH`) once written.
-pub fn write_svg(path: &Path, title: &str, panels: &[Panel], cols: usize) -> anyhow::Result<()> {
+/// ([`crate::data::write_output`]) and marked as `cta`'s ([`MARK`]); refused when `path`
+/// holds a file `cta` did not write. The caller announces it (`plot: PATH`).
+pub fn write_svg(path: &Path, title: &str, panels: &[Panel], cols: usize) -> Result<(), PlotError> {
     check_plot_path(path)?;
-    let svg = render_svg(title, panels, cols)
-        .map_err(|e| anyhow::anyhow!("{}: plotting failed: {e}", path.display()))?;
+    let svg = render_svg(title, panels, cols).map_err(|error| PlotError::Render {
+        path: path.to_path_buf(),
+        error,
+    })?;
     write_marked(path, &svg)?;
-    eprintln!("plot: {}", path.display());
     Ok(())
 }
 
 /// Whether `--plot PATH` may be written: a name ending in `.svg` (plots are SVG: an SVG in
 /// `out.png` opens nowhere) that is new or an earlier `cta` output ([`refuse_to_replace`]).
 /// Checked before the work, so a bad name costs nothing.
-pub fn check_plot_path(path: &Path) -> anyhow::Result<()> {
+pub fn check_plot_path(path: &Path) -> Result<(), PlotError> {
     refuse_to_replace(path)?;
     let svg = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
     if !svg {
-        anyhow::bail!(
-            "{}: plots are SVG files: give a name ending in .svg",
-            path.display()
-        );
+        return Err(PlotError::NotSvg {
+            path: path.to_path_buf(),
+        });
     }
     Ok(())
 }
@@ -682,7 +737,7 @@ pub fn check_plot_path(path: &Path) -> anyhow::Result<()> {
 /// (a comment before it would put browsers in quirks mode), inside an SVG's root element
 /// after its opening tag (a comment before the root makes content sniffers take the file for
 /// SGML, not `image/svg+xml`), else first.
-pub fn write_marked(path: &Path, text: &str) -> anyhow::Result<()> {
+pub fn write_marked(path: &Path, text: &str) -> Result<(), OutputError> {
     let marked = if let Some(rest) = text.strip_prefix("<!doctype html>") {
         format!("<!doctype html>{MARK}\n{rest}")
     } else if let (true, Some(end)) = (text.starts_with("<svg"), text.find('>')) {
@@ -690,35 +745,29 @@ pub fn write_marked(path: &Path, text: &str) -> anyhow::Result<()> {
     } else {
         format!("{MARK}\n{text}")
     };
-    crate::data::write_output(path, marked.as_bytes()).map_err(anyhow::Error::msg)
+    crate::data::write_output(path, marked.as_bytes())
 }
 
 /// A plot or report may replace an earlier one `cta` wrote, never another file: not
 /// `--plot data.csv` by mistake, which would destroy the measurements, nor a lab's own SVG
 /// or web page (`--report site/` over `site/index.html`). `cta`'s files carry [`MARK`].
-pub fn refuse_to_replace(path: &Path) -> anyhow::Result<()> {
+pub fn refuse_to_replace(path: &Path) -> Result<(), PlotError> {
     if !path.exists() {
         return Ok(());
     }
     if path.is_dir() {
-        anyhow::bail!(
-            "{}: is a folder; give a file name for the output",
-            path.display()
-        );
+        return Err(PlotError::IsFolder {
+            path: path.to_path_buf(),
+        });
     }
-    let head = read_head(path).map_err(|e| {
-        anyhow::anyhow!(
-            "{}: exists and cannot be read ({e}), so it is not known to be an earlier cta \
-             output: not replacing it (choose another name, or remove the file)",
-            path.display()
-        )
+    let head = read_head(path).map_err(|error| PlotError::Unreadable {
+        path: path.to_path_buf(),
+        error,
     })?;
     if !written_by_cta(&head) {
-        anyhow::bail!(
-            "{}: exists and is not a plot or report cta wrote: not replacing it (choose another \
-             name, or remove the file)",
-            path.display()
-        );
+        return Err(PlotError::NotOurs {
+            path: path.to_path_buf(),
+        });
     }
     Ok(())
 }

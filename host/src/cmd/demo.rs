@@ -1,7 +1,10 @@
 //! `cta demo`: the whole job on the built-in simulated CTA, no hardware.
 
-use cta_lab::data::weights::Weights;
-use cta_lab::commands::{self, EvaluateArgs, FitArgs, NearfieldArgs, Profile, UncertaintyArgs};
+use crate::args::{Profile, WeightsArg};
+use crate::cmd::evaluate::EvaluateArgs;
+use crate::cmd::fit::FitArgs;
+use crate::cmd::nearfield::NearfieldArgs;
+use crate::cmd::uncertainty::UncertaintyArgs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use std::path::PathBuf;
@@ -134,7 +137,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     )
     .map_err(anyhow::Error::msg)?;
     println!("== 1. Ch II: near-field errors (2-D)");
-    commands::nearfield(&NearfieldArgs {
+    crate::cmd::nearfield::run(&NearfieldArgs {
         alpha: 30.0,
         theta: "6,18,30,45".into(),
         noise_deg: 0.1,
@@ -145,7 +148,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         json: false,
     })?;
     println!("\n== 2. Ch IV: CTA uncertainty");
-    commands::uncertainty_cmd(&UncertaintyArgs {
+    crate::cmd::uncertainty::run(&UncertaintyArgs {
         budget: None,
         diameter_in: 0.35,
         plot: Some(p("uncertainty.svg")),
@@ -181,17 +184,17 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     let data = run_dir.join("data.csv");
     println!("\n== 4. Ch V: calibrate the pinhole model at 20-30 in (thesis recommendation)");
     let fit = p("fit.json");
-    commands::fit_cmd(&FitArgs {
+    crate::cmd::fit::run(&FitArgs {
         file: data.clone(),
         separations: Some("20..30:2".into()),
-        weights: Weights::Pooled,
+        weights: WeightsArg::Pooled,
         save: Some(fit.clone()),
         force: false,
         drop_glitches: false,
         json: false,
     })?;
     println!("\n== 5. Figure 57: error in angle of that calibration at every separation");
-    commands::evaluate_cmd(&EvaluateArgs {
+    crate::cmd::evaluate::run(&EvaluateArgs {
         fit,
         file: data.clone(),
         separations: None,

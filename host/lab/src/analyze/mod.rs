@@ -781,7 +781,8 @@ impl AnalyzeArgs {
         Ok(Options {
             from: self.from,
             folds: self.folds,
-            holdout: self.holdout.as_deref().map(parse_separations).transpose()?,
+            holdout: (self.holdout.as_deref().map(parse_separations).transpose())
+                .map_err(|e| e.to_string())?,
             weights: self.weights,
             noise: self.noise,
             candidates,

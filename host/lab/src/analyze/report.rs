@@ -28,7 +28,7 @@ pub fn write(dir: &Path, a: &Analysis) -> anyhow::Result<()> {
     crate::plot::refuse_to_replace(&index)?;
     let html =
         render(a).map_err(|e| anyhow::anyhow!("{}: plotting failed: {e}", index.display()))?;
-    crate::plot::write_marked(&index, &html)
+    Ok(crate::plot::write_marked(&index, &html)?)
 }
 
 /// The correlation lines of a candidate as HTML to append to its estimates cell (empty when
@@ -398,7 +398,7 @@ pub fn render(a: &Analysis) -> Result<String, String> {
          effect reads lower at its separations than at their neighbours, so read its trend \
          against the noise alone, not single separations.</p>",
     );
-    s.push_str(&render_svg("", &panels, 2)?);
+    s.push_str(&render_svg("", &panels, 2).map_err(|e| e.to_string())?);
     if let Some(d) = &a.detail {
         s.push_str(
             "<h2>Residual maps</h2><p>Each arrow is a point's mean residual (measured &minus; \

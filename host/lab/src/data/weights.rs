@@ -2,7 +2,7 @@
 //! samples pooled per separation, the point means and the chi-square a right model gives.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use cta_core::collinearity::Obs;
 use nalgebra::Vector3;
@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use crate::data::Dataset;
 
 /// How residuals are weighted (eq 56's `W`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Weights {
     /// `W = I`: every sample is one observation (the thesis's choice).
@@ -26,13 +26,9 @@ pub enum Weights {
     Pooled,
 }
 
-/// The fewest samples per point `--weights repeat` takes. A variance from `n` samples has
-/// `n - 1` degrees of freedom; its inverse (the weight) has an infinite mean with 3 samples
-/// or fewer, and two equal integer samples give a zero variance (floored at 1/12 count^2): a
-/// few points whose samples happen to agree then carry the fit, tens of sigma off. Below 6
-/// samples the weight's variance is infinite: a few points still carry the fit, and even
-/// the sandwich 1-sigma (see [`fit`]) were 1.6x too small with 4 samples (far-field data,
-/// 20 seeds; 1.1x with 5, 6 and 10).
+/// The fewest samples per point `--weights repeat` takes: below 6 the inverse of a sample
+/// variance (the weight) has an infinite variance (an infinite mean at 3 or fewer), so the few
+/// points whose samples happen to agree would carry the fit.
 pub const REPEAT_MIN_SAMPLES: usize = 6;
 
 /// A chi2/dof above this is warned about even when no expectation is known.
@@ -161,8 +157,55 @@ pub fn point_means(ds: &Dataset, var: &dyn Fn(f64, usize) -> f64) -> Vec<Obs<f64
         .collect()
 }
 
-/// Build the GLSDC observations from a dataset.
-pub fn observations(ds: &Dataset, weights: Weights) -> Result<Vec<Obs<f64>>, String> {
+/// Why a file cannot be weighted as asked.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WeightsError {
+    /// `repeat` weights and a point with fewer than [`REPEAT_MIN_SAMPLES`] samples.
+    #[error(
+        "{}:{line}: --weights repeat needs repeated samples, at least {REPEAT_MIN_SAMPLES} \
+         per point, and this point has {}: a variance from so few samples is \
+         too rough to weight by (its inverse has an infinite variance, or mean; \
+         two equal integer samples give a variance of 0), so the points whose \
+         samples happen to agree would carry the fit. Use --weights pooled (the \
+         noise pooled per separation, as `cta calibrate` weights) or --weights \
+         none",
+        .path.display(),
+        count_word(.samples)
+    )]
+    TooFewRepeats {
+        /// The measurement file.
+        path: PathBuf,
+        /// The point's first line.
+        line: usize,
+        /// Its samples.
+        samples: usize,
+    },
+    /// `pooled` weights and a separation without repeated samples.
+    #[error(
+        "{}: --weights pooled needs repeated samples at every separation, and {separation} \
+         in has none (one sample per point, or every point at the 16-bit rail): use \
+         --weights none",
+        .path.display()
+    )]
+    NoRepeats {
+        /// The measurement file.
+        path: PathBuf,
+        /// The separation, in.
+        separation: f64,
+    },
+}
+
+/// `one`, or the number, for [`WeightsError::TooFewRepeats`].
+fn count_word(n: &usize) -> String {
+    if *n == 1 {
+        "one".to_string()
+    } else {
+        n.to_string()
+    }
+}
+
+/// Build the GLSDC observations from a dataset (eq 56's residuals and `W`).
+pub fn observations(ds: &Dataset, weights: Weights) -> Result<Vec<Obs<f64>>, WeightsError> {
     match weights {
         Weights::None => Ok(ds
             .samples
@@ -178,22 +221,11 @@ pub fn observations(ds: &Dataset, weights: Weights) -> Result<Vec<Obs<f64>>, Str
             for p in ds.points() {
                 let n = p.rows.len();
                 if n < REPEAT_MIN_SAMPLES {
-                    let many = if n == 1 {
-                        "one".to_string()
-                    } else {
-                        n.to_string()
-                    };
-                    return Err(format!(
-                        "{}:{}: --weights repeat needs repeated samples, at least {REPEAT_MIN_SAMPLES} \
-                         per point, and this point has {many}: a variance from so few samples is \
-                         too rough to weight by (its inverse has an infinite variance, or mean; \
-                         two equal integer samples give a variance of 0), so the points whose \
-                         samples happen to agree would carry the fit. Use --weights pooled (the \
-                         noise pooled per separation, as `cta calibrate` weights) or --weights \
-                         none",
-                        ds.path.display(),
-                        p.first.line
-                    ));
+                    return Err(WeightsError::TooFewRepeats {
+                        path: ds.path.clone(),
+                        line: p.first.line,
+                        samples: n,
+                    });
                 }
                 let mut mean = [0.0; 2];
                 for &i in &p.rows {
@@ -221,12 +253,10 @@ pub fn observations(ds: &Dataset, weights: Weights) -> Result<Vec<Obs<f64>>, Str
                 .into_iter()
                 .find(|&s| pooled_variance(&pool, s, 0).is_none())
             {
-                return Err(format!(
-                    "{}: --weights pooled needs repeated samples at every separation, and {sep} \
-                     in has none (one sample per point, or every point at the 16-bit rail): use \
-                     --weights none",
-                    ds.path.display()
-                ));
+                return Err(WeightsError::NoRepeats {
+                    path: ds.path.clone(),
+                    separation: sep,
+                });
             }
             Ok(point_means(ds, &|sep, a| {
                 pooled_variance(&pool, sep, a).unwrap_or(f64::NAN)
@@ -260,6 +290,7 @@ pub fn misfit_warning(head: &str, ratio: f64, model: &str, file: &Path) -> Strin
 pub struct Pooled(pub BTreeMap<u64, ([f64; 2], usize)>);
 
 impl Pooled {
+    /// The one-sample variance of `axis` (0 = X, 1 = Y) at separation `sep`, counts^2.
     pub fn var(&self, sep: f64, axis: usize) -> Option<f64> {
         pooled_variance(&self.0, sep, axis)
     }
@@ -267,6 +298,7 @@ impl Pooled {
     pub fn dof(&self, sep: f64) -> usize {
         self.0.get(&sep.to_bits()).map_or(0, |(_, dof)| *dof)
     }
+    /// The one-sample noise over the file and both axes, counts.
     pub fn overall(&self) -> Option<f64> {
         let (ss, dof) = self.0.values().fold((0.0, 0), |(s, d), (ss, dof)| {
             (s + ss[0] + ss[1], d + 2 * dof)

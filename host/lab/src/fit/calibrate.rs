@@ -1013,7 +1013,7 @@ fn check_out(out: &Path, data: &Path, force: bool) -> Result<()> {
             .and_then(|s| serde_json::from_str::<CalibrationFile>(&s).ok())
             .is_some_and(|f| f.fitted.by.starts_with(WRITER))
     };
-    crate::data::check_derived_output(
+    Ok(crate::data::check_derived_output(
         "--out",
         out,
         data,
@@ -1021,7 +1021,7 @@ fn check_out(out: &Path, data: &Path, force: bool) -> Result<()> {
         "an earlier `cta calibrate` calibration",
         earlier,
         force,
-    )
+    )?)
 }
 
 /// Run `cta calibrate`.
@@ -1139,7 +1139,9 @@ fn plot(rep: &CalibrationReport, path: &Path) -> Result<()> {
             series,
         }],
         1,
-    )
+    )?;
+    eprintln!("plot: {}", path.display());
+    Ok(())
 }
 
 /// `out`: `Some(Some(path))` written, `Some(None)` not asked for, `None` its write failed (the

@@ -355,7 +355,7 @@ impl AccuracyTable {
             &[panel("position", "in", false), panel("attitude", "deg", true)],
             2,
         )
-        .map_err(|e| Error::Plot(format!("{e:#}")))
+        .map_err(Error::Plot)
     }
 
     /// `Ok` when every claim of [`Self::claims`] holds; the failures otherwise.

@@ -114,7 +114,7 @@ pub enum Error {
     },
     /// `--effect` does not parse.
     #[error("--effect: {0}")]
-    Effect(String),
+    Effect(crate::sim::effects::EffectError),
     /// `--effect` of the CTA's plate, not the head.
     #[error(
         "--effect {effect}: `{name}` describes the CTA's beacon plate, not the sensor head (the \
@@ -179,9 +179,9 @@ pub enum Error {
     /// The pose solver refused the calibration or constellation.
     #[error("{0}")]
     Solver(ConfigError),
-    /// A plot could not be written (its message).
-    #[error("{0}")]
-    Plot(String),
+    /// A plot could not be written.
+    #[error(transparent)]
+    Plot(#[from] crate::plot::PlotError),
     /// `cta sensor accuracy --check`: design targets that do not hold, each with its figures.
     #[error("accuracy design targets not met:\n  {}", .0.join("\n  "))]
     TargetsNotMet(Vec<String>),

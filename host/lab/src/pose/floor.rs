@@ -567,7 +567,7 @@ impl FloorTable {
             &[panel(true), panel(false)],
             2,
         )
-        .map_err(|e| Error::Plot(format!("{e:#}")))
+        .map_err(Error::Plot)
     }
 }
 

@@ -8,6 +8,55 @@ use cta_core::pattern::Pattern;
 use cta_core::real::rad;
 use std::fmt;
 
+/// Why an effect `NAME=VALUE` is refused: each message names the effect and what it takes.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EffectError {
+    /// An effect given without the value it needs.
+    #[error("effect `{name}` needs a value: {}", usage(.name))]
+    NeedsValue {
+        /// The effect's name.
+        name: String,
+    },
+    /// A value that is not a list of numbers.
+    #[error("effect `{name}`: `{value}` is not a number list ({})", usage(.name))]
+    NotNumbers {
+        /// The effect's name.
+        name: String,
+        /// The value as given.
+        value: String,
+    },
+    /// Too few or too many numbers, or one that is not finite.
+    #[error("effect `{name}`: expected {}", usage(.name))]
+    Expected {
+        /// The effect's name.
+        name: String,
+    },
+    /// A value outside the effect's physics (the reason in words).
+    #[error("effect `{name}`: {why}")]
+    OutOfRange {
+        /// The effect's name.
+        name: &'static str,
+        /// What the value must be.
+        why: String,
+    },
+    /// `intensity` with a value other than on or off.
+    #[error("effect `intensity`: `{0}` is not on/off")]
+    NotOnOff(String),
+    /// A name outside the vocabulary.
+    #[error("unknown effect `{0}`; known: {known}, crosstalk (simulation only)", known = VOCABULARY.join(", "))]
+    Unknown(String),
+    /// An effect named twice.
+    #[error("effect `{name}` given twice (`{first}` and `{second}`): give each effect once")]
+    Twice {
+        /// The effect's name.
+        name: &'static str,
+        /// The first.
+        first: Effect,
+        /// The second.
+        second: Effect,
+    },
+}
+
 /// One effect with its parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Effect {
@@ -94,53 +143,55 @@ impl Effect {
     }
 
     /// Parse `NAME=VALUE[,VALUE]` (or a bare `intensity`).
-    pub fn parse(s: &str) -> Result<Effect, String> {
+    pub fn parse(s: &str) -> Result<Effect, EffectError> {
         let (name, val) = match s.split_once('=') {
             Some((n, v)) => (n.trim(), Some(v.trim())),
             None => (s.trim(), None),
         };
-        let nums = |min: usize, max: usize| -> Result<Vec<f64>, String> {
-            let v = val.ok_or_else(|| format!("effect `{name}` needs a value: {}", usage(name)))?;
+        let nums = |min: usize, max: usize| -> Result<Vec<f64>, EffectError> {
+            let v = val.ok_or_else(|| EffectError::NeedsValue { name: name.into() })?;
             let parts: Result<Vec<f64>, _> =
                 v.split(',').map(|p| p.trim().parse::<f64>()).collect();
-            let parts = parts.map_err(|_| {
-                format!(
-                    "effect `{name}`: `{v}` is not a number list ({})",
-                    usage(name)
-                )
+            let parts = parts.map_err(|_| EffectError::NotNumbers {
+                name: name.into(),
+                value: v.into(),
             })?;
             if parts.len() < min || parts.len() > max || parts.iter().any(|p| !p.is_finite()) {
-                return Err(format!("effect `{name}`: expected {}", usage(name)));
+                return Err(EffectError::Expected { name: name.into() });
             }
             Ok(parts)
         };
+        let range = |name: &'static str, why: String| EffectError::OutOfRange { name, why };
         let e = match name {
             "proximity" => {
                 let v = nums(1, 1)?;
                 if v[0] < 0.0 {
-                    return Err("effect `proximity`: S must be >= 0 in".into());
+                    return Err(range("proximity", "S must be >= 0 in".into()));
                 }
                 Effect::Proximity(v[0])
             }
             "intensity" => match val {
                 None | Some("1") | Some("on") | Some("true") => Effect::Intensity(true),
                 Some("0") | Some("off") | Some("false") => Effect::Intensity(false),
-                Some(v) => return Err(format!("effect `intensity`: `{v}` is not on/off")),
+                Some(v) => return Err(EffectError::NotOnOff(v.into())),
             },
             "beacon_pattern" => {
                 let v = nums(1, 1)?;
                 if !(v[0] > 0.0 && v[0] < 90.0) {
-                    return Err("effect `beacon_pattern`: H must be in (0, 90) deg".into());
+                    return Err(range("beacon_pattern", "H must be in (0, 90) deg".into()));
                 }
                 Effect::BeaconPattern(v[0])
             }
             "beacon_tilt" => {
                 let v = nums(1, 2)?;
                 if !(v[0].abs() < 90.0) {
-                    return Err(format!(
-                        "effect `beacon_tilt`: the tilt T = {} deg must be under 90 deg in size \
-                         (at 90 deg the LEDs face sideways and light no cell)",
-                        v[0]
+                    return Err(range(
+                        "beacon_tilt",
+                        format!(
+                            "the tilt T = {} deg must be under 90 deg in size (at 90 deg the \
+                             LEDs face sideways and light no cell)",
+                            v[0]
+                        ),
                     ));
                 }
                 Effect::BeaconTilt(v[0], v.get(1).copied().unwrap_or(0.0))
@@ -148,8 +199,11 @@ impl Effect {
             "cell_gain" => {
                 let v = nums(1, 2)?;
                 if let Some(g) = v.iter().find(|g| !(**g > -1.0)) {
-                    return Err(format!(
-                        "effect `cell_gain`: {g} must be > -1 (the cell's gain is 1 + G, which must stay positive)"
+                    return Err(range(
+                        "cell_gain",
+                        format!(
+                            "{g} must be > -1 (the cell's gain is 1 + G, which must stay positive)"
+                        ),
                     ));
                 }
                 Effect::CellGain(v[0], v.get(1).copied().unwrap_or(0.0))
@@ -161,8 +215,12 @@ impl Effect {
             "face_angle" => {
                 let v = nums(1, 2)?;
                 if let Some(d) = v.iter().find(|d| !(**d > -30.0 && **d < 60.0)) {
-                    return Err(format!(
-                        "effect `face_angle`: {d} must be in (-30, 60) deg (the face angle 30 + D must be in (0, 90) deg)"
+                    return Err(range(
+                        "face_angle",
+                        format!(
+                            "{d} must be in (-30, 60) deg (the face angle 30 + D must be in (0, \
+                             90) deg)"
+                        ),
                     ));
                 }
                 Effect::FaceAngle(v[0], v.get(1).copied().unwrap_or(0.0))
@@ -170,17 +228,23 @@ impl Effect {
             "saturation" => {
                 let v = nums(1, 1)?;
                 if !(v[0] > 0.0) {
-                    return Err("effect `saturation`: S must be > 0 (1/in^2)".into());
+                    return Err(range("saturation", "S must be > 0 (1/in^2)".into()));
                 }
                 Effect::Saturation(v[0])
             }
-            "plate_offset" => Effect::PlateOffset(nonneg(name, nums(1, 1)?[0])?),
-            "separation_error" => Effect::SeparationError(nonneg(name, nums(1, 1)?[0])?),
+            "plate_offset" => Effect::PlateOffset(nonneg("plate_offset", nums(1, 1)?[0])?),
+            "separation_error" => {
+                Effect::SeparationError(nonneg("separation_error", nums(1, 1)?[0])?)
+            }
             "plate_tilt" => {
                 let v = nums(1, 1)?[0];
                 if !(0.0..=10.0).contains(&v) {
-                    return Err(format!(
-                        "effect `plate_tilt`: SIGMA = {v} must be in [0, 10] deg (the 1-sigma tilt of the plate at each separation)"
+                    return Err(range(
+                        "plate_tilt",
+                        format!(
+                            "SIGMA = {v} must be in [0, 10] deg (the 1-sigma tilt of the plate at \
+                             each separation)"
+                        ),
                     ));
                 }
                 Effect::PlateTilt(v)
@@ -188,18 +252,17 @@ impl Effect {
             "crosstalk" => {
                 let k = nums(1, 1)?[0];
                 if !(0.0..1.0).contains(&k) {
-                    return Err(format!(
-                        "effect `crosstalk`: K = {k} must be in [0, 1) (a cell picks up a fraction K of the other pair's signal)"
+                    return Err(range(
+                        "crosstalk",
+                        format!(
+                            "K = {k} must be in [0, 1) (a cell picks up a fraction K of the other \
+                             pair's signal)"
+                        ),
                     ));
                 }
                 Effect::Crosstalk(k)
             }
-            other => {
-                return Err(format!(
-                    "unknown effect `{other}`; known: {}, crosstalk (simulation only)",
-                    VOCABULARY.join(", ")
-                ))
-            }
+            other => return Err(EffectError::Unknown(other.into())),
         };
         Ok(e)
     }
@@ -239,13 +302,14 @@ impl Effect {
 
 /// Refuse an effect named twice: only one value of each can be simulated, and the truth
 /// must say which.
-pub fn check_unique(effects: &[Effect]) -> Result<(), String> {
+pub fn check_unique(effects: &[Effect]) -> Result<(), EffectError> {
     for (i, e) in effects.iter().enumerate() {
         if let Some(first) = effects[..i].iter().find(|f| f.name() == e.name()) {
-            return Err(format!(
-                "effect `{}` given twice (`{first}` and `{e}`): give each effect once",
-                e.name()
-            ));
+            return Err(EffectError::Twice {
+                name: e.name(),
+                first: *first,
+                second: *e,
+            });
         }
     }
     Ok(())
@@ -253,7 +317,7 @@ pub fn check_unique(effects: &[Effect]) -> Result<(), String> {
 
 /// Parse a list of `NAME=VALUE` effects (the repeatable `--effect`), refusing an effect
 /// named twice.
-pub fn parse_all<S: AsRef<str>>(specs: &[S]) -> Result<Vec<Effect>, String> {
+pub fn parse_all<S: AsRef<str>>(specs: &[S]) -> Result<Vec<Effect>, EffectError> {
     let v = specs
         .iter()
         .map(|s| Effect::parse(s.as_ref()))
@@ -262,9 +326,12 @@ pub fn parse_all<S: AsRef<str>>(specs: &[S]) -> Result<Vec<Effect>, String> {
     Ok(v)
 }
 
-fn nonneg(name: &str, v: f64) -> Result<f64, String> {
+fn nonneg(name: &'static str, v: f64) -> Result<f64, EffectError> {
     if v < 0.0 {
-        Err(format!("effect `{name}`: SIGMA must be >= 0 in"))
+        Err(EffectError::OutOfRange {
+            name,
+            why: "SIGMA must be >= 0 in".into(),
+        })
     } else {
         Ok(v)
     }
@@ -344,15 +411,19 @@ mod tests {
     fn bad_effects_say_why() {
         assert!(Effect::parse("glare=1")
             .unwrap_err()
+            .to_string()
             .contains("unknown effect `glare`"));
         assert!(Effect::parse("cell_gain")
             .unwrap_err()
+            .to_string()
             .contains("needs a value"));
         assert!(Effect::parse("cell_gain=x")
             .unwrap_err()
+            .to_string()
             .contains("not a number"));
         assert!(Effect::parse("beacon_pattern=95")
             .unwrap_err()
+            .to_string()
             .contains("(0, 90)"));
         assert!(Effect::parse("saturation=-1").is_err());
     }
@@ -371,7 +442,7 @@ mod tests {
             ("plate_tilt=-1", "[0, 10]"),
             ("plate_tilt=20", "[0, 10]"),
         ] {
-            let e = Effect::parse(s).unwrap_err();
+            let e = Effect::parse(s).unwrap_err().to_string();
             let name = s.split('=').next().unwrap();
             assert!(
                 e.contains(&format!("effect `{name}`")) && e.contains(why),
@@ -390,7 +461,9 @@ mod tests {
 
     #[test]
     fn an_effect_named_twice_is_refused() {
-        let e = parse_all(&["cell_gain=0.1", "intensity", "cell_gain=0.2"]).unwrap_err();
+        let e = parse_all(&["cell_gain=0.1", "intensity", "cell_gain=0.2"])
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("effect `cell_gain` given twice"), "{e}");
         assert!(
             e.contains("cell_gain=0.1,0") && e.contains("cell_gain=0.2,0"),

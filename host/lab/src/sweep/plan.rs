@@ -586,7 +586,7 @@ impl Plan {
 
         let sv = &raw.separations_in;
         let separations = match sv.get_ref() {
-            toml::Value::String(s) => parse_separations(s),
+            toml::Value::String(s) => parse_separations(s).map_err(|e| e.to_string()),
             toml::Value::Array(a) => a
                 .iter()
                 .map(|v| match v {

@@ -227,8 +227,8 @@ fn print_table(
         print!("{text}");
     }
     if let Some(p) = plot {
-        // Announced on stderr by `write_svg`.
         draw(p)?;
+        crate::args::announce_plot(p);
     }
     Ok(())
 }
