@@ -3,6 +3,7 @@
 
 pub mod calibrate;
 pub mod magnitude;
+pub mod nearfield;
 pub mod wiring;
 
 use crate::data::weights::{chi2_expected, misfit_warning, observations, Weights, CHI2_FAR, CHI2_WARN};
