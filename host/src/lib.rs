@@ -50,7 +50,7 @@ pub enum Cmd {
     /// near-field (eqs 60-63: d, p, face angles, cell offset, cell gains and offsets) fits,
     /// the residual RMS of both per separation (flagging where the model misses), and the
     /// JSON file `cta sensor load-calibration` stores in flash.
-    Calibrate(cta_lab::fit::calibrate::CalibrateArgs),
+    Calibrate(cmd::calibrate::CalibrateArgs),
     /// The main job on the built-in simulated CTA (no hardware): near-field errors,
     /// uncertainty, a simulated characterization with a hidden effect, calibration and
     /// evaluation, with plots, in one folder.
@@ -118,7 +118,7 @@ pub fn main() {
         Cmd::Simulate(a) => commands::simulate(a),
         Cmd::Fit(a) => commands::fit_cmd(a),
         Cmd::Evaluate(a) => commands::evaluate_cmd(a),
-        Cmd::Calibrate(a) => cta_lab::fit::calibrate::run(a),
+        Cmd::Calibrate(a) => cmd::calibrate::run(a),
         Cmd::Demo(a) => cmd::demo::run(a),
         Cmd::Sweep(a) => cta_lab::sweep::run(a),
         Cmd::Analyze(a) => cta_lab::analyze::run(a),

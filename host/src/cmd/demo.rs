@@ -206,7 +206,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         "\n== 6. The sensor board's calibration from the sweep (pinhole, then the chip's near-field model)"
     );
     let cal = p("cal.json");
-    cta_lab::fit::calibrate::run(&parse_args::<cta_lab::fit::calibrate::CalibrateArgs>(&[
+    crate::cmd::calibrate::run(&parse_args::<crate::cmd::calibrate::CalibrateArgs>(&[
         path_str(&data)?,
         "--out",
         path_str(&cal)?,
