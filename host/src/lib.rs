@@ -64,7 +64,7 @@ pub enum Cmd {
     Analyze(cta_lab::analyze::AnalyzeArgs),
     /// The noise of repeated samples by separation, angle, magnitude, frequency, power and
     /// sensitivity (the Ch VI questions), and the weighting it implies for fit and analyze.
-    Noise(cta_lab::noise::NoiseArgs),
+    Noise(cmd::noise::NoiseArgs),
     /// Talk to the beacon array board (STM32F103ZET6) by hand: identify, light beacons,
     /// status, heartbeat; `--sim` for an in-process simulated board, or serve one on a
     /// pseudo-terminal.
@@ -122,7 +122,7 @@ pub fn main() {
         Cmd::Demo(a) => cmd::demo::run(a),
         Cmd::Sweep(a) => cta_lab::sweep::run(a),
         Cmd::Analyze(a) => cta_lab::analyze::run(a),
-        Cmd::Noise(a) => cta_lab::noise::run(a),
+        Cmd::Noise(a) => cmd::noise::run(a),
         Cmd::Beacon(a) => cta_lab::boards::beacon::run(a),
         Cmd::Sensor(a) => cta_lab::boards::sensor::run(a),
     };

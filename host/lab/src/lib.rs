@@ -8,6 +8,7 @@ pub mod boards;
 pub mod commands;
 pub mod data;
 pub mod fit;
+pub mod html;
 pub mod noise;
 pub mod plot;
 pub mod progress;

@@ -14,7 +14,7 @@
 use super::{
     correlation_lines, cross_correlation_line, g, pm, pm_parts, Analysis, Cause, Correlation,
 };
-use crate::noise::html_escape;
+use crate::html::escape as html_escape;
 use crate::plot::{render_svg, Panel, Series};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
