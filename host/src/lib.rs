@@ -61,7 +61,7 @@ pub enum Cmd {
     Sweep(cta_lab::sweep::SweepArgs),
     /// From measured data to a named cause: where the model disagrees with the data, the
     /// physical effect responsible, the extended model and its held-out gain.
-    Analyze(cta_lab::analyze::AnalyzeArgs),
+    Analyze(cmd::analyze::AnalyzeArgs),
     /// The noise of repeated samples by separation, angle, magnitude, frequency, power and
     /// sensitivity (the Ch VI questions), and the weighting it implies for fit and analyze.
     Noise(cmd::noise::NoiseArgs),
@@ -121,7 +121,7 @@ pub fn main() {
         Cmd::Calibrate(a) => cmd::calibrate::run(a),
         Cmd::Demo(a) => cmd::demo::run(a),
         Cmd::Sweep(a) => cta_lab::sweep::run(a),
-        Cmd::Analyze(a) => cta_lab::analyze::run(a),
+        Cmd::Analyze(a) => cmd::analyze::run(a),
         Cmd::Noise(a) => cmd::noise::run(a),
         Cmd::Beacon(a) => cta_lab::boards::beacon::run(a),
         Cmd::Sensor(a) => cta_lab::boards::sensor::run(a),

@@ -215,12 +215,12 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     ])?)?;
     println!("\n== 7. What the simulation gets wrong, why, and the gain of the extended model");
     let report = p("report");
-    let analyze = parse_args::<cta_lab::analyze::AnalyzeArgs>(&[
+    let analyze = parse_args::<crate::cmd::analyze::AnalyzeArgs>(&[
         path_str(&data)?,
         "--report",
         path_str(&report)?,
     ])?;
-    cta_lab::analyze::run(&analyze)?;
+    crate::cmd::analyze::run(&analyze)?;
     println!(
         "\nDemo output in {}: nearfield.svg, uncertainty.svg, run/ (sweep data, manifest, truth), fit.json, \
          figure57.svg, cal.json (for `cta sensor load-calibration`) and calibration.svg, and the analysis report: open {}",
