@@ -51,7 +51,7 @@ pub enum Cmd {
     /// near-field (eqs 60-63: d, p, face angles, cell offset, cell gains and offsets) fits,
     /// the residual RMS of both per separation (flagging where the model misses), and the
     /// JSON file `cta sensor load-calibration` stores in flash.
-    Calibrate(cta_lab::fit::calibrate::CalibrateArgs),
+    Calibrate(cmd::calibrate::CalibrateArgs),
     /// The main job on the built-in simulated CTA (no hardware): near-field errors,
     /// uncertainty, a simulated characterization with a hidden effect, calibration and
     /// evaluation, with plots, in one folder.
@@ -62,10 +62,10 @@ pub enum Cmd {
     Sweep(cta_lab::sweep::SweepArgs),
     /// From measured data to a named cause: where the model disagrees with the data, the
     /// physical effect responsible, the extended model and its held-out gain.
-    Analyze(cta_lab::analyze::AnalyzeArgs),
+    Analyze(cmd::analyze::AnalyzeArgs),
     /// The noise of repeated samples by separation, angle, magnitude, frequency, power and
     /// sensitivity (the Ch VI questions), and the weighting it implies for fit and analyze.
-    Noise(cta_lab::noise::NoiseArgs),
+    Noise(cmd::noise::NoiseArgs),
     /// Talk to the beacon array board (STM32F103ZET6) by hand: identify, light beacons,
     /// status, heartbeat; `--sim` for an in-process simulated board, or serve one on a
     /// pseudo-terminal.
@@ -119,11 +119,11 @@ pub fn main() {
         Cmd::Simulate(a) => cmd::simulate::run(a),
         Cmd::Fit(a) => cmd::fit::run(a),
         Cmd::Evaluate(a) => cmd::evaluate::run(a),
-        Cmd::Calibrate(a) => cta_lab::fit::calibrate::run(a),
+        Cmd::Calibrate(a) => cmd::calibrate::run(a),
         Cmd::Demo(a) => cmd::demo::run(a),
         Cmd::Sweep(a) => cta_lab::sweep::run(a),
-        Cmd::Analyze(a) => cta_lab::analyze::run(a),
-        Cmd::Noise(a) => cta_lab::noise::run(a),
+        Cmd::Analyze(a) => cmd::analyze::run(a),
+        Cmd::Noise(a) => cmd::noise::run(a),
         Cmd::Beacon(a) => cmd::beacon::run(a),
         Cmd::Sensor(a) => cmd::sensor::run(a),
     };

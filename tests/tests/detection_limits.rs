@@ -22,6 +22,7 @@
 //! `cargo test --release -p cta-tests --test detection_limits -- --ignored --nocapture detection_limits`
 
 use cta_lab::analyze::{analyze, Analysis, Options};
+use cta_lab::progress::Silent;
 use cta_lab::sim::effects::Effect;
 use cta_lab::sim::SimConfig;
 use std::collections::BTreeMap;
@@ -56,7 +57,7 @@ fn analyze_sim(effects: Vec<Effect>, seed: u64) -> Analysis {
         ..Default::default()
     };
     let (ds, _) = cfg.run();
-    analyze(&ds, &Options::default(), &|_: &str| {})
+    analyze(&ds, &Options::default(), &Silent)
         .unwrap_or_else(|e| panic!("analyze failed: {e}"))
 }
 

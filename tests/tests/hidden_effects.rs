@@ -14,7 +14,9 @@
 //! `intensity` has no test of its own on top of the thesis physics (the `thesis` model
 //! already contains it: injecting it changes nothing); it is found from `pinhole` below.
 
-use cta_lab::analyze::{analyze, model::Base, render_text, Analysis, Cause, Options};
+use cta_cli::cmd::analyze::render_text;
+use cta_lab::analyze::{analyze, model::Base, Analysis, Cause, Options};
+use cta_lab::progress::Silent;
 use cta_lab::sim::effects::{Effect, VOCABULARY};
 use cta_lab::sim::{SimConfig, Truth};
 use rand::rngs::StdRng;
@@ -47,7 +49,7 @@ fn run(cfg: &SimConfig, from: Base) -> (Analysis, Truth) {
         from,
         ..Default::default()
     };
-    let a = analyze(&ds, &opts, &|_: &str| {}).unwrap_or_else(|e| panic!("analyze failed: {e}"));
+    let a = analyze(&ds, &opts, &Silent).unwrap_or_else(|e| panic!("analyze failed: {e}"));
     (a, truth)
 }
 
@@ -508,7 +510,7 @@ fn clean_data_rules_every_candidate_out() {
     assert_eq!(by("proximity").params[0].no_effect, Some(0.175));
     assert_eq!(by("beacon_pattern").params[0].name, "H_deg");
     assert_eq!(by("beacon_pattern").params[0].no_effect, Some(60.0));
-    let text = cta_lab::analyze::render_text(&a);
+    let text = render_text(&a);
     assert!(
         text.contains("not named (tried on top of the final model"),
         "{text}"
@@ -670,7 +672,9 @@ fn one_separation_is_refused_with_reason() {
     let mut cfg = sim(&["cell_gain=0.03,0"], 25);
     cfg.separations = vec![10.0];
     let (ds, _) = cfg.run();
-    let e = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap_err();
+    let e = analyze(&ds, &Options::default(), &Silent)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("at least 2 separations"), "{e}");
     assert!(e.contains("No candidate could be tested"), "{e}");
 }
@@ -680,7 +684,7 @@ fn two_separations_cannot_test_per_separation_effects() {
     let mut cfg = sim(&["face_angle=1,0"], 26);
     cfg.separations = vec![5.0, 20.0];
     let (ds, _) = cfg.run();
-    let a = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
+    let a = analyze(&ds, &Options::default(), &Silent).unwrap();
     for e in ["plate_offset", "separation_error"] {
         let u = a.untested.iter().find(|u| u.effect == e).unwrap();
         assert!(u.reason.contains("at least 3 separations"), "{}", u.reason);
@@ -695,7 +699,7 @@ fn tiny_grid_names_nothing_false() {
     let mut cfg = sim(&[], 27);
     cfg.grid = (2, 2);
     let (ds, _) = cfg.run();
-    let a = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
+    let a = analyze(&ds, &Options::default(), &Silent).unwrap();
     assert!(a.causes.is_empty(), "{}", a.verdict);
     // 4 points per separation: the per-separation corrections are listed as untested, each
     // with the reason.

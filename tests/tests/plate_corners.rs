@@ -5,6 +5,7 @@
 //! `plate_tilt`.
 
 use cta_lab::analyze::{analyze, Options};
+use cta_lab::progress::Silent;
 use cta_lab::data::Dataset;
 use cta_lab::sim::Truth;
 use cta_lab::sweep::corners::{RunCorners, ROD_XY_IN};
@@ -54,7 +55,7 @@ fn corner_readings_explain_a_tilted_plate() {
             corners: Some(rc),
             ..Options::default()
         },
-        &|_: &str| {},
+        &Silent,
     )
     .unwrap();
     let c = placed.corners.as_ref().unwrap();
@@ -82,7 +83,7 @@ fn corner_readings_explain_a_tilted_plate() {
         placed.data_notes
     );
     // The same data with the plates taken as level: the tilt is found in the data.
-    let level = analyze(&ds, &Options::default(), &|_: &str| {}).unwrap();
+    let level = analyze(&ds, &Options::default(), &Silent).unwrap();
     let names: Vec<&str> = level.causes.iter().map(|c| c.effect.as_str()).collect();
     assert_eq!(names, ["plate_tilt"], "{}", level.verdict);
     assert!(level.corners.is_none());

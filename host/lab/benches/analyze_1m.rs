@@ -4,7 +4,7 @@
 //! Run (release, as shipped):
 //!
 //! ```text
-//! cargo bench -p cta --bench analyze_1m
+//! cargo bench -p cta-lab --bench analyze_1m
 //! ```
 //!
 //! It simulates the file first (thesis physics, noise 32.8 counts, a hidden `cell_gain`;
@@ -21,9 +21,23 @@
 
 use cta_lab::analyze::{analyze, Options};
 use cta_lab::data::Dataset;
+use cta_lab::progress::Progress;
 use cta_lab::sim::effects::Effect;
 use cta_lab::sim::SimConfig;
 use std::time::Instant;
+
+/// The spinner `cta analyze` draws: the fits so far and what was fitted last.
+struct Spinner(indicatif::ProgressBar);
+
+impl Progress for Spinner {
+    fn position(&self, done: u64, _total: u64) {
+        self.0.set_position(done);
+    }
+
+    fn message(&self, what: &str) {
+        self.0.set_message(what.to_string());
+    }
+}
 
 fn main() -> anyhow::Result<()> {
     let cfg = SimConfig {
@@ -53,13 +67,10 @@ fn main() -> anyhow::Result<()> {
     bar.set_message("reading");
     let ds = Dataset::read(&path).map_err(anyhow::Error::msg)?;
     let t_read = t0.elapsed();
-    let progress = |m: &str| {
-        bar.inc(1);
-        bar.set_message(m.to_string());
-    };
-    let a = analyze(&ds, &Options::default(), &progress).map_err(anyhow::Error::msg)?;
+    let bar = Spinner(bar);
+    let a = analyze(&ds, &Options::default(), &bar)?;
     let t = t0.elapsed();
-    bar.finish_and_clear();
+    bar.0.finish_and_clear();
     println!(
         "analyze_1m: {} samples, {} points: read {:.2} s, total {:.2} s (target < 10 s) on {} threads",
         a.samples,

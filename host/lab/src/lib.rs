@@ -8,6 +8,7 @@ pub mod boards;
 pub mod budget;
 pub mod data;
 pub mod fit;
+pub mod html;
 pub mod nearfield;
 pub mod noise;
 pub mod plot;

@@ -18,8 +18,7 @@
 //! Points at the 16-bit rail are left out, by `cta calibrate`'s rule
 //! ([`crate::data::any_sample_pinned`], [`crate::data::mean_near_rail`]): a
 //! coordinate pinned at +/-32767 in any sample, or the mean within 3 sigma of it. A cell in
-//! shadow or saturated clips the spread, so such a point reads quieter than the sensor is (at
-//! 2 in on the simulated CTA, 58 of 100 points: they made constant noise look lower there).
+//! shadow or saturated clips the spread, so such a point reads quieter than the sensor is.
 //!
 //! Every figure is a standard deviation, which a few glitches (an ID mix-up, a corrupted
 //! report) inflate many-fold, so it also gives per axis the robust sigma (the median absolute
@@ -40,36 +39,43 @@ use crate::data::{any_sample_pinned, mean_near_rail, Dataset, Glitches, Sample};
 use crate::plot::{render_svg, Panel, Series};
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-/// `cta noise`: how noisy are the repeated samples, and on what does the noise depend?
-#[derive(Debug, Clone, clap::Args)]
-#[command(after_long_help = "\
-Needs repeated samples (several rows per beacon, separation and setting). For each factor the
-file records (separation, off-boresight angle, signal magnitude, modulation frequency, power
-level, sensitivity setting) the table gives the pooled one-sample standard deviation of X and
-Y in counts with its standard error from sampling, whether the groups differ beyond sampling
-(Bartlett's test, 1 %), and the verdict says which weighting to use in `cta analyze --weights`.
-Points at the 16-bit rail (a coordinate at +/-32767 in any sample, or the mean within 3 sigma
-of it: a cell in shadow or saturated) are left out of everything, as `cta calibrate` does, and
-counted. The robust sigma (median absolute deviation from each point's median, points of 3+
-samples) is given against the std per axis, with the samples more than 8 robust sigma from their
-point's median (glitches: an ID mix-up, a corrupted report) and their lines, which every figure
-still includes. Last, the repeatability of the spot magnitude (one-sample std over mean, in %): what
-`cta sensor floor --magnitude-noise` takes to tell what the magnitudes would add to the pose.
-
-EXAMPLE:
-  cta simulate --out sim.csv --separations 2..30 --noise 32.8 --samples 20
-  cta noise sim.csv --plot noise-plots")]
-pub struct NoiseArgs {
-    /// Measurement file (CSV, host/MEASUREMENTS.md).
-    pub file: PathBuf,
-    /// Write SVG plots (noise.svg) and a small HTML page into this folder.
-    #[arg(long, value_name = "DIR")]
-    pub plot: Option<PathBuf>,
-    /// Print the result as JSON instead of a table.
-    #[arg(long)]
-    pub json: bool,
+/// Why the noise cannot be measured, or its plots not written.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NoiseError {
+    /// Every point with repeated samples is at the 16-bit rail.
+    #[error(
+        "{}: no point with repeated samples is left once the points at the 16-bit rail are \
+         left out ({pinned} with a coordinate pinned at +/-32767 in some sample, {near_rail} \
+         with a mean within 3 sigma of it: a cell in shadow or saturated clips the spread)",
+        path.display()
+    )]
+    AllAtTheRail {
+        /// The measurement file.
+        path: PathBuf,
+        /// Points with a coordinate pinned in some sample.
+        pinned: usize,
+        /// Points with a mean within 3 sigma of the rail.
+        near_rail: usize,
+    },
+    /// No point has repeated samples.
+    #[error(
+        "{}: every point has a single sample: the noise needs repeated samples of one \
+         beacon at one setting (e.g. `cta simulate --samples 20`, or a sweep with several \
+         samples per beacon)",
+        path.display()
+    )]
+    SingleSamples {
+        /// The measurement file.
+        path: PathBuf,
+    },
+    /// A plot file may not be replaced, or could not be written.
+    #[error("{0}")]
+    Write(String),
+    /// The plots could not be drawn.
+    #[error("plotting failed: {0}")]
+    Plot(String),
 }
 
 /// Pooled noise of one group of points.
@@ -434,7 +440,7 @@ fn settings_among(factors: &[Factor]) -> Vec<&Factor> {
 }
 
 /// Analyze the noise of a dataset.
-pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
+pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, NoiseError> {
     let groups = ds.points();
     // The rail rule of `cta calibrate` ([`any_sample_pinned`], [`mean_near_rail`]): a point
     // with a coordinate pinned at +/-32767 in any sample, or its mean within 3 sigma of the
@@ -514,22 +520,16 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
     };
     let rep: Vec<&Pt> = pts.iter().filter(|p| p.n > 1).collect();
     if rep.is_empty() && left_out.points > 0 {
-        return Err(format!(
-            "{}: no point with repeated samples is left once the points at the 16-bit rail are \
-             left out ({} with a coordinate pinned at +/-32767 in some sample, {} with a mean \
-             within 3 sigma of it: a cell in shadow or saturated clips the spread)",
-            ds.path.display(),
-            left_out.pinned_sample,
-            left_out.mean_near_rail
-        ));
+        return Err(NoiseError::AllAtTheRail {
+            path: ds.path.clone(),
+            pinned: left_out.pinned_sample,
+            near_rail: left_out.mean_near_rail,
+        });
     }
     if rep.is_empty() {
-        return Err(format!(
-            "{}: every point has a single sample: the noise needs repeated samples of one \
-             beacon at one setting (e.g. `cta simulate --samples 20`, or a sweep with several \
-             samples per beacon)",
-            ds.path.display()
-        ));
+        return Err(NoiseError::SingleSamples {
+            path: ds.path.clone(),
+        });
     }
     let all = pool("all".into(), 0.0, &rep);
     let sxy: f64 = rep.iter().map(|p| p.sxy).sum();
@@ -699,216 +699,6 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, String> {
     })
 }
 
-/// The table.
-pub fn render_text(r: &NoiseReport) -> String {
-    use std::fmt::Write;
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "cta noise {}: {} samples, {} points with repeated samples ({} single)",
-        r.file, r.samples, r.points_repeated, r.points_single
-    );
-    let lo = &r.left_out;
-    if lo.points > 0 {
-        let by: Vec<String> = lo
-            .by_separation
-            .iter()
-            .map(|(sep, n)| format!("{sep} in: {n}"))
-            .collect();
-        let _ = writeln!(
-            s,
-            "{} points left out ({} with a coordinate pinned at +/-32767 in some sample, {} with \
-             a mean within 3 sigma of it):\n  a cell in shadow or saturated clips the spread, so \
-             they would read quieter than the sensor is ({})",
-            lo.points,
-            lo.pinned_sample,
-            lo.mean_near_rail,
-            by.join(", ")
-        );
-    }
-    let _ = writeln!(
-        s,
-        "one-sample std over the file: X {:.2}, Y {:.2} counts; X-Y correlation {:+.3}\n",
-        r.std_all[0], r.std_all[1], r.xy_correlation
-    );
-    let _ = write!(s, "{}", render_glitches(&r.glitches));
-    for f in &r.factors {
-        if f.groups.is_empty() {
-            let _ = writeln!(s, "by {}: not recorded in the file\n", f.factor);
-            continue;
-        }
-        let test = if f.test_dof > 0 {
-            format!(
-                "{}: Bartlett chi2 X {:.1}, Y {:.1} on {} dof, 1 % bound {:.1}",
-                if f.significant {
-                    "differs beyond sampling"
-                } else {
-                    "within sampling"
-                },
-                f.statistic[0],
-                f.statistic[1],
-                f.test_dof,
-                f.bound
-            )
-        } else {
-            "one group: nothing to compare".into()
-        };
-        let ratio = if f.spread_ratio.is_finite() {
-            format!("max/min {:.2}, ", f.spread_ratio)
-        } else {
-            String::new()
-        };
-        let unit = match f.factor.as_str() {
-            "signal magnitude" => " (groups in the file's magnitude units)",
-            _ => "",
-        };
-        let _ = writeln!(s, "by {}{unit} ({ratio}{test}):", f.factor);
-        let _ = writeln!(
-            s,
-            "  {:<16} {:>7} {:>8} {:>10} {:>10}",
-            "group", "points", "dof", "std X", "std Y"
-        );
-        for g in &f.groups {
-            let _ = writeln!(
-                s,
-                "  {:<16} {:>7} {:>8} {:>10.2} {:>10.2}",
-                g.label, g.points, g.dof, g.std_x, g.std_y
-            );
-        }
-        let _ = writeln!(s);
-    }
-    let within_setting = if r.within_setting_dispersion.is_finite()
-        && (r.within_setting_dispersion - r.within_separation_dispersion).abs() > 0.005
-    {
-        format!(
-            "; within a separation and setting: {:.2}",
-            r.within_setting_dispersion
-        )
-    } else {
-        String::new()
-    };
-    let _ = writeln!(
-        s,
-        "within-separation dispersion of point variances: {:.2} (1 = homogeneous){within_setting}",
-        r.within_separation_dispersion
-    );
-    let _ = writeln!(s, "weighting: {}", r.weighting);
-    match &r.magnitude {
-        None => {
-            let _ = writeln!(s, "\nspot magnitude: not recorded in the file");
-        }
-        Some(m) => {
-            let _ = writeln!(
-                s,
-                "\nspot magnitude repeatability (one-sample std / mean, {} points): {:.3} % over the file",
-                m.points, m.percent
-            );
-            let by: Vec<String> = m
-                .by_separation
-                .iter()
-                .map(|(sep, pc, _)| format!("{sep} in {pc:.3} %"))
-                .collect();
-            for (k, chunk) in by.chunks(6).enumerate() {
-                let head = if k == 0 { "by separation:" } else { "" };
-                let _ = writeln!(s, "  {head:<14} {}", chunk.join(", "));
-            }
-            if m.percent < 1e-9 {
-                let _ = writeln!(
-                    s,
-                    "  no spread at all: a simulation without magnitude noise (the NorthStar's is \
-                     unmeasured; `cta simulate --magnitude-noise PERCENT` adds some as a what-if)"
-                );
-            } else {
-                let _ = writeln!(
-                    s,
-                    "  what the magnitudes would add to the pose at this noise: \
-                     `cta sensor floor --magnitude-noise {:.2}` (brightness differences between LEDs\n  \
-                     are not in this figure: they need their own calibration)",
-                    m.percent
-                );
-            }
-        }
-    }
-    s
-}
-
-/// The glitch lines of the table: robust sigma against std, and the heavy tail when there is one.
-fn render_glitches(g: &Glitches) -> String {
-    use std::fmt::Write;
-    let mut s = String::new();
-    if g.points_checked == 0 || g.axes.len() != 2 {
-        let _ = writeln!(
-            s,
-            "glitch check: no point with {} or more samples off the 16-bit rail (nothing to check)\n",
-            crate::data::GLITCH_MIN_SAMPLES
-        );
-        return s;
-    }
-    let (x, y) = (&g.axes[0], &g.axes[1]);
-    let floor = crate::data::GLITCH_FLOOR_COUNTS;
-    let ratio = if x.robust_sigma >= floor && y.robust_sigma >= floor {
-        format!(
-            "std / robust sigma X {:.2}, Y {:.2} (about 1 for Gaussian noise)",
-            x.std_with / x.robust_sigma,
-            y.std_with / y.robust_sigma
-        )
-    } else {
-        format!("a robust sigma below the {floor} count resolution: no ratio")
-    };
-    let _ = writeln!(
-        s,
-        "robust sigma (median absolute deviation from each point's median, {} points of {}+ \
-         samples): X {:.2}, Y {:.2} counts;\n  std over the same points X {:.2}, Y {:.2}: {ratio}",
-        g.points_checked,
-        crate::data::GLITCH_MIN_SAMPLES,
-        x.robust_sigma,
-        y.robust_sigma,
-        x.std_with,
-        y.std_with,
-    );
-    if g.samples == 0 {
-        let _ = writeln!(
-            s,
-            "  no sample lies more than {} robust sigma from its point's median: no glitches\n",
-            g.threshold_sigma
-        );
-    } else {
-        let lines = |a: &crate::data::AxisGlitches| {
-            let shown: Vec<String> = a.lines.iter().take(8).map(|l| l.to_string()).collect();
-            format!(
-                "{}{}",
-                shown.join(", "),
-                if a.lines.len() > 8 { ", ..." } else { "" }
-            )
-        };
-        let _ = writeln!(
-            s,
-            "  HEAVY TAIL: {} of {} samples lie more than {} robust sigma from their point's \
-             median (glitches: an ID mix-up, a corrupted report?), kept in every figure here:",
-            g.samples, g.samples_checked, g.threshold_sigma
-        );
-        for a in [x, y] {
-            if a.samples > 0 {
-                let _ = writeln!(
-                    s,
-                    "    {}: {} samples (lines {}); std {:.2} with them, {:.2} without ({:.1}-fold)",
-                    a.axis,
-                    a.samples,
-                    lines(a),
-                    a.std_with,
-                    a.std_without,
-                    a.inflation()
-                );
-            }
-        }
-        let _ = writeln!(
-            s,
-            "  every fit weights by the std: remove those lines, or re-measure\n"
-        );
-    }
-    s
-}
-
 /// The x-axis label of a factor's panel, with its unit.
 fn axis_label(factor: &str) -> String {
     let unit = match factor {
@@ -923,6 +713,8 @@ fn axis_label(factor: &str) -> String {
     format!("{factor} ({unit})")
 }
 
+/// The panel of one factor: the one-sample std of X and Y per group with their standard
+/// errors.
 fn panel(f: &Factor, log_x: bool) -> Panel {
     let series = |a: usize| {
         let pts = f
@@ -960,48 +752,32 @@ fn panel(f: &Factor, log_x: bool) -> Panel {
     }
 }
 
-/// Run `cta noise`.
-pub fn run(args: &NoiseArgs) -> anyhow::Result<()> {
-    let (ds, warnings) = crate::sweep::read_measurements(&args.file).map_err(anyhow::Error::msg)?;
-    for w in warnings {
-        eprintln!("warning: {w}");
+/// Write the plots of `r` into the folder `dir`: `noise.svg` (one panel per factor with more
+/// than one group) and `index.html` holding it with `text`, the report as the command line
+/// prints it. Neither file may replace one `cta` did not write. Returns the page's path.
+pub fn write_plots(dir: &Path, r: &NoiseReport, text: &str) -> Result<PathBuf, NoiseError> {
+    let (svg_path, index) = (dir.join("noise.svg"), dir.join("index.html"));
+    fn write(e: impl std::fmt::Display) -> NoiseError {
+        NoiseError::Write(e.to_string())
     }
-    let r = analyze_noise(&ds).map_err(anyhow::Error::msg)?;
-    // The report first: a plot that cannot be written loses nothing.
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&r)?);
-    } else {
-        print!("{}", render_text(&r));
-    }
-    if let Some(dir) = &args.plot {
-        let (svg_path, index) = (dir.join("noise.svg"), dir.join("index.html"));
-        crate::plot::refuse_to_replace(&svg_path)?;
-        crate::plot::refuse_to_replace(&index)?;
-        let panels: Vec<Panel> = r
-            .factors
-            .iter()
-            .filter(|f| f.groups.len() > 1)
-            .map(|f| panel(f, f.factor == "signal magnitude"))
-            .collect();
-        let svg = render_svg(&format!("CTA noise: {}", r.file), &panels, 2)
-            .map_err(|e| anyhow::anyhow!("plotting failed: {e}"))?;
-        crate::plot::write_marked(&svg_path, &svg)?;
-        let html = format!(
-            "<!doctype html><meta charset=utf-8><title>cta noise</title>\
-             <body style='font-family:sans-serif'>{svg}<pre>{}</pre></body>",
-            html_escape(&render_text(&r))
-        );
-        crate::plot::write_marked(&index, &html)?;
-        eprintln!("plots: {}", index.display());
-    }
-    Ok(())
-}
-
-/// Escape text for HTML.
-pub fn html_escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
+    crate::plot::refuse_to_replace(&svg_path).map_err(write)?;
+    crate::plot::refuse_to_replace(&index).map_err(write)?;
+    let panels: Vec<Panel> = r
+        .factors
+        .iter()
+        .filter(|f| f.groups.len() > 1)
+        .map(|f| panel(f, f.factor == "signal magnitude"))
+        .collect();
+    let svg = render_svg(&format!("CTA noise: {}", r.file), &panels, 2)
+        .map_err(|e| NoiseError::Plot(e.to_string()))?;
+    crate::plot::write_marked(&svg_path, &svg).map_err(write)?;
+    let html = format!(
+        "<!doctype html><meta charset=utf-8><title>cta noise</title>\
+         <body style='font-family:sans-serif'>{svg}<pre>{}</pre></body>",
+        crate::html::escape(text)
+    );
+    crate::plot::write_marked(&index, &html).map_err(write)?;
+    Ok(index)
 }
 
 #[cfg(test)]
@@ -1047,53 +823,8 @@ mod tests {
         .0;
         assert!(analyze_noise(&single)
             .unwrap_err()
+            .to_string()
             .contains("single sample"));
-    }
-
-    /// The reviewer's repro (`cta simulate --separations 2..30 --noise 32.8 --samples 20`):
-    /// constant noise, but at 2 and 3 in cells in shadow pin samples at the rail. Those points
-    /// are left out (as `cta calibrate` does), and 29 separations of one noise are not called
-    /// different (a bound per pair of groups flagged one of the 406 pairs by chance).
-    #[test]
-    fn constant_noise_with_railed_close_points_is_uniform() {
-        for seed in [1, 2010] {
-            let ds = SimConfig {
-                noise: 32.8,
-                samples: 20,
-                seed,
-                ..Default::default()
-            }
-            .run()
-            .0;
-            assert!(ds.samples.iter().any(|s| s.x.abs() >= 32767.0));
-            let r = analyze_noise(&ds).unwrap();
-            assert!(r.left_out.pinned_sample > 0, "{:?}", r.left_out);
-            assert!(
-                r.left_out.by_separation.iter().all(|(sep, _)| *sep < 5.0),
-                "{:?}",
-                r.left_out
-            );
-            assert_eq!(r.points_repeated + r.left_out.points, 2900);
-            for f in &r.factors {
-                assert!(
-                    !f.significant,
-                    "seed {seed}: {}: {:?}",
-                    f.factor, f.statistic
-                );
-            }
-            assert!(r.weighting.contains("uniform"), "{}", r.weighting);
-            // Every separation's noise within 4 standard errors of the injected 32.8 (58
-            // estimates: one beyond 3 is to be expected), and the railed 2 in within 3.
-            for g in &r.factors[0].groups {
-                let k = if g.key == 2.0 { 3.0 } else { 4.0 };
-                for (v, se) in [(g.std_x, g.se_x), (g.std_y, g.se_y)] {
-                    assert!((v - 32.8).abs() < k * se, "{}: {v} +/- {se}", g.label);
-                }
-            }
-            let text = render_text(&r);
-            assert!(text.contains("points left out"), "{text}");
-            assert!(!text.contains("differs beyond sampling"), "{text}");
-        }
     }
 
     /// A point whose samples all stay inside the rail but whose mean is within 3 sigma of it
@@ -1149,8 +880,8 @@ mod tests {
     }
 
     /// Noise that differs between power levels within a separation (a Ch VI sweep): pool per
-    /// separation and setting, never per point (5 or 10 samples per point; the reviewer's
-    /// 5-sample sweep turned clean data into "unexplained structure" with `point`).
+    /// separation and setting, never per point (5 or 10 samples per point: with 5, `point`
+    /// turns clean data into "unexplained structure").
     #[test]
     fn settings_that_differ_recommend_setting_weights() {
         let mut ds = two_separations();
@@ -1195,43 +926,6 @@ mod tests {
         }
     }
 
-    /// Magnitude bins stop at the 16-bit ceiling (and hold a magnitude at it); a factor with
-    /// one group gives no max/min (that would be X over Y, not between groups).
-    #[test]
-    fn magnitude_bins_end_at_the_ceiling_and_one_group_has_no_ratio() {
-        let mut ds = two_separations();
-        let first = ds.samples[0];
-        for s in ds.samples.iter_mut() {
-            s.power = Some(2.0);
-            if s.separation_in == first.separation_in && s.r == first.r {
-                s.magnitude = Some(MAGNITUDE_CEILING);
-            }
-        }
-        let r = analyze_noise(&ds).unwrap();
-        let mag = r
-            .factors
-            .iter()
-            .find(|f| f.factor == "signal magnitude")
-            .unwrap();
-        let top = mag.groups.last().unwrap();
-        assert!(top.label.ends_with("-65535"), "{:?}", mag.groups);
-        assert_eq!(
-            mag.groups.iter().map(|g| g.points).sum::<usize>(),
-            r.points_repeated
-        );
-        let power = r
-            .factors
-            .iter()
-            .find(|f| f.factor == "power level")
-            .unwrap();
-        assert!(power.spread_ratio.is_nan(), "{power:?}");
-        let text = render_text(&r);
-        assert!(
-            text.contains("by power level (one group: nothing to compare):"),
-            "{text}"
-        );
-    }
-
     #[test]
     fn chi_square_bound_matches_the_table() {
         // 99.5 % points: 7.879 (1 dof), 18.548 (6), 50.993 (28).
@@ -1239,43 +933,5 @@ mod tests {
             let v = chi2_upper(k, Z_995);
             assert!((v / table - 1.0).abs() < 0.01, "{k}: {v} vs {table}");
         }
-    }
-
-    #[test]
-    fn magnitude_repeatability_is_measured() {
-        let mut ds = two_separations();
-        // Simulated magnitudes carry no noise.
-        let r = analyze_noise(&ds).unwrap();
-        assert!(r.magnitude.as_ref().unwrap().percent < 1e-9);
-        assert!(render_text(&r).contains("no spread"));
-        // Give them +/-1 % (alternating, so the one-sample std is 1 % x sqrt(n/(n-1))), and
-        // 2 % at 20 in.
-        for s in ds.samples.iter_mut() {
-            let k = s.sample.unwrap_or(0);
-            let a = if s.separation_in == 20.0 { 0.02 } else { 0.01 };
-            if let Some(m) = s.magnitude.as_mut() {
-                *m *= if k % 2 == 0 { 1.0 + a } else { 1.0 - a };
-            }
-        }
-        let r = analyze_noise(&ds).unwrap();
-        let m = r.magnitude.unwrap();
-        let f = (10.0f64 / 9.0).sqrt();
-        assert!((m.by_separation[0].1 - 1.0 * f).abs() < 0.01, "{m:?}");
-        assert!((m.by_separation[1].1 - 2.0 * f).abs() < 0.02, "{m:?}");
-        // A point with a magnitude pinned at the 16-bit ceiling is left out: its spread is
-        // clipped, not measured.
-        let all = m.points;
-        let first = ds.samples[0];
-        for s in ds.samples.iter_mut() {
-            if s.separation_in == first.separation_in && s.r == first.r && s.sample == Some(0) {
-                s.magnitude = Some(MAGNITUDE_CEILING);
-            }
-        }
-        assert_eq!(
-            analyze_noise(&ds).unwrap().magnitude.unwrap().points,
-            all - 1
-        );
-        ds.samples.iter_mut().for_each(|s| s.magnitude = None);
-        assert!(analyze_noise(&ds).unwrap().magnitude.is_none());
     }
 }

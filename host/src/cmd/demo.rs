@@ -209,7 +209,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         "\n== 6. The sensor board's calibration from the sweep (pinhole, then the chip's near-field model)"
     );
     let cal = p("cal.json");
-    cta_lab::fit::calibrate::run(&parse_args::<cta_lab::fit::calibrate::CalibrateArgs>(&[
+    crate::cmd::calibrate::run(&parse_args::<crate::cmd::calibrate::CalibrateArgs>(&[
         path_str(&data)?,
         "--out",
         path_str(&cal)?,
@@ -218,12 +218,12 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     ])?)?;
     println!("\n== 7. What the simulation gets wrong, why, and the gain of the extended model");
     let report = p("report");
-    let analyze = parse_args::<cta_lab::analyze::AnalyzeArgs>(&[
+    let analyze = parse_args::<crate::cmd::analyze::AnalyzeArgs>(&[
         path_str(&data)?,
         "--report",
         path_str(&report)?,
     ])?;
-    cta_lab::analyze::run(&analyze)?;
+    crate::cmd::analyze::run(&analyze)?;
     println!(
         "\nDemo output in {}: nearfield.svg, uncertainty.svg, run/ (sweep data, manifest, truth), fit.json, \
          figure57.svg, cal.json (for `cta sensor load-calibration`) and calibration.svg, and the analysis report: open {}",

@@ -42,8 +42,26 @@ pub const DEFAULT_NOISE_COUNTS: f64 = 32.768;
 /// Quantisation floor on every variance, counts^2.
 pub const VARIANCE_FLOOR: f64 = 1.0 / 12.0;
 
+/// Why a file gives no weighted points.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DataError {
+    /// The one-sample noise given is not a positive number of counts.
+    #[error("--noise {0}: must be a positive number of counts")]
+    Noise(f64),
+    /// Every point is at or near the 16-bit rail.
+    #[error(
+        "{}: every point has an output at or within 3 sigma of the 16-bit limit \
+         (|count| >= 32767): nothing to analyze",
+        path.display()
+    )]
+    AllAtTheRail {
+        /// The measurement file.
+        path: std::path::PathBuf,
+    },
+}
+
 /// How the weights are made.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Weights {
     /// Sample variance pooled per separation and axis (default).
@@ -107,10 +125,10 @@ impl Data {
         ds: &Dataset,
         weights: Weights,
         noise: Option<f64>,
-    ) -> Result<Data, String> {
+    ) -> Result<Data, DataError> {
         if let Some(n) = noise {
             if !(n > 0.0 && n.is_finite()) {
-                return Err(format!("--noise {n}: must be a positive number of counts"));
+                return Err(DataError::Noise(n));
             }
         }
         let seps = ds.separations();
@@ -274,11 +292,9 @@ impl Data {
             })
             .collect();
         if points.is_empty() {
-            return Err(format!(
-                "{}: every point has an output at or within 3 sigma of the 16-bit limit \
-                 (|count| >= 32767): nothing to analyze",
-                ds.path.display()
-            ));
+            return Err(DataError::AllAtTheRail {
+                path: ds.path.clone(),
+            });
         }
         Ok(Data {
             seps,

@@ -21,7 +21,7 @@ use cta_core::real::{deg, rad};
 use nalgebra::{DMatrix, DVector, Dyn, Vector3};
 
 /// The starting model.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Base {
     /// The eq 63 near-field physics (proximity at s = 0.175 in, inverse-square intensity,
@@ -111,6 +111,44 @@ pub const ALL: [Cand; 11] = [
     Cand::SeparationError,
     Cand::PlateTilt,
 ];
+
+/// A name in a candidate list that is no analysis candidate.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CandidateError {
+    /// An effect the simulator has but the analysis does not fit.
+    #[error("`{name}` is simulation-only, not an analysis candidate")]
+    SimulationOnly {
+        /// The name given.
+        name: String,
+    },
+    /// No effect of the vocabulary.
+    #[error(
+        "unknown candidate `{name}`; known: {}",
+        ALL.map(|c| c.name()).join(", ")
+    )]
+    Unknown {
+        /// The name given.
+        name: String,
+    },
+}
+
+/// The candidates of a comma-separated list of vocabulary names (`cell_gain,face_angle`;
+/// empty entries ignored).
+pub fn parse_candidates(s: &str) -> Result<Vec<Cand>, CandidateError> {
+    s.split(',')
+        .map(str::trim)
+        .filter(|p| !p.is_empty())
+        .map(|n| {
+            Cand::from_name(n).ok_or_else(|| {
+                if n == "crosstalk" {
+                    CandidateError::SimulationOnly { name: n.into() }
+                } else {
+                    CandidateError::Unknown { name: n.into() }
+                }
+            })
+        })
+        .collect()
+}
 
 impl Cand {
     /// The vocabulary name.
@@ -785,7 +823,8 @@ impl FitResult {
 }
 
 /// Why a fit failed, in words (names the unconstrained parameter combination).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{0}")]
 pub struct FitFailure(pub String);
 
 /// Solver settings for the analysis: absolute weights, tolerances suited to

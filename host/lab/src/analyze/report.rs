@@ -14,21 +14,51 @@
 use super::{
     correlation_lines, cross_correlation_line, g, pm, pm_parts, Analysis, Cause, Correlation,
 };
-use crate::noise::html_escape;
+use crate::html::escape as html_escape;
 use crate::plot::{render_svg, Panel, Series};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::fmt::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// Why the report could not be written.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ReportError {
+    /// `index.html` may not be replaced, or could not be written.
+    #[error("{0}")]
+    Write(String),
+    /// A plot could not be drawn.
+    #[error("{}: plotting failed: {why}", path.display())]
+    Plot {
+        /// The page.
+        path: PathBuf,
+        /// Why.
+        why: DrawError,
+    },
+}
+
+/// Why a plot of the report could not be drawn.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct DrawError(pub String);
+
+/// Whether the report may be written into `dir`: its `index.html` is new or one `cta` wrote
+/// ([`crate::plot::refuse_to_replace`]). Checked before the work, so a refusal costs nothing.
+pub fn check(dir: &Path) -> Result<(), ReportError> {
+    crate::plot::refuse_to_replace(&dir.join("index.html"))
+        .map_err(|e| ReportError::Write(e.to_string()))
+}
 
 /// Write `DIR/index.html` (missing folders created; refused over a file `cta` did not write,
-/// [`crate::plot::refuse_to_replace`]; errors read `cannot write PATH: reason`).
-pub fn write(dir: &Path, a: &Analysis) -> anyhow::Result<()> {
+/// [`check`]; errors read `cannot write PATH: reason`).
+pub fn write(dir: &Path, a: &Analysis) -> Result<(), ReportError> {
     let index = dir.join("index.html");
-    crate::plot::refuse_to_replace(&index)?;
-    let html =
-        render(a).map_err(|e| anyhow::anyhow!("{}: plotting failed: {e}", index.display()))?;
-    Ok(crate::plot::write_marked(&index, &html)?)
+    check(dir)?;
+    let html = render(a).map_err(|why| ReportError::Plot {
+        path: index.clone(),
+        why,
+    })?;
+    crate::plot::write_marked(&index, &html).map_err(|e| ReportError::Write(e.to_string()))
 }
 
 /// The correlation lines of a candidate as HTML to append to its estimates cell (empty when
@@ -165,7 +195,7 @@ text-align:left;vertical-align:top}th{background:#eee}.verdict{font-size:1.3em;p
 background:#f4f4e8;border-left:6px solid #c90}.acc{background:#e6f4e6}svg{max-width:100%;height:auto}";
 
 /// The whole page.
-pub fn render(a: &Analysis) -> Result<String, String> {
+pub fn render(a: &Analysis) -> Result<String, DrawError> {
     let mut s = String::new();
     let _ = write!(
         s,
@@ -398,7 +428,7 @@ pub fn render(a: &Analysis) -> Result<String, String> {
          effect reads lower at its separations than at their neighbours, so read its trend \
          against the noise alone, not single separations.</p>",
     );
-    s.push_str(&render_svg("", &panels, 2).map_err(|e| e.to_string())?);
+    s.push_str(&render_svg("", &panels, 2).map_err(|e| DrawError(e.to_string()))?);
     if let Some(d) = &a.detail {
         s.push_str(
             "<h2>Residual maps</h2><p>Each arrow is a point's mean residual (measured &minus; \
@@ -464,7 +494,7 @@ fn round_down_125(v: f64) -> f64 {
 }
 
 /// Quiver maps: up to 8 separations spread over the range, before and after side by side.
-fn quivers(a: &Analysis, d: &super::Detail) -> Result<String, String> {
+fn quivers(a: &Analysis, d: &super::Detail) -> Result<String, DrawError> {
     let nsep = a.separations.len();
     let pick: Vec<usize> = if nsep <= 8 {
         (0..nsep).collect()
@@ -478,7 +508,7 @@ fn quivers(a: &Analysis, d: &super::Detail) -> Result<String, String> {
     let mut buf = String::new();
     {
         let root = SVGBackend::with_string(&mut buf, (w, h)).into_drawing_area();
-        let e = |e: DrawingAreaErrorKind<std::io::Error>| e.to_string();
+        let e = |e: DrawingAreaErrorKind<std::io::Error>| DrawError(e.to_string());
         root.fill(&WHITE).map_err(e)?;
         let areas = root.split_evenly((rows, 2));
         let xs: Vec<f64> = d.data.points.iter().map(|p| p.r.x).collect();

@@ -180,6 +180,29 @@ pub struct Options {
 /// Progress callback: called with a short message after each fit.
 pub type Progress<'a> = &'a (dyn Fn(&str) + Sync);
 
+/// Why the selection could not start: the starting model could not be fitted or
+/// cross-validated.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum Error {
+    /// The starting model could not be fitted.
+    #[error("the `{}` starting model could not be fitted: {why}", base.name())]
+    Start {
+        /// The starting model.
+        base: Base,
+        /// Why.
+        why: FitFailure,
+    },
+    /// The starting model could not be cross-validated.
+    #[error("cross-validation of the starting model failed: {0}")]
+    StartCv(FitFailure),
+    /// The pinhole fit the starting pose comes from failed (a `pinhole` start).
+    #[error("the pinhole starting model could not be fitted: {0}")]
+    Pinhole(FitFailure),
+    /// A fit failed.
+    #[error(transparent)]
+    Fit(#[from] FitFailure),
+}
+
 /// Indices of every per-separation parameter of the separations in `seps`.
 fn locals(model: &Model, seps: &[usize]) -> Vec<usize> {
     seps.iter().flat_map(|&k| model.locals_of_sep(k)).collect()
@@ -214,11 +237,11 @@ pub fn fit_all_except(
 
 /// The starting model's chi2 per degree of freedom on `data`, fitted as the selection fits
 /// it (from the pinhole pose): how well it explains the data before any candidate.
-pub fn base_chi2_dof(data: &Data, base: Base) -> Result<f64, String> {
+pub fn base_chi2_dof(data: &Data, base: Base) -> Result<f64, Error> {
     let all: Vec<usize> = (0..data.points.len()).collect();
     let model = Model::for_data(base, data);
     let x0 = initial_pose(data, &all, base)?;
-    let f = fit_all(&model, data, &all, &x0).map_err(|e| e.0)?;
+    let f = fit_all(&model, data, &all, &x0)?;
     Ok(f.chi2 / f.dof(model.n_constraints()))
 }
 
@@ -471,7 +494,7 @@ fn start(
 }
 
 /// Run forward selection with the default interleaved folds.
-pub fn select(data: &Data, opts: &Options, progress: Progress) -> Result<Selection, String> {
+pub fn select(data: &Data, opts: &Options, progress: Progress) -> Result<Selection, Error> {
     let f = folds(data.seps.len(), opts.folds);
     select_with_folds(data, opts, &f, progress)
 }
@@ -484,21 +507,18 @@ pub fn select_with_folds(
     opts: &Options,
     fold_seps: &[Vec<usize>],
     progress: Progress,
-) -> Result<Selection, String> {
+) -> Result<Selection, Error> {
     let all: Vec<usize> = (0..data.points.len()).collect();
     let nsep = data.seps.len();
     let base_model = Model::for_data(opts.base, data);
     let x0 = initial_pose(data, &all, opts.base)?;
-    let base_fit = fit_all(&base_model, data, &all, &x0).map_err(|e| {
-        format!(
-            "the `{}` starting model could not be fitted: {}",
-            opts.base.name(),
-            e.0
-        )
+    let base_fit = fit_all(&base_model, data, &all, &x0).map_err(|why| Error::Start {
+        base: opts.base,
+        why,
     })?;
     progress("starting model fitted");
     let base_cv = cross_validate(&base_model, data, &base_fit.x, fold_seps)
-        .map_err(|e| format!("cross-validation of the starting model failed: {}", e.0))?;
+        .map_err(Error::StartCv)?;
     progress("starting model cross-validated");
     let mut sel = Selection {
         base_model: base_model.clone(),
@@ -757,7 +777,7 @@ fn on_top(
 /// Starting pose: the 7-parameter pinhole fit (eq 65) from a zero pose, as REFERENCE.md
 /// advises (a cold near-field fit can fall into a false minimum). For the `thesis` start
 /// the pinhole's virtual-eye d3 is dropped (the near-field model puts the eye on the board).
-fn initial_pose(data: &Data, all: &[usize], base: Base) -> Result<Vec<f64>, String> {
+fn initial_pose(data: &Data, all: &[usize], base: Base) -> Result<Vec<f64>, Error> {
     let pin = Model::for_data(Base::Pinhole, data);
     let x0 = vec![
         0.0,
@@ -771,12 +791,7 @@ fn initial_pose(data: &Data, all: &[usize], base: Base) -> Result<Vec<f64>, Stri
     let f = fit_all(&pin, data, all, &x0);
     let mut x = match f {
         Ok(f) => f.x,
-        Err(e) if base == Base::Pinhole => {
-            return Err(format!(
-                "the pinhole starting model could not be fitted: {}",
-                e.0
-            ))
-        }
+        Err(e) if base == Base::Pinhole => return Err(Error::Pinhole(e)),
         Err(_) => x0,
     };
     if base == Base::Thesis {

@@ -50,13 +50,96 @@
 
 use std::collections::BTreeMap;
 
-use anyhow::{bail, Result};
 use cta_core::emulator::Emulator;
 use cta_core::pose::{Magnitude, MAX_BRIGHTNESS, MIN_BRIGHTNESS};
 use nalgebra::{DMatrix, DVector, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::data::{any_sample_pinned, fmt_list, Dataset};
+
+/// The normal equations of the law's linear fit are singular.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("the normal equations are singular")]
+pub struct Singular;
+
+/// Why the law cannot be fitted to a set of points ([`fit_law`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LawError {
+    /// A point names an LED or setting beyond the counts given.
+    #[error("a point's LED {led} or setting {setting} is out of range")]
+    OutOfRange {
+        /// Its LED index.
+        led: usize,
+        /// Its setting index.
+        setting: usize,
+    },
+    /// A point without readings or without model signal.
+    #[error("a point at {separation_in} in has no readings or no model signal")]
+    NoSignal {
+        /// Its separation, inches.
+        separation_in: f64,
+    },
+    /// No point at the first (reference) setting.
+    #[error("no point at the reference setting")]
+    NoReference,
+    /// Every LED is read at one signal only.
+    #[error(
+        "no LED is read at two or more signals (separations): the exponent cannot be told \
+         from the LEDs' brightness"
+    )]
+    OneSignal,
+    /// Fewer points than parameters.
+    #[error(
+        "{points} points for {parameters} parameters (the exponent, {constants} LED and \
+         setting constants, the offset and the scatter)"
+    )]
+    TooFewPoints {
+        /// Points.
+        points: usize,
+        /// Parameters.
+        parameters: usize,
+        /// LED and setting constants among them.
+        constants: usize,
+    },
+    /// A point's mean reading is not above 0.
+    #[error("a point's mean reading is not above 0")]
+    NotPositive,
+    /// The linear fit is singular at some offset.
+    #[error(transparent)]
+    Singular(#[from] Singular),
+    /// The exponent, the LEDs' and the settings' constants cannot all be told apart.
+    #[error(
+        "the normal equations are singular: the exponent, the LEDs' and the drive settings' \
+         constants cannot all be told apart (a power level or frequency measured only on LEDs \
+         no other one has?)"
+    )]
+    SettingsIndistinct,
+    /// The exponent cannot be told from the LEDs' constants.
+    #[error("the normal equations are singular: the exponent cannot be told from the LEDs' constants")]
+    LedsIndistinct,
+}
+
+/// Why a file's magnitudes cannot be fitted as asked ([`fit_dataset`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MagnitudeError {
+    /// The file has no magnitudes at the sensitivity asked for.
+    #[error(
+        "--magnitude-sensitivity {sensitivity}: {file} has no magnitudes at sensitivity \
+         {sensitivity} (it has {})",
+        have.iter()
+            .map(|(k, n)| format!("{k}: {n} samples"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    )]
+    NoSensitivity {
+        /// The sensitivity asked for.
+        sensitivity: u8,
+        /// The measurement file.
+        file: String,
+        /// Its sensitivities with their samples.
+        have: Vec<(u8, usize)>,
+    },
+}
 
 /// The least `noise_percent` the board takes (its validation floor), as a fraction.
 pub const NOISE_FLOOR: f64 = 1e-5;
@@ -196,7 +279,7 @@ impl Prepared<'_> {
     }
 
     /// Weighted least squares of `y` with variances `v`.
-    fn wls(&self, y: &[f64], v: &[f64]) -> Result<Wls, String> {
+    fn wls(&self, y: &[f64], v: &[f64]) -> Result<Wls, Singular> {
         let m = self.settings;
         let l = self.leds;
         let mut a = DMatrix::<f64>::zeros(m, m);
@@ -235,11 +318,11 @@ impl Prepared<'_> {
             .clone()
             .cholesky()
             .map(|c| c.inverse())
-            .ok_or_else(|| "the normal equations are singular".to_string())?;
+            .ok_or(Singular)?;
         // Near-singular: the exponent (or a setting) barely varies within the LEDs.
         for i in 0..m {
             if !(s_inv[(i, i)] * a[(i, i)] < 1e12) {
-                return Err("the normal equations are singular".into());
+                return Err(Singular);
             }
         }
         let theta = &s_inv * rhs;
@@ -274,7 +357,7 @@ impl Prepared<'_> {
     }
 
     /// The fit at `offset` (below every reading).
-    fn at(&self, offset: f64) -> Result<AtOffset, String> {
+    fn at(&self, offset: f64) -> Result<AtOffset, Singular> {
         let np = self.points.len();
         let dbar: Vec<f64> = self.mean.iter().map(|m| m - offset).collect();
         let y: Vec<f64> = dbar.iter().map(|d| d.ln()).collect();
@@ -368,25 +451,24 @@ pub fn fit_law(
     leds: usize,
     settings: usize,
     counts: bool,
-) -> Result<LawFit, String> {
+) -> Result<LawFit, LawError> {
     if let Some(p) = points
         .iter()
         .find(|p| p.led >= leds || p.setting >= settings)
     {
-        return Err(format!(
-            "a point's LED {} or setting {} is out of range",
-            p.led, p.setting
-        ));
+        return Err(LawError::OutOfRange {
+            led: p.led,
+            setting: p.setting,
+        });
     }
     if let Some(p) = points.iter().find(|p| {
         p.readings.is_empty()
             || !(p.s > 0.0 && p.s.is_finite())
             || p.readings.iter().any(|m| !m.is_finite())
     }) {
-        return Err(format!(
-            "a point at {} in has no readings or no model signal",
-            p.separation_in
-        ));
+        return Err(LawError::NoSignal {
+            separation_in: p.separation_in,
+        });
     }
     let mut used_leds = vec![false; leds];
     let mut used_settings = vec![false; settings];
@@ -395,7 +477,7 @@ pub fn fit_law(
         used_settings[p.setting] = true;
     }
     if settings == 0 || !used_settings[0] {
-        return Err("no point at the reference setting".into());
+        return Err(LawError::NoReference);
     }
     // An LED seen at two signals (two separations, or two places) tells the exponent.
     let mut span: BTreeMap<usize, (f64, f64)> = BTreeMap::new();
@@ -407,11 +489,7 @@ pub fn fit_law(
         e.1 = e.1.max(p.s.ln());
     }
     if !span.values().any(|(lo, hi)| hi - lo > 1e-3) {
-        return Err(
-            "no LED is read at two or more signals (separations): the exponent cannot be told \
-             from the LEDs' brightness"
-                .into(),
-        );
+        return Err(LawError::OneSignal);
     }
     let params = 1
         + used_settings.iter().skip(1).filter(|u| **u).count()
@@ -419,13 +497,11 @@ pub fn fit_law(
     // The offset and the scatter are fitted too.
     let dof = points.len() as f64 - params as f64 - 2.0;
     if dof < 1.0 {
-        return Err(format!(
-            "{} points for {} parameters (the exponent, {} LED and setting constants, the \
-             offset and the scatter)",
-            points.len(),
-            params + 2,
-            params - 1
-        ));
+        return Err(LawError::TooFewPoints {
+            points: points.len(),
+            parameters: params + 2,
+            constants: params - 1,
+        });
     }
     let prep = Prepared {
         points,
@@ -451,21 +527,18 @@ pub fn fit_law(
     // mean when the readings are not counts).
     let low = prep.mean.iter().copied().fold(f64::INFINITY, f64::min);
     if !(low > 0.0) {
-        return Err("a point's mean reading is not above 0".into());
+        return Err(LawError::NotPositive);
     }
     let top = if counts {
         low - 1.0
     } else {
         low * (1.0 - 1e-3)
     };
-    let singular = |e: String| {
+    let singular = |_: Singular| {
         if settings > 1 {
-            format!(
-                "{e}: the exponent, the LEDs' and the drive settings' constants cannot all be \
-                 told apart (a power level or frequency measured only on LEDs no other one has?)"
-            )
+            LawError::SettingsIndistinct
         } else {
-            format!("{e}: the exponent cannot be told from the LEDs' constants")
+            LawError::LedsIndistinct
         }
     };
     let best = if top > 0.0 {
@@ -591,7 +664,7 @@ pub fn fit_law(
 
 /// The offset in `[0, top)` with the least objective: a grid, then golden section about its
 /// best point.
-fn search_offset(prep: &Prepared, top: f64) -> Result<AtOffset, String> {
+fn search_offset(prep: &Prepared, top: f64) -> Result<AtOffset, Singular> {
     const GRID: usize = 40;
     let mut grid: Vec<AtOffset> = Vec::with_capacity(GRID);
     for i in 0..GRID {
@@ -795,7 +868,11 @@ fn sensitivity_of(s: &crate::data::Sample) -> u8 {
 /// most samples with a magnitude, 4 on a tie; rows without a sensitivity count as 4). An
 /// error only for a `sensitivity` the file does not have; a file without magnitudes, or whose
 /// magnitudes cannot fix a law, gives [`Outcome::NoLaw`].
-pub fn fit_dataset(ds: &Dataset, em: &Emulator<f64>, sensitivity: Option<u8>) -> Result<Outcome> {
+pub fn fit_dataset(
+    ds: &Dataset,
+    em: &Emulator<f64>,
+    sensitivity: Option<u8>,
+) -> Result<Outcome, MagnitudeError> {
     let name = ds.path.display();
     let with: Vec<&crate::data::Sample> = ds
         .samples
@@ -815,15 +892,11 @@ pub fn fit_dataset(ds: &Dataset, em: &Emulator<f64>, sensitivity: Option<u8>) ->
     let sens = match sensitivity {
         Some(v) => {
             if !by_sens.contains_key(&v) {
-                bail!(
-                    "--magnitude-sensitivity {v}: {name} has no magnitudes at sensitivity {v} \
-                     (it has {})",
-                    by_sens
-                        .iter()
-                        .map(|(k, n)| format!("{k}: {n} samples"))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                );
+                return Err(MagnitudeError::NoSensitivity {
+                    sensitivity: v,
+                    file: name.to_string(),
+                    have: by_sens.iter().map(|(k, n)| (*k, *n)).collect(),
+                });
             }
             v
         }
@@ -989,7 +1062,7 @@ pub fn fit_dataset(ds: &Dataset, em: &Emulator<f64>, sensitivity: Option<u8>) ->
         .all(|p| p.readings.iter().all(|m| m.fract() == 0.0));
     let fit = match fit_law(&points, leds.len(), settings.len(), counts) {
         Ok(f) => f,
-        Err(e) => return no_law(e),
+        Err(e) => return no_law(e.to_string()),
     };
     // The weakest reading fitted: the law is not stretched below it (Magnitude::min).
     let vmin = points
@@ -1177,230 +1250,4 @@ pub fn fit_dataset(ds: &Dataset, em: &Emulator<f64>, sensitivity: Option<u8>) ->
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use cta_core::emulator::{grid_position, Effects, Head, Pose};
-    use rand::rngs::StdRng;
-    use rand::{Rng, SeedableRng};
-    use rand_distr::StandardNormal;
-
-    /// Points of the law `offset + a (b S)^exponent` on the 10 x 10 grid at `seps`, `n`
-    /// samples each with `rel` relative scatter, rounded to counts; the LEDs' brightness drawn
-    /// log-normal with `spread`. Returns the points and the brightnesses.
-    fn synthetic(
-        offset: f64,
-        exponent: f64,
-        spread: f64,
-        rel: f64,
-        seps: &[f64],
-        n: usize,
-        seed: u64,
-    ) -> (Vec<MagPoint>, Vec<f64>) {
-        let em = Emulator::new(Head::northstar(), Pose::table3(), Effects::default());
-        let mut rng = StdRng::seed_from_u64(seed);
-        let b: Vec<f64> = (0..100)
-            .map(|_| (spread * rng.sample::<f64, _>(StandardNormal)).exp())
-            .collect();
-        // The brightest point (at the closest separation) reads about 60000.
-        let top = seps
-            .iter()
-            .flat_map(|&s| (0..100).map(move |i| (s, i)))
-            .map(|(s, i)| (b[i] * em.magnitude(&grid_position(10, 1.0, s, i))).powf(exponent))
-            .fold(0.0, f64::max);
-        let a = (60000.0 - offset) / top;
-        let mut points = Vec::new();
-        for &sep in seps {
-            for (i, bi) in b.iter().enumerate() {
-                let s = em.magnitude(&grid_position(10, 1.0, sep, i));
-                let d = a * (bi * s).powf(exponent);
-                let readings = (0..n)
-                    .map(|_| {
-                        let z: f64 = rng.sample(StandardNormal);
-                        (offset + d * (1.0 + rel * z)).round()
-                    })
-                    .collect();
-                points.push(MagPoint {
-                    led: i,
-                    setting: 0,
-                    separation_in: sep,
-                    s,
-                    readings,
-                });
-            }
-        }
-        (points, b)
-    }
-
-    /// The brief's case: offset 5000 counts, exponent 0.8, LEDs 10 % apart, 0.3 % noise.
-    /// The fit recovers each within a few of its 1-sigma (which are small: the test could not
-    /// pass on loose bounds), the noise within 15 %, and every LED's brightness within its
-    /// own; the brightnesses' z-scores have an RMS near 1 (their 1-sigma are honest).
-    #[test]
-    fn a_synthetic_law_is_recovered_within_its_sigma() {
-        let seps: Vec<f64> = (2..=15).map(|k| 2.0 * k as f64).collect();
-        for seed in [1, 2] {
-            let (points, b) = synthetic(5000.0, 0.8, 0.1, 0.003, &seps, 5, seed);
-            let f = fit_law(&points, 100, 1, true).unwrap();
-            let z_o = (f.offset - 5000.0) / f.offset_sigma;
-            let z_g = (f.exponent - 0.8) / f.exponent_sigma;
-            assert!(
-                z_o.abs() < 4.0 && f.offset_sigma < 5.0,
-                "seed {seed}: offset {} +/- {}",
-                f.offset,
-                f.offset_sigma
-            );
-            assert!(
-                z_g.abs() < 4.0 && f.exponent_sigma < 0.001,
-                "seed {seed}: exponent {} +/- {}",
-                f.exponent,
-                f.exponent_sigma
-            );
-            assert!(
-                (f.rel() / 0.003 - 1.0).abs() < 0.15,
-                "seed {seed}: noise {} % (within {}, between {})",
-                100.0 * f.rel(),
-                100.0 * f.rel_within,
-                100.0 * f.rel_between
-            );
-            let mean_ln = b.iter().map(|v| v.ln()).sum::<f64>() / b.len() as f64;
-            let z: Vec<f64> = (0..100)
-                .map(|i| {
-                    (f.ln_brightness[i].unwrap() - (b[i].ln() - mean_ln))
-                        / f.ln_brightness_sigma[i].unwrap()
-                })
-                .collect();
-            let rms = (z.iter().map(|z| z * z).sum::<f64>() / z.len() as f64).sqrt();
-            let worst = z.iter().map(|z| z.abs()).fold(0.0, f64::max);
-            assert!(
-                (0.6..1.5).contains(&rms) && worst < 5.0,
-                "seed {seed}: brightness z RMS {rms}, worst {worst}"
-            );
-        }
-    }
-
-    /// A simulated file (`cta simulate`'s magnitudes are `S` times the LED's brightness)
-    /// turned into counts of the law `300 + k S`, with the sensor saturating at 50000 (below
-    /// the 16-bit rail): the pile-up is found and its points left out, the law is recovered,
-    /// and the fit reads the file's sensitivity.
-    #[test]
-    fn a_file_saturating_below_the_rail_gives_its_law_and_max() {
-        use crate::sim::SimConfig;
-        let cfg = SimConfig {
-            separations: vec![6.0, 10.0, 14.0, 20.0, 30.0],
-            samples: 3,
-            noise: 10.0,
-            magnitude_noise: 0.3,
-            led_brightness: 5.0,
-            seed: 4,
-            ..Default::default()
-        };
-        let (mut ds, truth) = cfg.run();
-        let em = cfg.physics().emulator;
-        // 6 in on the axis reads about 100000: the closest separation saturates.
-        let k = 100_000.0 / em.magnitude(&Vector3::new(0.0, 0.0, 6.0));
-        for s in &mut ds.samples {
-            let m = s.magnitude.unwrap();
-            s.magnitude = Some((300.0 + k * m).round().min(50_000.0));
-            s.sensitivity = Some(3.0);
-        }
-        let Outcome::Law(m) = fit_dataset(&ds, &em, None).unwrap() else {
-            panic!("no law")
-        };
-        assert_eq!((m.law.max, m.law.sensitivity), (50_000.0, 3));
-        assert!(m.saturated_points > 20, "{}", m.saturated_points);
-        // The law's range below: the weakest reading of a point it fitted (not a saturated
-        // point's).
-        let weakest = ds
-            .samples
-            .iter()
-            .filter(|s| s.separation_in > 6.0)
-            .map(|s| s.magnitude.unwrap())
-            .fold(f64::INFINITY, f64::min);
-        assert_eq!(f64::from(m.law.min), weakest.floor(), "{:?}", m.law);
-        assert!(
-            m.warnings
-                .iter()
-                .any(|w| w.contains("taken as the sensor's saturation")),
-            "{:?}",
-            m.warnings
-        );
-        let o = m.offset_sigma.unwrap();
-        assert!(
-            (f64::from(m.law.offset) - 300.0).abs() < 4.0 * o && o < 10.0,
-            "offset {} +/- {o}",
-            m.law.offset
-        );
-        assert!(
-            (f64::from(m.law.exponent) - 1.0).abs() < 4.0 * m.exponent_sigma,
-            "exponent {} +/- {}",
-            m.law.exponent,
-            m.exponent_sigma
-        );
-        assert!(
-            (f64::from(m.law.noise_percent) / 0.3 - 1.0).abs() < 0.15,
-            "{}",
-            m.law.noise_percent
-        );
-        // The brightness against the truth's, normalised alike.
-        let gm = (m
-            .led_brightness
-            .iter()
-            .map(|l| truth.led_brightness[l.beacon.unwrap() as usize].ln())
-            .sum::<f64>()
-            / m.led_brightness.len() as f64)
-            .exp();
-        for l in &m.led_brightness {
-            let t = truth.led_brightness[l.beacon.unwrap() as usize] / gm;
-            assert!((l.brightness - t).abs() < 5.0 * l.sigma, "{l:?}: truth {t}");
-        }
-        // No saturation seen: the law's max is the rail.
-        let mut low = ds.clone();
-        low.samples.retain(|s| s.magnitude.unwrap() < 50_000.0);
-        let Outcome::Law(m) = fit_dataset(&low, &em, Some(3)).unwrap() else {
-            panic!("no law")
-        };
-        assert_eq!((m.law.max, m.saturated_points), (RAIL as f32, 0));
-        // Another sensitivity: an error naming what the file has.
-        let e = fit_dataset(&ds, &em, Some(2)).unwrap_err().to_string();
-        assert!(
-            e.contains("no magnitudes at sensitivity 2") && e.contains("3: "),
-            "{e}"
-        );
-    }
-
-    /// No law, and no error: a file without magnitudes, and one with them at one separation.
-    #[test]
-    fn files_that_cannot_give_a_law_say_why() {
-        use crate::sim::SimConfig;
-        let cfg = SimConfig {
-            separations: vec![10.0, 20.0],
-            ..Default::default()
-        };
-        let (ds, _) = cfg.run();
-        let em = cfg.physics().emulator;
-        let mut none = ds.clone();
-        for s in &mut none.samples {
-            s.magnitude = None;
-        }
-        match fit_dataset(&none, &em, None).unwrap() {
-            Outcome::NoLaw(w) => assert!(w.contains("records no spot magnitudes"), "{w}"),
-            Outcome::Law(_) => panic!("a law without magnitudes"),
-        }
-        let mut one = ds.clone();
-        for s in &mut one.samples {
-            if s.separation_in == 20.0 {
-                s.magnitude = None;
-            }
-        }
-        match fit_dataset(&one, &em, None).unwrap() {
-            Outcome::NoLaw(w) => assert!(w.contains("1 separation(s) (10 in)"), "{w}"),
-            Outcome::Law(_) => panic!("a law from one separation"),
-        }
-        // Both separations: a law (the noise-free file's scatter is the board's floor).
-        let Outcome::Law(m) = fit_dataset(&ds, &em, None).unwrap() else {
-            panic!("no law")
-        };
-        assert_eq!(m.law.noise_percent, 0.001);
-        assert!((m.law.exponent - 1.0).abs() < 1e-4, "{:?}", m.law);
-    }
-}
+mod tests;

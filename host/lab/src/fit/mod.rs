@@ -6,6 +6,7 @@ pub mod calibrate;
 mod evaluate;
 mod file;
 pub mod magnitude;
+pub mod nearfield;
 mod pinhole;
 mod report;
 #[cfg(test)]

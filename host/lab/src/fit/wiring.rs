@@ -24,7 +24,7 @@
 //!
 //! The fits use the point means (samples at the 16-bit rail left out) at the file's largest
 //! third of separations (at least 2), where the pinhole model holds best: 8 to 10 small
-//! fits (about 0.05 s on 11,600 reports), run only when the file could not be fitted.
+//! fits, run only when the file could not be fitted.
 //!
 //! A file that *can* be fitted may still be read turned: a head turned about its boresight
 //! is a pose like any other, so a file with both signs flipped (a half turn), or swapped with
@@ -317,9 +317,15 @@ pub fn diagnose(ds: &Dataset) -> Option<String> {
 
 /// `err`, with [`diagnose`]'s sentences after it when it has any.
 pub fn explain(ds: &Dataset, err: String) -> String {
-    match diagnose(ds) {
+    explained(&err, diagnose(ds).as_deref())
+}
+
+/// `err`, with a diagnosis ([`diagnose`]'s sentences) after it when there is one: the text of
+/// an error that carries its diagnosis.
+pub fn explained(err: &str, diagnosis: Option<&str>) -> String {
+    match diagnosis {
         Some(d) => format!("{}. {d}", err.trim_end_matches('.')),
-        None => err,
+        None => err.to_string(),
     }
 }
 
@@ -353,8 +359,8 @@ pub const S_UNIT_TOL: f64 = 0.05;
 /// mistake (lengths in cm or mm, ...) explains it. `cta calibrate` and `cta fit` succeed on a
 /// file in centimetres (the angles are right; only H and d scale), so this is where it shows.
 ///
-/// Close in the pinhole model's H moves far by itself (1.9x at 2-3 in on thesis data: the
-/// near-field errors it cannot follow), so below 20 in only a named mistake is said.
+/// Close in the pinhole model's H moves far by itself (the near-field errors it cannot
+/// follow), so below 20 in only a named mistake is said.
 pub fn h_warning(ds: &Dataset, h: f64) -> Option<String> {
     let h0 = Head::<f64>::northstar().h();
     let off = (h.abs() / h0).max(h0 / h.abs());
