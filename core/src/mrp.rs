@@ -316,6 +316,18 @@ mod tests {
         }
     }
 
+    /// Exactly 180 deg the quaternion's scalar part is 0 and both `e` and `-e` are MRPs of
+    /// unit length for the attitude: [`from_dcm`] returns the one [`canonical`] keeps,
+    /// `from_dcm(C(p)) = p` (the `q0 >= 0` hemisphere), about each axis and about `-x`
+    /// (the same attitude as about `+x`).
+    #[test]
+    fn from_dcm_at_exactly_180_deg() {
+        for p in [Vector3::<f64>::x(), Vector3::y(), Vector3::z()] {
+            assert_eq!(from_dcm(&dcm(&p)), p);
+            assert_eq!(from_dcm(&dcm(&-p)), p);
+        }
+    }
+
     #[test]
     fn composition_matches_dcm_product() {
         let p1 = Vector3::new(0.2, -0.1, 0.05);
