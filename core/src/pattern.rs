@@ -152,6 +152,12 @@ mod tests {
         let q = Pattern::<f64>::Quartic;
         assert!(q.out_of_range(rad(-40.0)));
         assert!(!q.out_of_range(rad(-20.0)));
+        // "Past 31 deg": 31 deg itself (which round-trips exactly in f64) is in range, the
+        // next angle up is not.
+        let at = rad(QUARTIC_VALID_DEG);
+        assert_eq!(deg(at), 31.0);
+        assert!(!q.out_of_range(at) && !q.out_of_range(-at));
+        assert!(q.out_of_range(f64::from_bits(at.to_bits() + 1)));
         for p in [Pattern::vsml3710(), Pattern::<f64>::Uniform] {
             assert!(!p.out_of_range(rad(40.0)) && !p.out_of_range(rad(89.0)));
         }
