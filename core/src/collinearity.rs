@@ -255,15 +255,28 @@ mod tests {
                 y: [-40.0, 20.0],
                 w: [1.0, 0.5],
             },
+            Obs {
+                r: Vector3::new(0.0, 0.0, 2.0),
+                y: [1.0, -1.0],
+                w: [4.0, 5.0],
+            },
         ];
         let fit = Fit { obs: &obs };
-        assert_eq!(fit.n_rows(), 4);
+        // Three observations: 2 * 3, not 2 + 3 (equal for two).
+        assert_eq!(fit.n_rows(), 6);
         for jac in [false, true] {
             let mut rows = std::vec::Vec::new();
             fit.rows(&x, jac, &mut |r, w, j| rows.push((r, w, j.to_vec())))
                 .unwrap();
-            let want = [(5.0, 2.0), (-10.0, 3.0), (0.0, 1.0), (0.0, 0.5)];
-            assert_eq!(rows.len(), 4);
+            let want = [
+                (5.0, 2.0),
+                (-10.0, 3.0),
+                (0.0, 1.0),
+                (0.0, 0.5),
+                (1.0, 4.0),
+                (-1.0, 5.0),
+            ];
+            assert_eq!(rows.len(), 6);
             for (k, (r, w, j)) in rows.iter().enumerate() {
                 assert_eq!((*r, *w), want[k], "row {k}");
                 assert_eq!(j.len(), if jac { 7 } else { 0 });
