@@ -199,6 +199,132 @@ mod tests {
     use crate::emulator::{grid_position, Effects, Emulator, Head};
     use crate::glsdc::{self, Error, Settings};
 
+    /// The parameter vector's order (eq 64) and its pose and `H` back.
+    #[test]
+    fn params_order_and_round_trip() {
+        let pose = Pose {
+            d: Vector3::new(0.6, 0.1, 0.062),
+            p: Vector3::new(0.001, -0.002, 0.003),
+        };
+        let x = Params::<f64>::from_pose(&pose, 18918.6);
+        assert_eq!(
+            x.as_slice(),
+            &[0.6, 0.1, 0.062, 0.001, -0.002, 0.003, 18918.6]
+        );
+        assert_eq!(x.pose(), pose);
+        assert_eq!(x.h(), 18918.6);
+    }
+
+    /// Eq 65 by hand, level head (`C = I`) at the origin, `H = 100`: a beacon at `(1, 2, 4)`
+    /// is seen at `(100 / 4, 200 / 4) = (25, 50)`; moving the head to `d = (1, 0, 0)` puts it
+    /// at `(0, 50)`. A beacon level with the head (`u3 = 0`) or behind it is not seen.
+    #[test]
+    fn eq65_by_hand() {
+        let x = Params::<f64>::from_column_slice(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 100.0]);
+        let r = Vector3::new(1.0, 2.0, 4.0);
+        assert_eq!(predict(&x, &r), Some([25.0, 50.0]));
+        let lin = Linearisation::new(&x);
+        assert_eq!(lin.eval(&r).unwrap().0, [25.0, 50.0]);
+        assert_eq!(lin.eval_dr(&r).unwrap().0, [25.0, 50.0]);
+        // dy/dH = u_a / u3; dy_x/dd1 = -H / u3 (the beacon moves the other way).
+        let (_, j) = lin.eval(&r).unwrap();
+        assert_eq!((j[0][6], j[1][6]), (0.25, 0.5));
+        assert_eq!((j[0][0], j[1][0]), (-25.0, 0.0));
+        let mut moved = x;
+        moved[0] = 1.0;
+        assert_eq!(predict(&moved, &r), Some([0.0, 50.0]));
+        for r in [Vector3::new(1.0, 2.0, 0.0), Vector3::new(1.0, 2.0, -4.0)] {
+            assert_eq!(predict(&x, &r), None);
+            assert!(lin.eval(&r).is_none() && lin.eval_dr(&r).is_none());
+        }
+    }
+
+    /// The fit's residuals are measured minus predicted (eq 56), each with its weight, two
+    /// rows per observation, the Jacobian rows those of eq 66.
+    #[test]
+    fn fit_rows_are_measured_minus_predicted() {
+        let x = Params::<f64>::from_column_slice(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 100.0]);
+        let obs = [
+            Obs {
+                r: Vector3::new(1.0, 2.0, 4.0),
+                y: [30.0, 40.0],
+                w: [2.0, 3.0],
+            },
+            Obs {
+                r: Vector3::new(-2.0, 1.0, 5.0),
+                y: [-40.0, 20.0],
+                w: [1.0, 0.5],
+            },
+            Obs {
+                r: Vector3::new(0.0, 0.0, 2.0),
+                y: [1.0, -1.0],
+                w: [4.0, 5.0],
+            },
+        ];
+        let fit = Fit { obs: &obs };
+        // Three observations: 2 * 3, not 2 + 3 (equal for two).
+        assert_eq!(fit.n_rows(), 6);
+        for jac in [false, true] {
+            let mut rows = std::vec::Vec::new();
+            fit.rows(&x, jac, &mut |r, w, j| rows.push((r, w, j.to_vec())))
+                .unwrap();
+            let want = [
+                (5.0, 2.0),
+                (-10.0, 3.0),
+                (0.0, 1.0),
+                (0.0, 0.5),
+                (1.0, 4.0),
+                (-1.0, 5.0),
+            ];
+            assert_eq!(rows.len(), 6);
+            for (k, (r, w, j)) in rows.iter().enumerate() {
+                assert_eq!((*r, *w), want[k], "row {k}");
+                assert_eq!(j.len(), if jac { 7 } else { 0 });
+            }
+            if jac {
+                let (_, j) = Linearisation::new(&x).eval(&obs[1].r).unwrap();
+                assert_eq!(rows[3].2, j[1].to_vec());
+            }
+        }
+        let behind = [Obs {
+            r: Vector3::new(0.0, 0.0, -1.0),
+            y: [0.0; 2],
+            w: [1.0; 2],
+        }];
+        for jac in [false, true] {
+            let e = Fit { obs: &behind }.rows(&x, jac, &mut |_, _, _| {});
+            assert_eq!(e, Err(ModelError::NonFinite));
+        }
+        let mut name = heapless::String::<8>::new();
+        fit.param_name(6, &mut name).unwrap();
+        fit.param_name(3, &mut name).unwrap();
+        assert_eq!(name, "Hp1");
+    }
+
+    /// Eq 67 by hand: level, `b_est = (X, Y, H)`, and `(H, 0)` is 45 deg off the boresight.
+    /// The head turned +90 deg about z (its x axis along +y of N): `b_est = C^T (X, Y, H)`
+    /// is `(0, H, H)` for `(H, 0)`, which a beacon at `(0, 5, 5)` from the head has exactly.
+    #[test]
+    fn eq67_by_hand() {
+        let h = 100.0;
+        let level = Params::<f64>::from_column_slice(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, h]);
+        assert_eq!(
+            estimated_direction(&level, [3.0, -4.0]),
+            Vector3::new(3.0, -4.0, h)
+        );
+        let d = Vector3::new(1.0, 1.0, 0.0);
+        let e = angle_error(&level, [h, 0.0], &Vector3::new(1.0, 1.0, 10.0), &d);
+        assert!((e - core::f64::consts::FRAC_PI_4).abs() < 1e-15, "{e}");
+        let p = mrp::from_axis_angle(&Vector3::z(), core::f64::consts::FRAC_PI_2);
+        let turned = Params::from_column_slice(&[0.0, 0.0, 0.0, p.x, p.y, p.z, h]);
+        let est = estimated_direction(&turned, [h, 0.0]);
+        assert!((est - Vector3::new(0.0, h, h)).norm() < 1e-12, "{est:?}");
+        let e = angle_error(&turned, [h, 0.0], &Vector3::new(1.0, 6.0, 5.0), &d);
+        assert!(e.abs() < 1e-15, "{e}");
+        let e = angle_error(&turned, [0.0, h], &Vector3::new(1.0, 6.0, 5.0), &d);
+        assert!((e - core::f64::consts::FRAC_PI_3).abs() < 1e-12, "{e}");
+    }
+
     #[test]
     fn eval_dr_is_minus_the_d_columns() {
         let x = Params::<f64>::from_column_slice(&[0.6, 0.1, 0.062, 0.01, -0.02, 0.03, 18918.6]);

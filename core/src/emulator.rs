@@ -701,6 +701,11 @@ mod tests {
         assert_eq!(saturate_i16(f64::NAN), i16::MIN);
     }
 
+    /// A cell's gain scales that cell's signal and nothing else (eq 63): from the plain
+    /// output `X0`, the pair's ratio is `rho = S1/S2 = (beta + X0)/(beta - X0)`, and a gain
+    /// `g` on cell 1 gives `X = beta (g rho - 1)/(g rho + 1)` with Y unchanged; on cell 2 the
+    /// same with `rho/g`; on cell 3 or 4 the same for Y. A 5 deg beacon tilt moves X by more
+    /// than a count (its direction and size: the closed-form `beacon_tilt` tests below).
     #[test]
     fn effects_change_the_output() {
         let head = Head::<f64>::northstar();
@@ -708,14 +713,32 @@ mod tests {
         let base = Emulator::new(head, pose, Effects::default());
         let r = Vector3::new(2.0, -1.0, 6.0);
         let o0 = base.output(&r).unwrap();
-        let mut gain = Effects::default().gain;
-        gain[0] = 1.05;
-        let e = Effects {
-            gain,
-            ..Effects::default()
-        };
-        let g = Emulator::new(head, pose, e).output(&r).unwrap();
-        assert!(g[0] > o0[0] && (g[1] - o0[1]).abs() < 1e-9);
+        let b = BETA;
+        let ratio = |y: f64| (b + y) / (b - y);
+        let of_ratio = |rho: f64| b * (rho - 1.0) / (rho + 1.0);
+        for (cell, g) in [(0, 1.05), (1, 1.05), (2, 0.9), (3, 1.2)] {
+            let mut gain = Effects::default().gain;
+            gain[cell] = g;
+            let e = Effects {
+                gain,
+                ..Effects::default()
+            };
+            let out = Emulator::new(head, pose, e).output(&r).unwrap();
+            let (pair, other) = if cell < 2 { (0, 1) } else { (1, 0) };
+            let rho = if cell % 2 == 0 {
+                ratio(o0[pair]) * g
+            } else {
+                ratio(o0[pair]) / g
+            };
+            assert!(
+                (out[pair] - of_ratio(rho)).abs() < 1e-9 * b,
+                "cell {cell}: {} want {}",
+                out[pair],
+                of_ratio(rho)
+            );
+            assert!((out[pair] - o0[pair]).abs() > 100.0, "cell {cell}");
+            assert_eq!(out[other], o0[other], "cell {cell}");
+        }
         let e = Effects {
             tilt: rad(5.0),
             ..Effects::default()

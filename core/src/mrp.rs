@@ -316,6 +316,18 @@ mod tests {
         }
     }
 
+    /// Exactly 180 deg the quaternion's scalar part is 0 and both `e` and `-e` are MRPs of
+    /// unit length for the attitude: [`from_dcm`] returns the one [`canonical`] keeps,
+    /// `from_dcm(C(p)) = p` (the `q0 >= 0` hemisphere), about each axis and about `-x`
+    /// (the same attitude as about `+x`).
+    #[test]
+    fn from_dcm_at_exactly_180_deg() {
+        for p in [Vector3::<f64>::x(), Vector3::y(), Vector3::z()] {
+            assert_eq!(from_dcm(&dcm(&p)), p);
+            assert_eq!(from_dcm(&dcm(&-p)), p);
+        }
+    }
+
     #[test]
     fn composition_matches_dcm_product() {
         let p1 = Vector3::new(0.2, -0.1, 0.05);
@@ -356,10 +368,137 @@ mod tests {
         }
     }
 
+    /// The f32 DCM is the f64 one to f32 precision, element by element, at an attitude far
+    /// from the identity (46 deg): a transposed (inverse-rotation) or mis-signed DCM differs
+    /// from it by up to 0.7, far outside 1e-6.
     #[test]
     fn f32_works() {
-        let p = Vector3::new(0.001f32, 0.002, 0.001);
-        let c = dcm(&p);
-        assert!((c.determinant() - 1.0).abs() < 1e-6);
+        let p64 = Vector3::new(0.1f64, -0.2, 0.3);
+        let p32 = p64.map(|v| v as f32);
+        let (c32, c64) = (dcm(&p32), dcm(&p64));
+        for i in 0..3 {
+            for j in 0..3 {
+                let d = (c32[(i, j)] as f64 - c64[(i, j)]).abs();
+                assert!(
+                    d < 1e-6,
+                    "({i}, {j}): f32 {} f64 {}",
+                    c32[(i, j)],
+                    c64[(i, j)]
+                );
+            }
+        }
+        // And the antisymmetric part, which a transpose flips, is large here.
+        assert!((c64[(0, 1)] - c64[(1, 0)]).abs() > 0.5);
+        assert!((c32.determinant() - 1.0).abs() < 1e-6);
+        let q32 = from_dcm(&c32);
+        assert!((q32 - p32).norm() < 1e-6, "{q32:?}");
+    }
+
+    /// The shadow set `-p / |p|^2` by hand: `(0, 0, 2)` (253.7 deg about z) has the shadow
+    /// `(0, 0, -0.5)` (106.3 deg about -z: the same attitude); `(1, 2, 2)`, `|p|^2 = 9`, has
+    /// `-(1, 2, 2) / 9`; the zero MRP (the identity) is its own.
+    #[test]
+    fn shadow_by_hand() {
+        assert_eq!(
+            shadow(&Vector3::new(0.0f64, 0.0, 2.0)),
+            Vector3::new(0.0, 0.0, -0.5)
+        );
+        assert_eq!(
+            shadow(&Vector3::new(0.0f64, 0.0, -0.5)),
+            Vector3::new(0.0, 0.0, 2.0)
+        );
+        assert_relative_eq!(
+            shadow(&Vector3::new(1.0f64, 2.0, 2.0)),
+            Vector3::new(-1.0, -2.0, -2.0) / 9.0,
+            epsilon = 1e-15
+        );
+        assert_eq!(shadow(&Vector3::<f64>::zeros()), Vector3::zeros());
+        // The same attitude: 4 atan 2 about z, and 4 atan 0.5 about -z. By eq 55 with
+        // s = 4: the diagonal (4 (0 - 0 - 4) + 9) / 25 = -0.28, the z row and column of the
+        // identity, C_12 = 4 (1 - 4) 2 / 25 = -0.96 = -C_21 (cos and sin of 253.7 deg).
+        let p = Vector3::new(0.0f64, 0.0, 2.0);
+        assert_relative_eq!(angle(&p), 4.0 * 2f64.atan(), epsilon = 1e-15);
+        assert_relative_eq!(dcm(&shadow(&p)), dcm(&p), epsilon = 1e-15);
+        assert_relative_eq!(
+            dcm(&p),
+            Matrix3::new(-0.28, -0.96, 0.0, 0.96, -0.28, 0.0, 0.0, 0.0, 1.0),
+            epsilon = 1e-15
+        );
+    }
+
+    /// [`canonical`] switches to the shadow set only past `|p| = 1`: `(0, 0, 2)` becomes
+    /// `(0, 0, -0.5)`; `|p| <= 1` stays, the 180 deg MRP `(1, 0, 0)` too (its shadow
+    /// `(-1, 0, 0)` is the same attitude, but the set does not switch at equality).
+    #[test]
+    fn canonical_by_hand() {
+        assert_eq!(
+            canonical(&Vector3::new(0.0f64, 0.0, 2.0)),
+            Vector3::new(0.0, 0.0, -0.5)
+        );
+        assert_eq!(
+            canonical(&Vector3::new(0.0f32, 0.0, 2.0)),
+            Vector3::new(0.0, 0.0, -0.5)
+        );
+        for p in [
+            Vector3::new(0.3f64, -0.2, 0.1),
+            Vector3::new(1.0, 0.0, 0.0),
+            Vector3::new(0.0, 0.0, -1.0),
+            Vector3::zeros(),
+        ] {
+            assert_eq!(canonical(&p), p);
+        }
+        // Every attitude past 180 deg comes back within it, the same DCM.
+        for deg in [181.0f64, 200.0, 270.0, 359.0] {
+            let p = from_axis_angle(&Vector3::new(1.0, -2.0, 0.5), deg.to_radians());
+            assert!(p.norm() > 1.0);
+            let q = canonical(&p);
+            assert_relative_eq!(angle(&q), (360.0 - deg).to_radians(), epsilon = 1e-12);
+            assert_relative_eq!(dcm(&q), dcm(&p), epsilon = 1e-12);
+        }
+    }
+
+    /// A composition past 180 deg is returned in the canonical set: 120 deg then 120 deg
+    /// about z is 240 deg about z, whose MRP `tan 60 deg` is past 1: the result is the shadow,
+    /// -120 deg about z, `(0, 0, -tan 30 deg)`.
+    #[test]
+    fn composition_past_180_deg_is_canonical() {
+        let p = Vector3::new(0.0f64, 0.0, (30f64).to_radians().tan());
+        let q = compose(&p, &p);
+        assert_relative_eq!(q, -p, epsilon = 1e-12);
+        // Not commutative in general: the order of the product.
+        let (a, b) = (
+            from_axis_angle(&Vector3::x(), 0.7f64),
+            from_axis_angle(&Vector3::y(), 0.4f64),
+        );
+        assert_relative_eq!(dcm(&compose(&b, &a)), dcm(&b) * dcm(&a), epsilon = 1e-12);
+        assert_relative_eq!(dcm(&compose(&a, &b)), dcm(&a) * dcm(&b), epsilon = 1e-12);
+        assert!((dcm(&compose(&b, &a)) - dcm(&compose(&a, &b))).norm() > 0.1);
+    }
+
+    /// Near 360 deg the composition formula divides 0 by 0 (`1 + |p1|^2 |p2|^2 - 2 p1.p2 = 0`
+    /// for 180 deg twice about one axis): the fallback through the DCM returns the identity.
+    /// Two rotations of `180 - e` deg about z make `360 - e` deg, i.e. `-e` deg, the MRP
+    /// `(0, 0, -tan(e/4 deg))`, where the formula's denominator is about `(e pi / 180)^2 / 4`.
+    #[test]
+    fn composition_near_360_deg_goes_through_the_dcm() {
+        let z = Vector3::new(0.0f64, 0.0, 1.0);
+        assert_eq!(compose(&z, &z), Vector3::zeros());
+        let x = Vector3::new(-1.0f64, 0.0, 0.0);
+        assert_relative_eq!(compose(&x, &x), Vector3::zeros(), epsilon = 1e-15);
+        for e in [1e-3f64, 0.01, 0.05, 0.1] {
+            let p = from_axis_angle(&Vector3::z(), (180.0 - e / 2.0).to_radians());
+            let q = compose(&p, &p);
+            let want = -(e / 4.0).to_radians().tan();
+            assert_relative_eq!(q, Vector3::new(0.0, 0.0, want), epsilon = 1e-12);
+        }
+        // Just past the fallback's 1e-6 (0.12 deg off 360, the denominator 1.1e-6) the
+        // formula itself holds.
+        let p = from_axis_angle(&Vector3::z(), (180.0f64 - 0.06).to_radians());
+        let q = compose(&p, &p);
+        assert_relative_eq!(
+            q,
+            Vector3::new(0.0, 0.0, -(0.03f64).to_radians().tan()),
+            epsilon = 1e-12
+        );
     }
 }

@@ -101,6 +101,68 @@ mod tests {
         assert_eq!(p.eval(rad(95.0)), 0.0);
     }
 
+    /// The half-intensity angle of `cos^m`: `acos(0.5^(1/m))`. By hand, `m = 2` is 45 deg
+    /// (`cos^2 45 = 1/2`), `m = 1/2` is 75.52 deg (`cos = 1/4`) and `m = ln 0.5 / ln cos 20`
+    /// (about 11.14) is 20 deg; the printed quartic's is 31.5 deg (REFERENCE.md 2.1) and the
+    /// uniform source has none.
+    #[test]
+    fn half_angle_of_other_exponents() {
+        let half = |m: f64| Pattern::Lambertian { m }.half_angle_deg().unwrap();
+        assert!((half(2.0) - 45.0).abs() < 1e-12, "{}", half(2.0));
+        assert!((half(0.5) - 0.25f64.acos().to_degrees()).abs() < 1e-12);
+        assert!((half(0.5) - 75.522_487_814).abs() < 1e-8);
+        let narrow = Pattern::<f64>::lambertian_half_angle(20.0);
+        assert!((narrow.half_angle_deg().unwrap() - 20.0).abs() < 1e-9);
+        match narrow {
+            Pattern::Lambertian { m } => {
+                assert!((m - 0.5f64.ln() / 20f64.to_radians().cos().ln()).abs() < 1e-12);
+                assert!((m - 11.1434).abs() < 1e-4, "{m}");
+            }
+            _ => unreachable!(),
+        }
+        assert_eq!(Pattern::<f64>::Quartic.half_angle_deg(), Some(31.5));
+        assert_eq!(Pattern::<f64>::Uniform.half_angle_deg(), None);
+        assert_eq!(Pattern::<f64>::vsml3710(), Pattern::Lambertian { m: 1.0 });
+    }
+
+    /// `cos^m` for `m` other than 1: `cos^2 60 = 1/4`, `cos^0.5 60 = sqrt(1/2)`; 0 behind
+    /// the LED whatever `m`; the uniform source is 1 everywhere.
+    #[test]
+    fn lambertian_of_other_exponents_and_uniform() {
+        let p2 = Pattern::Lambertian { m: 2.0f64 };
+        assert!((p2.eval(rad(60.0)) - 0.25).abs() < 1e-15);
+        assert!((p2.eval(rad(-60.0)) - 0.25).abs() < 1e-15);
+        let ph = Pattern::Lambertian { m: 0.5f64 };
+        assert!((ph.eval(rad(60.0)) - 0.5f64.sqrt()).abs() < 1e-15);
+        assert_eq!(p2.eval(rad(120.0)), 0.0);
+        assert_eq!(ph.eval(rad(180.0)), 0.0);
+        assert_eq!(p2.eval(0.0), 1.0);
+        for g in [0.0f64, 45.0, 120.0, 180.0] {
+            assert_eq!(Pattern::<f64>::Uniform.eval(rad(g)), 1.0);
+        }
+    }
+
+    /// The quartic by hand at 10 deg: `-0.004 - 0.004 + 0.005 - 0.01 + 1 = 0.987`; at
+    /// 20 deg: `-0.064 - 0.032 + 0.02 - 0.02 + 1 = 0.904`. Only the quartic has a valid range.
+    #[test]
+    fn quartic_by_hand_and_only_it_has_a_range() {
+        assert!((quartic_eq17(10.0f64) - 0.987).abs() < 1e-14);
+        assert!((quartic_eq17(20.0f64) - 0.904).abs() < 1e-14);
+        assert!((Pattern::<f64>::Quartic.eval(rad(20.0)) - 0.904).abs() < 1e-12);
+        let q = Pattern::<f64>::Quartic;
+        assert!(q.out_of_range(rad(-40.0)));
+        assert!(!q.out_of_range(rad(-20.0)));
+        // "Past 31 deg": 31 deg itself (which round-trips exactly in f64) is in range, the
+        // next angle up is not.
+        let at = rad(QUARTIC_VALID_DEG);
+        assert_eq!(deg(at), 31.0);
+        assert!(!q.out_of_range(at) && !q.out_of_range(-at));
+        assert!(q.out_of_range(f64::from_bits(at.to_bits() + 1)));
+        for p in [Pattern::vsml3710(), Pattern::<f64>::Uniform] {
+            assert!(!p.out_of_range(rad(40.0)) && !p.out_of_range(rad(89.0)));
+        }
+    }
+
     #[test]
     fn quartic_is_not_a_60_degree_pattern() {
         // REFERENCE.md 2.1: 0.5 at 31.5 deg, 0 at 37.8 deg, -4.93 at 60 deg.

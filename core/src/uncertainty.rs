@@ -194,16 +194,121 @@ mod tests {
         }
     }
 
+    /// The per-direction uncertainties in inches: the larger of plus and minus over 1000
+    /// (Table 2: 31.50, 24.37, 17.52 mils); a budget larger on the minus side takes it.
+    #[test]
+    fn rss_inches_takes_the_larger_side_in_inches() {
+        let r = rss(&TABLE2);
+        assert_eq!(
+            rss_inches(&TABLE2),
+            [r[0] / 1000.0, r[2] / 1000.0, r[4] / 1000.0]
+        );
+        assert!((rss_inches(&TABLE2)[1] - 0.02437).abs() < 5e-5);
+        let lopsided = [
+            Item {
+                name: "a",
+                mils: [3.0, 4.0, 0.0, 12.0, 8.0, 6.0],
+            },
+            Item {
+                name: "b",
+                mils: [4.0, 3.0, 5.0, 5.0, 6.0, 0.0],
+            },
+        ];
+        // x: 5 and 5; y: 5 and 13; z: 10 and 6.
+        assert_eq!(rss(&lopsided), [5.0, 5.0, 5.0, 13.0, 10.0, 6.0]);
+        assert_eq!(rss_inches(&lopsided), [0.005, 0.013, 0.010]);
+    }
+
+    /// Eq 40 is a 1/R law at a fixed bearing: at `(x, z) = k (3, 4)` with `u_x = 0.02`,
+    /// `u_z = 0.01`, `u = sqrt((4k 0.02)^2 + (3k 0.01)^2) / (25 k^2) = sqrt(0.0073) / (25 k)`.
+    #[test]
+    fn eq40_by_hand_at_several_ranges() {
+        for k in [0.2f64, 1.0, 2.0, 10.0, 40.0] {
+            let u = angle_2d(3.0 * k, 4.0 * k, 0.02, 0.01);
+            let want = 0.0073f64.sqrt() / (25.0 * k);
+            assert!(
+                (u - want).abs() < 1e-15 * want.max(1.0),
+                "{k}: {u} vs {want}"
+            );
+        }
+        // Each term alone: the range's cross component times its uncertainty, over R^2.
+        assert!((angle_2d(3.0f64, 4.0, 0.02, 0.0) - 4.0 * 0.02 / 25.0).abs() < 1e-17);
+        assert!((angle_2d(3.0f64, 4.0, 0.0, 0.01) - 3.0 * 0.01 / 25.0).abs() < 1e-17);
+        assert!((angle_2d(-3.0f64, 4.0, 0.0, 0.01) - 3.0 * 0.01 / 25.0).abs() < 1e-17);
+    }
+
+    /// At `b = (3, 4, 12)`, `|b|^2 = 169`: the corrected sensitivities are
+    /// `sqrt(160) / 169`, `sqrt(153) / 169` and `5 / 169`; the thesis's (eqs 34/35, with
+    /// `x - y = -1`, `x - z = -9`, `y - z = -8`, the root `sqrt 146`) are
+    /// `(112, 93, -59) / (sqrt(146) 169)`.
+    #[test]
+    fn sensitivities_by_hand_off_boresight() {
+        let b = Vector3::new(3.0f64, 4.0, 12.0);
+        let s = sensitivities_3d(&b);
+        let want = [160f64.sqrt() / 169.0, 153f64.sqrt() / 169.0, 5.0 / 169.0];
+        for i in 0..3 {
+            assert!(
+                (s[i] - want[i]).abs() < 1e-16,
+                "{i}: {} vs {}",
+                s[i],
+                want[i]
+            );
+        }
+        // The components' signs do not matter.
+        assert_eq!(sensitivities_3d(&Vector3::new(-3.0f64, 4.0, -12.0)), s);
+        let t = sensitivities_3d_thesis(&b);
+        let den = 146f64.sqrt() * 169.0;
+        for (i, num) in [112.0f64, 93.0, -59.0].into_iter().enumerate() {
+            assert!(
+                (t[i] - num / den).abs() < 1e-16,
+                "{i}: {} vs {}",
+                t[i],
+                num / den
+            );
+        }
+        // Permuting the components permutes the thesis's sensitivities.
+        let tp = sensitivities_3d_thesis(&Vector3::new(12.0f64, 3.0, 4.0));
+        for (i, j) in [(0, 1), (1, 2), (2, 0)] {
+            assert!((tp[j] - t[i]).abs() < 1e-16, "{i} -> {j}");
+        }
+    }
+
+    /// Eq 36 with the corrected sensitivities at `b = (3, 4, 12)`: each axis alone is its
+    /// sensitivity times its uncertainty (`u_z = 0.03` gives `0.15 / 169`), and together the
+    /// root-sum-square `sqrt(160 0.01^2 + 153 0.02^2 + 25 0.03^2) / 169 = sqrt(0.0997) / 169`.
+    #[test]
+    fn eq36_by_hand() {
+        let b = Vector3::new(3.0f64, 4.0, 12.0);
+        let one = |i: usize, u: f64| {
+            let mut v = [0.0; 3];
+            v[i] = u;
+            angle_3d(&b, v)
+        };
+        assert!((one(0, 0.01) - 160f64.sqrt() * 0.01 / 169.0).abs() < 1e-17);
+        assert!((one(1, 0.02) - 153f64.sqrt() * 0.02 / 169.0).abs() < 1e-17);
+        assert!((one(2, 0.03) - 0.15 / 169.0).abs() < 1e-17);
+        let u = angle_3d(&b, [0.01, 0.02, 0.03]);
+        assert!((u - 0.0997f64.sqrt() / 169.0).abs() < 1e-17, "{u}");
+    }
+
+    /// The corrected sensitivities against the angle a small displacement of the tip turns
+    /// `b`, at a point where no two components are equal and none is 1 or 2 (so a wrong
+    /// operator, `x * x` for `x + x` or `x / x`, changes the value), with every sign.
     #[test]
     fn corrected_sensitivity_matches_finite_difference() {
-        let b = Vector3::new(1.0f64, 2.0, 10.0);
-        let s = sensitivities_3d(&b);
-        let h = 1e-6;
-        for i in 0..3 {
-            let mut bp = b;
-            bp[i] += h;
-            let ang = b.cross(&bp).norm().atan2(b.dot(&bp));
-            assert!((ang / h - s[i]).abs() < 1e-4 * s[i], "{i}");
+        for b in [
+            Vector3::new(1.7f64, -2.9, 8.3),
+            Vector3::new(-0.6, 3.1, -4.4),
+            Vector3::new(5.3, 0.4, 2.2),
+        ] {
+            let s = sensitivities_3d(&b);
+            let h = 1e-6;
+            for i in 0..3 {
+                let mut bp = b;
+                bp[i] += h;
+                let ang = b.cross(&bp).norm().atan2(b.dot(&bp));
+                assert!((ang / h - s[i]).abs() < 1e-5 * s[i], "{b:?} {i}");
+            }
         }
         // The thesis's form is singular at x = y = z.
         let t = sensitivities_3d_thesis(&Vector3::new(1.0f64, 1.0, 1.0));

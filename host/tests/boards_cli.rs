@@ -785,24 +785,56 @@ fn a_port_lost_mid_command_is_named_with_its_board() {
     let o = stream.wait_with_output().unwrap();
     names_the_lost_port_once(&o, "sensor", &port);
 
-    // Beacon: heartbeats every 50 ms until stopped, its board stopped after 0.3 s.
-    let sim = Sim::start(&["beacon", "sim"]);
+    // Beacon: heartbeats every 50 ms until stopped, its board stopped once the first
+    // heartbeat has come (the command has identified the board by then, however slow the
+    // machine). The board is the simulated board's code (as `cta beacon sim` runs it), played
+    // here on a pty of the test's own so the test sees the requests.
+    use cta_core::schedule::{Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ};
+    use cta_core::wire::{beacon::BeaconRequest, FrameDecoder, Request, ResetCause, MAX_FRAME};
+    use serialport::SerialPort;
+    use std::io::{Read, Write};
+    use std::os::fd::AsRawFd;
+    use std::time::{Duration, Instant};
+    let (mut master, slave) = serialport::TTYPort::pair().unwrap();
+    let port = slave.name().unwrap();
+    master.set_timeout(Duration::from_millis(5)).unwrap();
+    // Not inherited by the command: closing it here must hang its port up.
+    for fd in [master.as_raw_fd(), slave.as_raw_fd()] {
+        assert_eq!(
+            unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) },
+            0
+        );
+    }
     let heartbeat = Command::new(env!("CARGO_BIN_EXE_cta"))
-        .args([
-            "beacon",
-            "--port",
-            &sim.path,
-            "heartbeat",
-            "--every-ms",
-            "50",
-        ])
+        .args(["beacon", "--port", &port, "heartbeat", "--every-ms", "50"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(300));
-    let port = sim.path.clone();
-    drop(sim);
+    let mut modulator = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+    let mut board = cta_firmware_beacon::board::Board::new(true, ResetCause::PowerOn);
+    board.start(&mut modulator);
+    let mut requests = FrameDecoder::<MAX_FRAME>::new();
+    let (mut rx, mut tx) = ([0u8; 256], [0u8; MAX_FRAME]);
+    let t0 = Instant::now();
+    'board: loop {
+        assert!(t0.elapsed() < Duration::from_secs(120), "no heartbeat came");
+        let n = match master.read(&mut rx) {
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => 0,
+            Err(e) => panic!("the board's end of the pty: {e}"),
+        };
+        let now_ms = t0.elapsed().as_millis() as u64;
+        for &b in &rx[..n] {
+            if let Some(frame) = board.feed(b, now_ms, &mut modulator, &mut tx) {
+                master.write_all(frame).unwrap();
+            }
+            if let Some(Ok((_, Request::<BeaconRequest>::Heartbeat))) = requests.push(b) {
+                break 'board;
+            }
+        }
+    }
+    drop((master, slave));
     let o = heartbeat.wait_with_output().unwrap();
     names_the_lost_port_once(&o, "beacon", &port);
 }

@@ -2,7 +2,7 @@
 //! `Modulator` as the firmware) over a pseudo-terminal, exactly as over RS-232.
 
 use std::io::Write;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use cta_core::wire::beacon::{
     Beacon, BeaconError, BeaconRequest, BeaconResponse, BeaconStatus, FreqSet, LedMode, LedSetting,
@@ -14,6 +14,10 @@ use cta_firmware_beacon::sim::SimBoard;
 use cta_lab::boards::link::{open_serial, Link, LinkConfig, LinkError};
 
 type BeaconLink = Link<Beacon, Box<dyn serialport::SerialPort>>;
+
+/// How long to wait for something the simulated board must do: generous, so a loaded
+/// machine cannot fail the test; nothing is assumed done after a fixed time.
+const PATIENCE: Duration = Duration::from_secs(60);
 
 fn connect(sim: &SimBoard) -> BeaconLink {
     let port = open_serial(sim.path()).expect("open the pty");
@@ -86,10 +90,16 @@ fn host_drives_the_simulated_board_over_a_pty() {
         }
         other => panic!("{other:?}"),
     }
-    // The simulated modulator runs: LED 45 is seen both lit and dark, LED 5 always lit.
+    // The simulated modulator runs: LED 45 is seen both lit and dark, LED 5 always lit
+    // (sampled until both are seen, however slowly the board's thread runs).
     let (mut on, mut off) = (0, 0);
     let t0 = sim.snapshot().ticks;
-    for _ in 0..60 {
+    let deadline = Instant::now() + PATIENCE;
+    while on == 0 || off == 0 || sim.snapshot().ticks == t0 {
+        assert!(
+            Instant::now() < deadline,
+            "LED 45 never toggled (on {on}, off {off}) or the modulator does not advance"
+        );
         std::thread::sleep(Duration::from_millis(2));
         assert!(lit(&sim, 5));
         if lit(&sim, 45) {
@@ -98,11 +108,6 @@ fn host_drives_the_simulated_board_over_a_pty() {
             off += 1
         }
     }
-    assert!(sim.snapshot().ticks > t0, "the modulator does not advance");
-    assert!(
-        on > 0 && off > 0,
-        "LED 45 never toggled: on {on}, off {off}"
-    );
 
     // Bad requests: named refusals, nothing changes.
     assert_eq!(
@@ -176,21 +181,78 @@ fn host_drives_the_simulated_board_over_a_pty() {
     let s = status(&mut l);
     assert!(s.decoder.malformed >= 1);
 
-    // Dead-man: with a 200 ms timeout and no heartbeats everything goes dark.
+    // Dead-man: with a 200 ms timeout, heartbeats keep the LEDs lit, and without them
+    // everything goes dark. Timed on the host's clock, which the simulated board shares: the
+    // board restarts its timer at each frame somewhere between the frame's sending and its
+    // answer, so a round of heartbeats over three timeouts, each answered within 200 ms of the
+    // previous frame's sending, must leave the LEDs lit. A round in which the machine stalled
+    // past that proves nothing either way and is run again (relit if it tripped).
+    let deadman = Duration::from_millis(200);
     l.call(BeaconRequest::SetLimits(Limits {
         max_lit: 20,
         deadman_ms: 200,
     }))
     .unwrap();
-    for _ in 0..5 {
-        std::thread::sleep(Duration::from_millis(100));
-        l.heartbeat().unwrap();
+    let mut rounds = 0;
+    let (trips, quiet_from) = loop {
+        rounds += 1;
+        assert!(
+            rounds <= 50,
+            "every round of heartbeats stalled past the dead-man"
+        );
+        // `prev`: when the latest frame was sent; `kept`: every frame so far answered within
+        // the timeout (less 5 ms for the board's whole-millisecond clock) of the one before.
+        let mut prev = Instant::now();
+        let trips = status(&mut l).deadman_trips;
+        let mut kept = true;
+        for (led, mode) in [
+            (5, LedMode::On),
+            (45, LedMode::Modulated(FreqSet::single(1))),
+            (46, LedMode::Modulated(FreqSet(0b101))),
+        ] {
+            let sent = Instant::now();
+            l.call(set(led, mode)).unwrap();
+            kept &= prev.elapsed() + Duration::from_millis(5) < deadman;
+            prev = sent;
+        }
+        let start = Instant::now();
+        while start.elapsed() < 3 * deadman {
+            // Paced, not waited on: any interval under the timeout would do.
+            std::thread::sleep(Duration::from_millis(20));
+            let sent = Instant::now();
+            l.heartbeat().unwrap();
+            kept &= prev.elapsed() + Duration::from_millis(5) < deadman;
+            prev = sent;
+        }
+        let quiet_from = Instant::now();
+        let s = status(&mut l);
+        kept &= prev.elapsed() + Duration::from_millis(5) < deadman;
+        if kept {
+            assert!(lit(&sim, 5), "heartbeats keep the LEDs lit");
+            assert_eq!(
+                (s.lit, s.deadman_trips),
+                (3, trips),
+                "heartbeats keep the LEDs lit"
+            );
+            break (trips, quiet_from);
+        }
+    };
+    // Silence from the last request on: dark, and not before 200 ms have passed.
+    let deadline = Instant::now() + PATIENCE;
+    while lit(&sim, 5) {
+        assert!(
+            Instant::now() < deadline,
+            "dead-man did not switch the LEDs off"
+        );
+        std::thread::sleep(Duration::from_millis(2));
     }
-    assert!(lit(&sim, 5), "heartbeats keep the LEDs lit");
-    std::thread::sleep(Duration::from_millis(600));
-    assert!(!lit(&sim, 5), "dead-man did not switch the LEDs off");
+    let dark_after = quiet_from.elapsed();
+    assert!(
+        dark_after > deadman,
+        "dark {dark_after:?} after the last request, before the 200 ms dead-man"
+    );
     let s = status(&mut l);
-    assert_eq!((s.lit, s.deadman_trips), (0, 1));
+    assert_eq!((s.lit, s.deadman_trips), (0, trips + 1));
 
     // All off.
     l.call(set(9, LedMode::On)).unwrap();

@@ -78,9 +78,40 @@ fn child_hardware_run() {
     std::process::exit(0);
 }
 
+/// A child's output collected as it comes (`lock()` for the text so far), and whether its
+/// end has been read.
+struct Collected {
+    text: Mutex<String>,
+    ended: std::sync::atomic::AtomicBool,
+}
+
+impl std::ops::Deref for Collected {
+    type Target = Mutex<String>;
+
+    fn deref(&self) -> &Mutex<String> {
+        &self.text
+    }
+}
+
+impl Collected {
+    /// The whole text, once the end has been read (the child has exited: its end comes), or
+    /// a panic after [`PATIENCE`].
+    fn all(&self) -> String {
+        let t0 = Instant::now();
+        while !self.ended.load(std::sync::atomic::Ordering::Acquire) {
+            assert!(t0.elapsed() < PATIENCE, "the output never ended");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        self.text.lock().unwrap().clone()
+    }
+}
+
 /// Collects a child's stderr as it comes.
-fn collect(mut from: impl Read + Send + 'static) -> Arc<Mutex<String>> {
-    let text = Arc::new(Mutex::new(String::new()));
+fn collect(mut from: impl Read + Send + 'static) -> Arc<Collected> {
+    let text = Arc::new(Collected {
+        text: Mutex::new(String::new()),
+        ended: false.into(),
+    });
     let t = text.clone();
     std::thread::spawn(move || {
         let mut buf = [0u8; 4096];
@@ -92,6 +123,7 @@ fn collect(mut from: impl Read + Send + 'static) -> Arc<Mutex<String>> {
                 .unwrap()
                 .push_str(&String::from_utf8_lossy(&buf[..n]));
         }
+        t.ended.store(true, std::sync::atomic::Ordering::Release);
     });
     text
 }
@@ -137,7 +169,7 @@ fn signal_and_wait(mut child: Child, signal: &str) -> (Option<i32>, String) {
 /// Start `child_hardware_run` on `SLOW_PLAN` into `dir/run`; stdin a pipe left open (nobody
 /// answers), stdout and stderr piped. Returns the child, the run directory and the stderr
 /// collected so far.
-fn start_hardware_run(dir: &Path, yes: bool) -> (Child, PathBuf, Arc<Mutex<String>>) {
+fn start_hardware_run(dir: &Path, yes: bool) -> (Child, PathBuf, Arc<Collected>) {
     let plan = write_plan(dir, SLOW_PLAN);
     let run = dir.join("run");
     let yes_marker = dir.join("yes");
@@ -171,16 +203,9 @@ fn sighup_ignored() -> bool {
 
 /// The run stopped cleanly, interrupted by `name`: summary, error, journal, manifest, boards.
 #[track_caller]
-fn assert_clean_stop(
-    run: &Path,
-    name: &str,
-    code: Option<i32>,
-    stdout: &str,
-    stderr: &Mutex<String>,
-) {
-    // Give the reader thread the last bytes: the child has exited.
-    std::thread::sleep(Duration::from_millis(200));
-    let stderr = stderr.lock().unwrap().clone();
+fn assert_clean_stop(run: &Path, name: &str, code: Option<i32>, stdout: &str, stderr: &Collected) {
+    // The child has exited: the reader thread gets the last bytes, then the end.
+    let stderr = stderr.all();
     // 128 + the signal, as a shell reports a command that signal stopped.
     let expected = match name {
         "SIGTERM" => 143,

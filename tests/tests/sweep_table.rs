@@ -219,20 +219,24 @@ fn a_table_only_differing_where_the_plan_does_not_light_is_accepted() {
 /// The beacon port is a symbolic link the test repoints, while the run holds the port open,
 /// to another beacon board whose table was changed: the reconnection after the first board
 /// went silent finds it. The run stops there, saved, before lighting anything from that
-/// table, and says how to resume on its ports.
+/// table, and says how to resume on its ports. The first board stays silent for longer than
+/// the test's patience, and the run gives up only after as long: whenever the test repoints
+/// the link, before the fault or during the reconnections, only the other board answers.
 #[test]
 fn a_changed_table_found_at_a_reconnection_stops_the_run() {
     let d = TestDir::new("sweep-table-reconnect");
     write_plan(
         &d,
-        &PLAN.replace("settle_ms = 0", "settle_ms = 0\nrate_hz = 20"),
+        &PLAN
+            .replace("settle_ms = 0", "settle_ms = 0\nrate_hz = 20")
+            .replace("give_up_s = 30", "give_up_s = 120"),
     );
     let plan = Plan::load(&d.join("plan.toml")).unwrap();
     let sim = boards(
         &plan,
         &SimSettings {
             realtime: true,
-            faults: Faults::parse("silent=beacon@4:400").unwrap(),
+            faults: Faults::parse("silent=beacon@4:600000").unwrap(),
             ..SimSettings::default()
         },
     );
@@ -259,10 +263,6 @@ fn a_changed_table_found_at_a_reconnection_stops_the_run() {
     let tmp = d.join("beacon.new");
     std::os::unix::fs::symlink(other.path(), &tmp).unwrap();
     std::fs::rename(&tmp, &link).unwrap();
-    assert!(
-        journal_points(&run) < 3,
-        "too slow: the link was repointed after the fault"
-    );
 
     let e = format!("{:#}", sweeping.join().unwrap().unwrap_err());
     for said in [
