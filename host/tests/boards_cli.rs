@@ -789,7 +789,8 @@ fn a_port_lost_mid_command_is_named_with_its_board() {
     // heartbeat has come (the command has identified the board by then, however slow the
     // machine). The board is the simulated board's code (as `cta beacon sim` runs it), played
     // here on a pty of the test's own so the test sees the requests.
-    use cta_core::schedule::{Modulator, BEACON_PINS, NORTHSTAR_TABLE_MHZ};
+    use cta_core::schedule::{Modulator, NORTHSTAR_TABLE_MHZ};
+    use cta_firmware_beacon::pins::BEACON_LINES;
     use cta_core::wire::{beacon::BeaconRequest, FrameDecoder, Request, ResetCause, MAX_FRAME};
     use serialport::SerialPort;
     use std::io::{Read, Write};
@@ -811,7 +812,7 @@ fn a_port_lost_mid_command_is_named_with_its_board() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let mut modulator = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_PINS).unwrap();
+    let mut modulator = Modulator::new(&NORTHSTAR_TABLE_MHZ, &BEACON_LINES).unwrap();
     let mut board = cta_firmware_beacon::board::Board::new(true, ResetCause::PowerOn);
     board.start(&mut modulator);
     let mut requests = FrameDecoder::<MAX_FRAME>::new();

@@ -382,9 +382,24 @@ fn too_few_beacons_and_warm_start() {
     assert!(sol.position.iter().all(|v| v.is_finite()));
     let first = s.solve(&spots);
     assert!(first.cold_start && first.status == PoseStatus::Ok);
+    // The next solve starts from this one's pose.
+    assert_eq!(s.warm_start(), Some((first.position, first.mrp)));
     let second = s.solve(&spots);
     assert!(!second.cold_start && second.status == PoseStatus::Ok);
-    assert!(second.iterations <= first.iterations);
+    // Started at the answer it needs fewer iterations: `<=` would hold if the warm start
+    // were ignored.
+    assert!(
+        second.iterations < first.iterations,
+        "warm {} cold {}",
+        second.iterations,
+        first.iterations
+    );
+    assert!((second.position - first.position).norm() < 1e-4);
+    // Forgotten, the next solve is cold again and takes the cold start's iterations.
+    s.reset();
+    assert_eq!(s.warm_start(), None);
+    let third = s.solve(&spots);
+    assert!(third.cold_start && third.iterations == first.iterations);
 }
 
 /// At 2 in the outer beacons put a cell in the dark: that coordinate sits on the rail
