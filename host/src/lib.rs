@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 pub mod args;
 pub mod cmd;
 pub mod conn;
+pub mod signals;
 
 #[derive(Parser)]
 #[command(
@@ -59,7 +60,7 @@ pub enum Cmd {
     /// Autonomous CTA data collection over serial (or on the simulated CTA with --sim):
     /// a plan of separations, beacons, frequencies, power levels and sensitivities,
     /// resumable after any interruption, never losing or duplicating a point.
-    Sweep(cta_lab::sweep::SweepArgs),
+    Sweep(cmd::sweep::SweepArgs),
     /// From measured data to a named cause: where the model disagrees with the data, the
     /// physical effect responsible, the extended model and its held-out gain.
     Analyze(cmd::analyze::AnalyzeArgs),
@@ -121,11 +122,24 @@ pub fn main() {
         Cmd::Evaluate(a) => cmd::evaluate::run(a),
         Cmd::Calibrate(a) => cmd::calibrate::run(a),
         Cmd::Demo(a) => cmd::demo::run(a),
-        Cmd::Sweep(a) => cta_lab::sweep::run(a),
+        Cmd::Sweep(a) => cmd::sweep::run(a),
         Cmd::Analyze(a) => cmd::analyze::run(a),
         Cmd::Noise(a) => cmd::noise::run(a),
         Cmd::Beacon(a) => cmd::beacon::run(a),
         Cmd::Sensor(a) => cmd::sensor::run(a),
     };
-    cta_lab::exit_on_error(r);
+    exit_on_error(r);
+}
+
+/// What the binary does with a command's error: prints `cta: error: ...` with its causes and
+/// exits with 1, or an interrupted sweep's [`cmd::sweep::Interrupted::exit_code`] (128 + the
+/// signal). Returns on success.
+pub fn exit_on_error(r: anyhow::Result<()>) {
+    if let Err(e) = r {
+        eprintln!("cta: error: {e:#}");
+        let code = e
+            .downcast_ref::<cmd::sweep::Interrupted>()
+            .map_or(1, |i| i.exit_code);
+        std::process::exit(code);
+    }
 }

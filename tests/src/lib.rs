@@ -16,7 +16,8 @@ use std::ops::Deref;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use cta_lab::sweep::{self, SweepArgs};
+use cta_cli::cmd::sweep::SweepArgs;
+use cta_lab::sweep::{self, SweepOptions};
 
 /// A fresh, empty directory for one test: `$TMPDIR/cta-NAME-PID`, emptied if a previous run
 /// left it. Dropping it removes it, unless the test is failing (panicking): a failed test
@@ -80,22 +81,30 @@ pub fn write_plan(dir: &Path, text: &str) -> PathBuf {
     p
 }
 
-/// `cta sweep --plan PLAN --out OUT --quiet` on the simulated CTA, everything else the
-/// command's defaults. Tests add what they need:
-/// `SweepArgs { sim_seed: Some(5), ..sweep_args(&plan, &out) }`.
-pub fn sweep_args(plan: &Path, out: &Path) -> SweepArgs {
-    SweepArgs {
+/// A sweep of `plan` into `out` on the simulated CTA, everything else the command's defaults.
+/// Tests add what they need: `SweepOptions { sim_seed: Some(5), ..sweep_args(&plan, &out) }`.
+pub fn sweep_args(plan: &Path, out: &Path) -> SweepOptions {
+    SweepOptions {
         plan: Some(plan.to_path_buf()),
         out: Some(out.to_path_buf()),
-        quiet: true,
         ..Default::default()
     }
 }
 
-/// `cta sweep --resume RUN --quiet`: the run's own plan and simulation settings.
-pub fn resume_args(run: &Path) -> SweepArgs {
-    SweepArgs {
+/// A resume of `run`: the run's own plan and simulation settings.
+pub fn resume_args(run: &Path) -> SweepOptions {
+    SweepOptions {
         resume: Some(run.to_path_buf()),
+        ..Default::default()
+    }
+}
+
+/// `cta sweep --plan PLAN --out OUT --quiet`, as the command line reads it (for tests of the
+/// command: its signal handling, exit status and summary).
+pub fn sweep_cli_args(plan: &Path, out: &Path) -> SweepArgs {
+    SweepArgs {
+        plan: Some(plan.to_path_buf()),
+        out: Some(out.to_path_buf()),
         quiet: true,
         ..Default::default()
     }

@@ -9,7 +9,7 @@ use cta_lab::progress::Silent;
 use cta_lab::data::Dataset;
 use cta_lab::sim::Truth;
 use cta_lab::sweep::corners::{RunCorners, ROD_XY_IN};
-use cta_lab::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::{self, engine::Ending, SweepOptions};
 use cta_tests::{sweep_args, write_plan, TestDir};
 
 const PLAN: &str = r#"
@@ -27,7 +27,7 @@ settle_ms = 0
 fn corner_readings_explain_a_tilted_plate() {
     let d = TestDir::new("plate-corners");
     let plan = write_plan(&d, PLAN);
-    let a = SweepArgs {
+    let a = SweepOptions {
         sim_noise: Some(32.8),
         sim_seed: Some(11),
         sim_effect: vec!["plate_tilt=0.3".into()],

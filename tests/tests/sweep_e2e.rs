@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use cta_lab::data::Dataset;
-use cta_lab::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::{self, engine::Ending, SweepOptions};
 use cta_tests::{sweep_args, write_plan, TestDir};
 
 const PLAN: &str = r#"
@@ -19,8 +19,8 @@ settle_ms = 0
 no_signal_reports = 6
 "#;
 
-fn args(dir: &Path, plan: &Path) -> SweepArgs {
-    SweepArgs {
+fn args(dir: &Path, plan: &Path) -> SweepOptions {
+    SweepOptions {
         sim_noise: Some(15.0),
         sim_seed: Some(7),
         no_sync: true,
@@ -100,7 +100,7 @@ fn simulated_magnitude_noise_is_measured_by_cta_noise() {
     let d = TestDir::new("sweep-e2e-magnitude");
     let plan = write_plan(&d, PLAN);
     let run = |name: &str, pct: Option<f64>| {
-        let a = SweepArgs {
+        let a = SweepOptions {
             sim_magnitude_noise: pct,
             ..args(&d.join(name), &plan)
         };
@@ -155,7 +155,7 @@ samples = 3
 settle_ms = 0
 "#,
     );
-    let a = SweepArgs {
+    let a = SweepOptions {
         sim_led_brightness: Some(10.0),
         sim_magnitude_noise: Some(0.3),
         ..args(&d, &plan)

@@ -9,7 +9,7 @@ use std::path::Path;
 use cta_lab::data::Dataset;
 use cta_lab::sweep::plan::Plan;
 use cta_lab::sweep::sim::{SimCta, SimSettings};
-use cta_lab::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::{self, engine::Ending, SweepOptions};
 use cta_tests::{data_rows, journal, journal_field, sweep_args, write_plan, TestDir};
 
 const PLAN: &str = r#"
@@ -37,8 +37,8 @@ fn dir(name: &str) -> TestDir {
     d
 }
 
-fn args(d: &Path, out: &str, faults: Option<&str>) -> SweepArgs {
-    SweepArgs {
+fn args(d: &Path, out: &str, faults: Option<&str>) -> SweepOptions {
+    SweepOptions {
         no_sync: true,
         sim_seed: Some(3),
         sim_noise: Some(20.0),
@@ -245,7 +245,7 @@ fn a_sensor_reset_at_its_start_up_sensitivity_is_found_and_its_rate_restored() {
             ..SimSettings::default()
         };
         let sim = SimCta::spawn(&plan, &settings).unwrap();
-        let a = SweepArgs {
+        let a = SweepOptions {
             no_sync: true,
             yes: true,
             beacon: Some(sim.beacon_path().display().to_string()),

@@ -3,15 +3,15 @@
 //! data.
 //!
 //! The interrupted process is this test binary re-executed with `CTA_SWEEP_INT_CHILD` set,
-//! running only `child_run`, which calls `sweep::run` (the `cta sweep` command: Ctrl-C handler,
+//! running only `child_run`, which calls `cli::run` (the `cta sweep` command: Ctrl-C handler,
 //! summary, result) and exits the way the binary does.
 
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use cta_lab::sweep::{self, SweepArgs};
+use cta_cli::cmd::sweep::{self as cli, SweepArgs};
 use cta_tests::{
-    child, child_paths, journal, journal_points, sweep_args, write_plan, TestDir, SLOW_PLAN,
+    child, child_paths, journal, journal_points, sweep_cli_args, write_plan, TestDir, SLOW_PLAN,
 };
 
 /// Runs `cta sweep --plan PLAN --out OUT` as the binary would (only in the re-executed child).
@@ -23,10 +23,10 @@ fn child_run() {
     let a = SweepArgs {
         no_sync: true,
         sim_realtime: true,
-        ..sweep_args(&plan, &out)
+        ..sweep_cli_args(&plan, &out)
     };
-    // What host/src/main.rs does with the command's result.
-    cta_lab::exit_on_error(sweep::run(&a));
+    // What the binary does with the command's result (`cta_cli::main`).
+    cta_cli::exit_on_error(cli::run(&a));
     std::process::exit(0);
 }
 

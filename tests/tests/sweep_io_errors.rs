@@ -18,7 +18,7 @@ use std::os::unix::process::CommandExt;
 use std::path::Path;
 use std::process::{Command, Output};
 
-use cta_lab::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::{self, engine::Ending, SweepOptions};
 use cta_tests::{
     assert_same_data, child, child_in_shell, child_paths, crash_after, resume_args, snapshot,
     sweep_args, write_plan, TestDir,
@@ -38,8 +38,8 @@ settle_ms = 0
 /// bash counts 1024-byte blocks: either way far below data.csv's size, above the others').
 const LIMIT_BLOCKS: u32 = 48;
 
-fn args(out: &Path, plan: &Path) -> SweepArgs {
-    SweepArgs {
+fn args(out: &Path, plan: &Path) -> SweepOptions {
+    SweepOptions {
         sim_seed: Some(11),
         ..sweep_args(plan, out)
     }
@@ -135,7 +135,7 @@ fn child_new_run() {
     let Some([out, plan, ports]) = child_paths("CTA_SWEEP_IO_NEW") else {
         return;
     };
-    let a = SweepArgs {
+    let a = SweepOptions {
         beacon: Some(ports.join("beacon").display().to_string()),
         sensor: Some(ports.join("sensor").display().to_string()),
         yes: true,

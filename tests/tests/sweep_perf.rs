@@ -9,7 +9,7 @@
 //! ```
 //! (once `cta sweep` is wired: `cta sweep --plan host/plans/chvi.toml --out /tmp/chvi --quiet`)
 
-use cta_lab::sweep::{self, SweepArgs};
+use cta_lab::sweep::{self, SweepOptions};
 use cta_tests::{sweep_args, TestDir};
 
 #[test]
@@ -17,8 +17,7 @@ use cta_tests::{sweep_args, TestDir};
 fn full_chvi_plan_on_the_simulated_cta() {
     let plan = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../host/plans/chvi.toml");
     let d = TestDir::new("sweep-perf");
-    let a = SweepArgs {
-        quiet: std::env::var("CTA_PERF_BARS").is_err(),
+    let a = SweepOptions {
         ..sweep_args(&plan, &d.join("run"))
     };
     let s = sweep::sweep(&a).unwrap();

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use cta_lab::sweep::plan::Plan;
 use cta_lab::sweep::sim::{SimCta, SimSettings};
-use cta_lab::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::{self, engine::Ending, SweepOptions};
 use cta_tests::{sweep_args, write_plan, TestDir};
 
 const PLAN: &str = r#"
@@ -21,8 +21,8 @@ settle_ms = 0
 "#;
 
 /// A sweep of [`PLAN`] into `d/out` on the ports `beacon` and `sensor`, without prompts.
-fn on_ports(d: &Path, out: &str, beacon: &Path, sensor: &Path) -> SweepArgs {
-    SweepArgs {
+fn on_ports(d: &Path, out: &str, beacon: &Path, sensor: &Path) -> SweepOptions {
+    SweepOptions {
         no_sync: true,
         yes: true,
         beacon: Some(beacon.display().to_string()),
@@ -62,7 +62,7 @@ fn one_port_given_twice_is_refused_up_front() {
     assert!(e.contains("are the same port"), "{e}");
     assert!(!d.join("twice").exists() && !d.join("linked").exists());
     // The same port twice on a resume too.
-    let args = SweepArgs {
+    let args = SweepOptions {
         out: None,
         plan: None,
         resume: Some(d.join("twice")),

@@ -5,7 +5,7 @@
 use cta_lab::data::Dataset;
 use cta_lab::data::weights::Weights;
 use cta_lab::fit;
-use cta_lab::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::{self, engine::Ending, SweepOptions};
 use cta_tests::{sweep_args, write_plan, TestDir};
 
 #[test]
@@ -16,7 +16,7 @@ fn each_quadrant_is_seen_where_it_is_mounted() {
         "name = \"quad\"\nlayout = \"quad\"\nseparations_in = [20, 25, 30]\nbeacons = [0, 9, 44, 90, 99]\n\
          samples = 2\nsettle_ms = 0\n",
     );
-    let a = SweepArgs {
+    let a = SweepOptions {
         sim_noise: Some(10.0),
         sim_seed: Some(3),
         no_sync: true,

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use cta_lab::data::Dataset;
 use cta_lab::sweep::plan::Plan;
 use cta_lab::sweep::store::RunDir;
-use cta_lab::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::{self, engine::Ending, SweepOptions};
 use cta_tests::{
     assert_same_data, child, child_paths, journal, journal_points, resume_args, sweep_args,
     write_plan, TestDir,
@@ -31,8 +31,8 @@ settle_ms = 0
 no_signal_reports = 5
 "#;
 
-fn args(out: &Path, plan: &Path) -> SweepArgs {
-    SweepArgs {
+fn args(out: &Path, plan: &Path) -> SweepOptions {
+    SweepOptions {
         sim_noise: Some(25.0),
         sim_seed: Some(42),
         sim_effect: vec!["plate_offset=0.05".into()],
@@ -101,7 +101,7 @@ fn killed_and_resumed_equals_uninterrupted() {
     // A resume simulates what the run did: another brightness scatter is refused.
     let e = format!(
         "{:#}",
-        sweep::sweep(&SweepArgs {
+        sweep::sweep(&SweepOptions {
             sim_led_brightness: Some(3.0),
             ..resume_args(&run)
         })

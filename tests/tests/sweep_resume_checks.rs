@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use cta_lab::sweep::plan::Plan;
 use cta_lab::sweep::sim::{Posing, SimCta, SimSettings};
 use cta_lab::sweep::store::{Event, RunDir};
-use cta_lab::sweep::{self, engine::Ending, SweepArgs};
+use cta_lab::sweep::{self, engine::Ending, SweepOptions};
 use cta_tests::{
     child, child_paths, crash_after, journal, journal_field, resume_args, snapshot, sweep_args,
     write_plan, TestDir,
@@ -36,7 +36,7 @@ fn complete_run(name: &str) -> (TestDir, PathBuf) {
     let d = TestDir::new(&format!("sweep-checks-{name}"));
     let plan = write_plan(&d, PLAN);
     let run = d.join("run");
-    let s = sweep::sweep(&SweepArgs {
+    let s = sweep::sweep(&SweepOptions {
         no_sync: true,
         sim_seed: Some(5),
         ..sweep_args(&plan, &run)
@@ -47,7 +47,7 @@ fn complete_run(name: &str) -> (TestDir, PathBuf) {
 }
 
 fn resume(run: &Path) -> Result<sweep::Summary, String> {
-    sweep::sweep(&SweepArgs {
+    sweep::sweep(&SweepOptions {
         no_sync: true,
         ..resume_args(run)
     })
@@ -64,7 +64,16 @@ fn child_resume() {
     let Some([run]) = child_paths("CTA_SWEEP_CHECKS_CHILD") else {
         return;
     };
-    assert_eq!(resume(&run).unwrap().ending, Ending::Complete);
+    // As the command runs it, saying its notes on stderr.
+    let args = cta_cli::cmd::sweep::SweepArgs {
+        resume: Some(run),
+        quiet: true,
+        ..Default::default()
+    };
+    assert_eq!(
+        cta_cli::cmd::sweep::sweep(&args).unwrap().ending,
+        Ending::Complete
+    );
 }
 
 /// The journal's last `session` line.
@@ -264,7 +273,7 @@ fn an_explicit_max_reports_is_journalled_and_held_on_resume() {
     let explicit = with_timing("max_reports = 40");
     let plan = write_plan(&d, &explicit);
     let run = d.join("run");
-    let s = sweep::sweep(&SweepArgs {
+    let s = sweep::sweep(&SweepOptions {
         no_sync: true,
         sim_seed: Some(5),
         ..sweep_args(&plan, &run)
@@ -438,7 +447,7 @@ fn a_timing_change_with_another_is_refused_naming_the_other() {
 
 /// `cta sweep --resume RUN --plan FILE`.
 fn resume_with(run: &Path, plan: &Path) -> Result<sweep::Summary, String> {
-    sweep::sweep(&SweepArgs {
+    sweep::sweep(&SweepOptions {
         no_sync: true,
         plan: Some(plan.to_path_buf()),
         ..resume_args(run)
@@ -673,20 +682,19 @@ fn boards(posing: Posing) -> SimCta {
 }
 
 /// `cta sweep ... --beacon B --sensor S --yes --quiet --no-sync` on `boards`' ports.
-fn on_ports(boards: &SimCta) -> SweepArgs {
-    SweepArgs {
+fn on_ports(boards: &SimCta) -> SweepOptions {
+    SweepOptions {
         beacon: Some(boards.beacon_path().display().to_string()),
         sensor: Some(boards.sensor_path().display().to_string()),
         yes: true,
-        quiet: true,
         no_sync: true,
-        ..SweepArgs::default()
+        ..SweepOptions::default()
     }
 }
 
 /// `cta sweep --resume RUN` on `boards`' ports.
 fn resume_on(run: &Path, boards: &SimCta) -> Result<sweep::Summary, String> {
-    sweep::sweep(&SweepArgs {
+    sweep::sweep(&SweepOptions {
         resume: Some(run.to_path_buf()),
         ..on_ports(boards)
     })
@@ -715,7 +723,7 @@ fn a_resume_on_another_kind_of_board_is_refused_naming_both() {
     ] {
         let run = d.join(kind);
         let started = boards(first);
-        let s = sweep::sweep(&SweepArgs {
+        let s = sweep::sweep(&SweepOptions {
             plan: Some(plan.clone()),
             out: Some(run.clone()),
             ..on_ports(&started)
@@ -812,7 +820,7 @@ fn a_resume_whose_boards_do_not_answer_changes_nothing() {
     let plan = write_plan(&d, PORTS_PLAN);
     let run = d.join("run");
     let first = boards(Posing::default());
-    let s = sweep::sweep(&SweepArgs {
+    let s = sweep::sweep(&SweepOptions {
         plan: Some(plan),
         out: Some(run.clone()),
         ..on_ports(&first)
@@ -823,7 +831,7 @@ fn a_resume_whose_boards_do_not_answer_changes_nothing() {
     crash_after(&run, 4);
     let journal = read(&run.join("journal.jsonl"));
     let gone = d.join("no-such-port");
-    let e = sweep::sweep(&SweepArgs {
+    let e = sweep::sweep(&SweepOptions {
         resume: Some(run.clone()),
         beacon: Some(gone.display().to_string()),
         ..on_ports(&first)
@@ -900,7 +908,7 @@ fn a_data_file_cut_short_names_what_it_holds_and_recovers_on_request() {
     edited[k] = if edited[k] == b'7' { b'8' } else { b'7' };
     std::fs::write(run.join("data.csv"), &edited).unwrap();
     let recover = |run: &Path| {
-        sweep::sweep(&SweepArgs {
+        sweep::sweep(&SweepOptions {
             no_sync: true,
             recover_truncated: true,
             ..resume_args(run)
@@ -1035,7 +1043,7 @@ fn a_complete_run_resumed_says_so_and_opens_no_board() {
     let hw = d.join("hw");
     {
         let b = boards(HARDWARE);
-        let s = sweep::sweep(&SweepArgs {
+        let s = sweep::sweep(&SweepOptions {
             plan: Some(plan),
             out: Some(hw.clone()),
             ..on_ports(&b)
@@ -1074,7 +1082,7 @@ fn the_simulated_ctas_real_time_is_kept_on_resume() {
          rate_hz = 50\n",
     );
     let run = d.join("run");
-    sweep::sweep(&SweepArgs {
+    sweep::sweep(&SweepOptions {
         no_sync: true,
         sim_realtime: true,
         ..sweep_args(&plan, &run)
@@ -1095,7 +1103,7 @@ fn the_simulated_ctas_real_time_is_kept_on_resume() {
         last_session(&run)
     );
     crash_after(&run, 2);
-    sweep::sweep(&SweepArgs {
+    sweep::sweep(&SweepOptions {
         no_sync: true,
         sim_unthrottled: true,
         ..resume_args(&run)
@@ -1111,7 +1119,7 @@ fn the_simulated_ctas_real_time_is_kept_on_resume() {
         last_session(&run)
     );
     crash_after(&run, 3);
-    sweep::sweep(&SweepArgs {
+    sweep::sweep(&SweepOptions {
         no_sync: true,
         sim_realtime: true,
         ..resume_args(&run)

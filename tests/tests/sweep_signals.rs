@@ -6,7 +6,7 @@
 //! * With stderr not a terminal, plain log lines replace the progress bars.
 //!
 //! The sweeps run in this test binary re-executed as a child (`child_hardware_run`,
-//! `child_log_run`), which calls `sweep::run` (the `cta sweep` command: signal handler,
+//! `child_log_run`), which calls `cli::run` (the `cta sweep` command: signal handler,
 //! summary, result) and exits the way the binary does. The hardware runs use the simulated
 //! boards as if they were real ones (`--beacon`/`--sensor` given their ports), so the operator
 //! is asked, and the child checks the boards' state itself once the sweep returns.
@@ -22,7 +22,7 @@ use cta_core::wire::sensor::{SensorProtocol, SensorRequest, SensorResponse};
 use cta_lab::boards::link::{open_serial, Link, LinkConfig};
 use cta_lab::sweep::plan::Plan;
 use cta_lab::sweep::sim::{SimCta, SimSettings};
-use cta_lab::sweep::{self, SweepArgs};
+use cta_cli::cmd::sweep::{self as cli, SweepArgs};
 use cta_tests::{child, child_paths, journal, journal_points, write_plan, TestDir, SLOW_PLAN};
 
 /// Generous: a loaded machine must not fail the tests.
@@ -72,9 +72,9 @@ fn child_hardware_run() {
         no_sync: true,
         ..SweepArgs::default()
     };
-    let r = sweep::run(&a);
+    let r = cli::run(&a);
     print_board_state(&sim);
-    cta_lab::exit_on_error(r);
+    cta_cli::exit_on_error(r);
     std::process::exit(0);
 }
 
@@ -306,7 +306,7 @@ fn child_log_run() {
         no_sync: true,
         ..SweepArgs::default()
     };
-    cta_lab::exit_on_error(sweep::run(&a));
+    cta_cli::exit_on_error(cli::run(&a));
     std::process::exit(0);
 }
 

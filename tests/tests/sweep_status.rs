@@ -11,9 +11,10 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cta_lab::sweep::status::{self, Holder};
-use cta_lab::sweep::{self, engine::Ending, SweepArgs};
+use cta_cli::cmd::sweep::{self as cli, SweepArgs};
+use cta_lab::sweep::engine::Ending;
 use cta_tests::{
-    child, child_paths, crash_after, journal_points, snapshot, sweep_args, write_plan, TestDir,
+    child, child_paths, crash_after, journal_points, snapshot, sweep_cli_args, write_plan, TestDir,
     SLOW_PLAN,
 };
 
@@ -40,9 +41,9 @@ fn status_of_a_complete_and_an_interrupted_run() {
     let d = TestDir::new("sweep-status-done");
     let plan = write_plan(&d, PLAN);
     let run = d.join("run");
-    let s = sweep::sweep(&SweepArgs {
+    let s = cli::sweep(&SweepArgs {
         no_sync: true,
-        ..sweep_args(&plan, &run)
+        ..sweep_cli_args(&plan, &run)
     })
     .unwrap();
     assert_eq!(s.ending, Ending::Complete);
@@ -114,10 +115,10 @@ fn status_of_a_run_that_gave_up() {
     let d = TestDir::new("sweep-status-gave-up");
     let plan = write_plan(&d, PLAN);
     let run = d.join("run");
-    let s = sweep::sweep(&SweepArgs {
+    let s = cli::sweep(&SweepArgs {
         no_sync: true,
         sim_fault: Some("vanish=beacon@3:5000".into()),
-        ..sweep_args(&plan, &run)
+        ..sweep_cli_args(&plan, &run)
     })
     .unwrap();
     assert!(matches!(s.ending, Ending::GaveUp(_)), "{:?}", s.ending);
@@ -159,9 +160,9 @@ fn child_run() {
     let a = SweepArgs {
         no_sync: true,
         sim_realtime: true,
-        ..sweep_args(&plan, &out)
+        ..sweep_cli_args(&plan, &out)
     };
-    cta_lab::exit_on_error(sweep::run(&a));
+    cta_cli::exit_on_error(cli::run(&a));
     std::process::exit(0);
 }
 

@@ -21,7 +21,8 @@ use cta_core::schedule::NORTHSTAR_TABLE_MHZ;
 use cta_firmware_beacon::sim::SimBoard;
 use cta_lab::sweep::plan::Plan;
 use cta_lab::sweep::sim::{Faults, SimCta, SimSettings};
-use cta_lab::sweep::{self, engine::Ending, SweepArgs};
+use cta_cli::cmd::sweep::{self as cli, SweepArgs};
+use cta_lab::sweep::engine::Ending;
 use cta_tests::{
     child, child_paths, data_rows, journal, journal_points, write_plan, TestDir, SLOW_PLAN,
 };
@@ -143,7 +144,7 @@ fn a_changed_table_is_refused_and_table_default_restores_it() {
     table(&b, Some(&[3040.0, 2010.0, 3090.0, 4050.0]), false);
     let e = format!(
         "{:#}",
-        sweep::sweep(&hardware_args(&d, "run", &b, &s)).unwrap_err()
+        cli::sweep(&hardware_args(&d, "run", &b, &s)).unwrap_err()
     );
     for said in [
         format!("beacon board on {b}"),
@@ -159,7 +160,7 @@ fn a_changed_table_is_refused_and_table_default_restores_it() {
     table(&b, Some(&[3040.0, 2010.0, 4050.0]), false);
     let e = format!(
         "{:#}",
-        sweep::sweep(&hardware_args(&d, "run", &b, &s)).unwrap_err()
+        cli::sweep(&hardware_args(&d, "run", &b, &s)).unwrap_err()
     );
     assert!(
         e.contains("entry 3 is missing (the table has 3 entries), the plan records 3090 Hz")
@@ -178,7 +179,7 @@ fn a_changed_table_is_refused_and_table_default_restores_it() {
 
     // ...and the run goes: every row's frequency is the one its table entry holds, and the
     // journal says the table it lit from.
-    let summary = sweep::sweep(&hardware_args(&d, "run", &b, &s)).unwrap();
+    let summary = cli::sweep(&hardware_args(&d, "run", &b, &s)).unwrap();
     assert_eq!(summary.ending, Ending::Complete);
     let run = d.join("run");
     assert_eq!(journalled_tables(&run), vec![northstar_hz()]);
@@ -194,7 +195,7 @@ fn a_changed_table_is_refused_and_table_default_restores_it() {
         "{freqs:?}"
     );
     for f in freqs {
-        let entry = sweep::plan::channel_of(f).unwrap() as usize;
+        let entry = cta_lab::sweep::plan::channel_of(f).unwrap() as usize;
         assert_eq!(northstar_hz()[entry], f);
     }
 }
@@ -211,7 +212,7 @@ fn a_table_only_differing_where_the_plan_does_not_light_is_accepted() {
     );
     let t = [3040.0, 2010.0, 4050.0, 1000.0];
     table(&b, Some(&t), false);
-    let summary = sweep::sweep(&hardware_args(&d, "run", &b, &s)).unwrap();
+    let summary = cli::sweep(&hardware_args(&d, "run", &b, &s)).unwrap();
     assert_eq!(summary.ending, Ending::Complete);
     assert_eq!(journalled_tables(&d.join("run")), vec![t.to_vec()]);
 }
@@ -250,7 +251,7 @@ fn a_changed_table_found_at_a_reconnection_stops_the_run() {
     );
     let run = d.join("run");
     let a = hardware_args(&d, "run", &b, &s);
-    let sweeping = std::thread::spawn(move || sweep::sweep(&a));
+    let sweeping = std::thread::spawn(move || cli::sweep(&a));
     // Once the session started, the run has its port open: repoint the link.
     let t0 = Instant::now();
     while !journal(&run).contains("\"event\":\"session\"") {
@@ -307,7 +308,7 @@ fn a_hardware_run_that_gives_up_names_its_ports_in_the_hint() {
     );
     let e = format!(
         "{:#}",
-        sweep::run(&hardware_args(&d, "run", &b, &s)).unwrap_err()
+        cli::run(&hardware_args(&d, "run", &b, &s)).unwrap_err()
     );
     assert!(e.contains("a board stayed unreachable"), "{e}");
     assert!(
@@ -321,7 +322,7 @@ fn a_hardware_run_that_gives_up_names_its_ports_in_the_hint() {
         quiet: true,
         ..SweepArgs::default()
     };
-    let e = format!("{:#}", sweep::sweep(&resume).unwrap_err());
+    let e = format!("{:#}", cli::sweep(&resume).unwrap_err());
     // Said as it was: simulated boards (these say so of themselves) at those ports, not
     // "real boards".
     assert!(
@@ -335,7 +336,7 @@ fn a_hardware_run_that_gives_up_names_its_ports_in_the_hint() {
     );
 }
 
-/// `cta sweep --plan PLAN --out OUT --beacon B --sensor S --yes --quiet` (`sweep::run`: the
+/// `cta sweep --plan PLAN --out OUT --beacon B --sensor S --yes --quiet` (`cli::run`: the
 /// command, with its signal handlers and summary), then prints its error on stdout. Only in
 /// the re-executed child.
 #[test]
@@ -353,7 +354,7 @@ fn child_interrupted_hardware_run() {
         no_sync: true,
         ..SweepArgs::default()
     };
-    match sweep::run(&a) {
+    match cli::run(&a) {
         Ok(()) => println!("completed"),
         Err(e) => println!("error: {e:#}"),
     }

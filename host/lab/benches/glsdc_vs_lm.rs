@@ -5,7 +5,7 @@
 //! same start. Checks both reach the same parameters to 1e-6 relative and prints the time
 //! ratio.
 //!
-//! Run: `cargo bench -p cta --bench glsdc_vs_lm`
+//! Run: `cargo bench -p cta-lab --bench glsdc_vs_lm`
 
 use cta_core::collinearity::{Fit, Linearisation, Obs, Params, ParamsExt, NAMES};
 use cta_core::emulator::{grid_position, Effects, Emulator, Head, Pose, BETA};

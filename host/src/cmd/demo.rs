@@ -1,13 +1,16 @@
 //! `cta demo`: the whole job on the built-in simulated CTA, no hardware.
 
 use crate::args::{Profile, WeightsArg};
+use crate::cmd::analyze::{AnalyzeArgs, Base, Weights};
+use crate::cmd::calibrate::CalibrateArgs;
 use crate::cmd::evaluate::EvaluateArgs;
 use crate::cmd::fit::FitArgs;
 use crate::cmd::nearfield::NearfieldArgs;
+use crate::cmd::sweep::SweepArgs;
 use crate::cmd::uncertainty::UncertaintyArgs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Run the main job on the simulated CTA: near-field analysis, uncertainty, an unattended
 /// sweep of the simulated apparatus with a hidden effect, calibration, evaluation, and the
@@ -31,22 +34,6 @@ pub struct DemoArgs {
 
 /// The demo sweep plan (also shipped as `host/plans/demo.toml`).
 const DEMO_PLAN: &str = include_str!("../../plans/demo.toml");
-
-fn path_str(p: &std::path::Path) -> Result<&str> {
-    p.to_str()
-        .ok_or_else(|| anyhow::anyhow!("{}: not a UTF-8 path", p.display()))
-}
-
-/// Build a subcommand's arguments exactly as its command line would.
-fn parse_args<A: clap::Args>(args: &[&str]) -> Result<A> {
-    #[derive(clap::Parser)]
-    struct Wrap<B: clap::Args> {
-        #[command(flatten)]
-        inner: B,
-    }
-    let argv = std::iter::once("cta").chain(args.iter().copied());
-    Ok(<Wrap<A> as clap::Parser>::try_parse_from(argv)?.inner)
-}
 
 /// The file the demo writes first into its folder, saying what the folder is; `--force`
 /// deletes only a folder that has it.
@@ -163,24 +150,17 @@ pub fn run(a: &DemoArgs) -> Result<()> {
          scattering 0.07 % (what that noise implies if both come from the cells), hidden effect `{}`",
         a.effect
     );
-    let seed = a.seed.to_string();
-    let sweep = parse_args::<cta_lab::sweep::SweepArgs>(&[
-        "--plan",
-        path_str(&plan)?,
-        "--out",
-        path_str(&run_dir)?,
-        "--sim",
-        "--sim-noise",
-        "32.8",
-        "--sim-magnitude-noise",
-        "0.07",
-        "--sim-effect",
-        &a.effect,
-        "--sim-seed",
-        &seed,
-        "--yes",
-    ])?;
-    cta_lab::sweep::run(&sweep)?;
+    crate::cmd::sweep::run(&SweepArgs {
+        plan: Some(plan.clone()),
+        out: Some(run_dir.clone()),
+        sim: true,
+        sim_noise: Some(32.8),
+        sim_magnitude_noise: Some(0.07),
+        sim_effect: vec![a.effect.clone()],
+        sim_seed: Some(a.seed),
+        yes: true,
+        ..SweepArgs::default()
+    })?;
     let data = run_dir.join("data.csv");
     println!("\n== 4. Ch V: calibrate the pinhole model at 20-30 in (thesis recommendation)");
     let fit = p("fit.json");
@@ -209,20 +189,11 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         "\n== 6. The sensor board's calibration from the sweep (pinhole, then the chip's near-field model)"
     );
     let cal = p("cal.json");
-    crate::cmd::calibrate::run(&parse_args::<crate::cmd::calibrate::CalibrateArgs>(&[
-        path_str(&data)?,
-        "--out",
-        path_str(&cal)?,
-        "--plot",
-        path_str(&p("calibration.svg"))?,
-    ])?)?;
+    crate::cmd::calibrate::run(&calibrate_args(&data, &cal, &p("calibration.svg")))?;
+
     println!("\n== 7. What the simulation gets wrong, why, and the gain of the extended model");
     let report = p("report");
-    let analyze = parse_args::<crate::cmd::analyze::AnalyzeArgs>(&[
-        path_str(&data)?,
-        "--report",
-        path_str(&report)?,
-    ])?;
+    let analyze = analyze_args(&data, &report);
     crate::cmd::analyze::run(&analyze)?;
     println!(
         "\nDemo output in {}: nearfield.svg, uncertainty.svg, run/ (sweep data, manifest, truth), fit.json, \
@@ -232,6 +203,45 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     );
     print!("{}", rehearsal(&run_dir, &cal, &a.effect)?);
     Ok(())
+}
+
+/// `cta calibrate DATA --out CAL --plot PLOT`, everything else the command's defaults.
+fn calibrate_args(data: &Path, cal: &Path, plot: &Path) -> CalibrateArgs {
+    CalibrateArgs {
+        file: data.to_path_buf(),
+        out: Some(cal.to_path_buf()),
+        force: false,
+        separations: None,
+        pinhole_separations: None,
+        noise: None,
+        pattern_m: 1.0,
+        plot: Some(plot.to_path_buf()),
+        drop_glitches: false,
+        no_magnitude: false,
+        magnitude_sensitivity: None,
+        json: false,
+    }
+}
+
+/// `cta analyze DATA --report REPORT`, everything else the command's defaults.
+fn analyze_args(data: &Path, report: &Path) -> AnalyzeArgs {
+    AnalyzeArgs {
+        file: data.to_path_buf(),
+        from: Base::Thesis,
+        folds: 5,
+        holdout: None,
+        separations: None,
+        weights: Weights::Separation,
+        noise: None,
+        candidates: None,
+        exclude: None,
+        max_effects: 5,
+        drop_glitches: false,
+        ignore_corners: false,
+        report: Some(report.to_path_buf()),
+        json: false,
+        quiet: false,
+    }
 }
 
 /// What the rehearsal's simulated board does with the demo's hidden effect: a head effect is
@@ -279,7 +289,7 @@ fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> 
     };
     let truth = cta_lab::sim::Truth::path_for(&run_dir.join("data.csv"));
     // The simulated board's own scene, as `cta sensor sim` takes it by default.
-    let scene = parse_args::<crate::cmd::sensor::SimArgs>(&[])?;
+    let scene = cta_lab::pose::head::SimScene::default();
     let [x, y] = scene.offset;
     let hidden = hidden_effect_words(effect);
     Ok(format!(
@@ -361,5 +371,37 @@ mod tests {
         std::fs::remove_file(d.join("mine.txt")).unwrap();
         remove_earlier_demo(&d).unwrap();
         assert!(!d.exists());
+    }
+
+    /// The demo's calibrate and analyze steps are the commands' own defaults, as `cta
+    /// calibrate` and `cta analyze` would read their command lines.
+    #[test]
+    fn demo_steps_take_the_commands_defaults() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Wrap<B: clap::Args> {
+            #[command(flatten)]
+            inner: B,
+        }
+        let (d, c, p, r) = (
+            Path::new("run/data.csv"),
+            Path::new("cal.json"),
+            Path::new("calibration.svg"),
+            Path::new("report"),
+        );
+        let cal = Wrap::<CalibrateArgs>::parse_from([
+            "cta",
+            "run/data.csv",
+            "--out",
+            "cal.json",
+            "--plot",
+            "calibration.svg",
+        ]);
+        assert_eq!(
+            format!("{:?}", cal.inner),
+            format!("{:?}", calibrate_args(d, c, p))
+        );
+        let an = Wrap::<AnalyzeArgs>::parse_from(["cta", "run/data.csv", "--report", "report"]);
+        assert_eq!(format!("{:?}", an.inner), format!("{:?}", analyze_args(d, r)));
     }
 }

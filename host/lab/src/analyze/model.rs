@@ -50,7 +50,7 @@ impl Base {
     }
 }
 
-/// A candidate effect (the vocabulary of `host/src/effects.rs`, minus the simulation-only
+/// A candidate effect (the vocabulary of `sim::effects`, minus the simulation-only
 /// `crosstalk`). Physics and parameters are documented on each variant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Cand {

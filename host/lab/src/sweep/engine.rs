@@ -18,10 +18,8 @@
 //! is journalled. A refusal by a board (a plan the board cannot do) stops the run with the
 //! board's message.
 
-use std::io::{BufRead, IsTerminal, Write};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
-use std::sync::{Arc, LazyLock, Mutex};
+use std::sync::{Arc, LazyLock};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
@@ -32,12 +30,12 @@ use cta_core::wire::sensor::{
     Mode, SensorProtocol, SensorRequest, SensorResponse, SensorStatus, SpotReport,
 };
 use cta_core::wire::{Identity, Protocol, Response};
-use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serialport::SerialPort;
 
 use super::plan::{channel_of, Plan, Point};
 use super::sim::{separation_entry, SimCta};
 use super::store::{now, Event, PointStatus, RunDir, SeparationEntry};
+use super::watch::Watch;
 use crate::boards::link::{open_serial, Link, LinkConfig, LinkError};
 use crate::data::Sample;
 
@@ -191,153 +189,6 @@ impl Operator for SimOperator<'_> {
     fn power(&mut self, level: u8) -> Result<String> {
         self.0.set_power(level);
         Ok("simulated power switches".into())
-    }
-}
-
-/// Prompts on the terminal (stderr) and reads the answers from stdin.
-///
-/// Stdin is read on a helper thread, one line at a time, so that a wait for the operator can
-/// be interrupted: Ctrl-C (or SIGTERM, SIGHUP) at a prompt stops the run at once, and nothing
-/// is recorded for that prompt.
-pub struct Prompt {
-    /// Progress bars to hide while asking (and the log, when stderr is not a terminal).
-    bars: Bars,
-    /// Lines of stdin (`None`: end of input), from the reader thread started at the first
-    /// question.
-    lines: Option<Receiver<std::io::Result<Option<String>>>>,
-}
-
-/// Why a question got no answer: the run was interrupted while waiting.
-#[derive(Debug, thiserror::Error)]
-#[error("interrupted while waiting for the operator")]
-pub struct AskInterrupted;
-
-impl Prompt {
-    /// Prompts hiding `bars` while they ask.
-    pub fn new(bars: &Bars) -> Prompt {
-        Prompt {
-            bars: bars.clone(),
-            lines: None,
-        }
-    }
-
-    fn ask(&mut self, question: &str) -> Result<String> {
-        let lines = self.lines.get_or_insert_with(|| {
-            let (tx, rx) = mpsc::channel();
-            std::thread::spawn(move || loop {
-                let mut s = String::new();
-                let r = std::io::stdin().lock().read_line(&mut s);
-                let end = !matches!(r, Ok(n) if n > 0);
-                if tx.send(r.map(|n| (n > 0).then_some(s))).is_err() || end {
-                    break;
-                }
-            });
-            rx
-        });
-        let log = self.bars.log_prefix();
-        self.bars.multi.suspend(|| {
-            match log {
-                // Not on a terminal: the question is a line of the log.
-                Some(prefix) => eprintln!("{prefix} waiting for the operator: {}", question.trim()),
-                None => eprint!("{question}"),
-            }
-            // Asked on the controlling terminal too, if there is one, when stderr is not it:
-            // `cta sweep ... 2>log` must not wait on a question nobody sees.
-            if !std::io::stderr().is_terminal() {
-                if let Ok(mut tty) = std::fs::OpenOptions::new().write(true).open("/dev/tty") {
-                    let _ = write!(tty, "{question}");
-                }
-            }
-            let _ = std::io::stderr().flush();
-            loop {
-                if INTERRUPTED.load(Ordering::SeqCst) {
-                    eprintln!();
-                    return Err(AskInterrupted.into());
-                }
-                match lines.recv_timeout(Duration::from_millis(50)) {
-                    Ok(Ok(Some(s))) => return Ok(s.trim().to_string()),
-                    Ok(Err(e)) => return Err(anyhow!("cannot read the operator's answer: {e}")),
-                    Ok(Ok(None)) | Err(RecvTimeoutError::Disconnected) => {
-                        return Err(anyhow!(
-                        "stdin closed while waiting for the operator (use --yes for scripted runs)"
-                    ))
-                    }
-                    Err(RecvTimeoutError::Timeout) => {}
-                }
-            }
-        })
-    }
-}
-
-impl Operator for Prompt {
-    fn separation(
-        &mut self,
-        p: &Point,
-        previous: Option<&SeparationEntry>,
-    ) -> Result<SeparationEntry> {
-        if let Some(prev) = previous {
-            let a = self.ask(&format!(
-                "\nResuming at separation {} in (recorded {:.4} +/- {:.4} in from corners {:?}). Is \
-                 the plate still there? [Y = yes / n = measure again] ",
-                p.separation, prev.mean, prev.uncertainty, prev.corners
-            ))?;
-            if !a.to_lowercase().starts_with('n') {
-                return Ok(prev.clone());
-            }
-        }
-        loop {
-            let a = self.ask(&format!(
-                "\nMove the plate to {} in (all LEDs are off). Enter the four corner \
-                 separations in inches, at the rods x, y = +/-{} in of the sensor board's frame, \
-                 in the order {} (e.g. `{0} {0} {0} {0}`; the order gives the plate's tilt): ",
-                p.separation,
-                super::corners::ROD_XY_IN,
-                super::corners::CORNER_ORDER_TEXT
-            ))?;
-            let v: Result<Vec<f64>, _> = a
-                .split([' ', ',', '\t'])
-                .filter(|s| !s.is_empty())
-                .map(str::parse::<f64>)
-                .collect();
-            match v {
-                Ok(v) if v.len() == 4 && v.iter().all(|c| c.is_finite() && *c > 0.0) => {
-                    let e = separation_entry(p.sep_idx, p.separation, v, "operator".into());
-                    if (e.mean - p.separation).abs() > 0.5 {
-                        let ok = self.ask(&format!(
-                            "The mean {:.4} in is {:.3} in from the plan's {} in. Keep it? [y/N] ",
-                            e.mean,
-                            e.mean - p.separation,
-                            p.separation
-                        ))?;
-                        if !ok.to_lowercase().starts_with('y') {
-                            continue;
-                        }
-                    }
-                    if let Some(q) = super::store::levelness_question(&e.corners) {
-                        if !self.ask(&q)?.to_lowercase().starts_with('y') {
-                            continue;
-                        }
-                    }
-                    return Ok(e);
-                }
-                _ => eprintln!("  need four positive numbers, got `{a}`"),
-            }
-        }
-    }
-    fn quadrant(&mut self, q: usize) -> Result<String> {
-        let names = ["-x,-y", "+x,-y", "-x,+y", "+x,+y"];
-        self.ask(&format!(
-            "\nMount the beacon array in quadrant {q} ({}) of the plate, then press Enter ",
-            names[q % 4]
-        ))?;
-        Ok("operator".into())
-    }
-    fn power(&mut self, level: u8) -> Result<String> {
-        let r = if level == 1 { "1 kOhm" } else { "360 Ohm" };
-        self.ask(&format!(
-            "\nSet every LED's slide switch to power level {level} ({r}), then press Enter "
-        ))?;
-        Ok("operator".into())
     }
 }
 
@@ -693,7 +544,7 @@ impl<'a> Engine<'a> {
         store: &mut RunDir,
         operator: &mut dyn Operator,
         from: usize,
-        bars: &Bars,
+        watch: &dyn Watch,
     ) -> Result<Ending> {
         let plan = self.plan;
         let mut place: Option<(usize, usize)> = None; // (sep_idx, quadrant) in place
@@ -703,7 +554,7 @@ impl<'a> Engine<'a> {
         // from the journal: the plate is where it was last recorded, and a point at another
         // separation asks for it to be moved).
         let mut previous_entry = store.plate.clone();
-        bars.start(plan, from);
+        watch.start(plan, from);
         // An operator's answer, or `None` when the run was interrupted while waiting for it
         // (then nothing is recorded for that question).
         fn answered<T>(r: Result<T>) -> Result<Option<T>> {
@@ -729,7 +580,7 @@ impl<'a> Engine<'a> {
                     };
                     store.log(Event::Separation(e.clone()))?;
                     entry = Some(e);
-                    bars.separation(plan, &p);
+                    watch.separation(plan, &p);
                 }
                 if plan.layout.quadrants() > 1 {
                     let Some(source) = answered(operator.quadrant(p.quadrant))? else {
@@ -755,7 +606,7 @@ impl<'a> Engine<'a> {
                 power = Some(p.power);
             }
             let e = entry.as_ref().expect("set above");
-            match self.point_with_retries(store, &p, bars)? {
+            match self.point_with_retries(store, &p, watch)? {
                 Some((m, attempts)) => {
                     let rows: Vec<Sample> = m
                         .samples
@@ -811,7 +662,7 @@ impl<'a> Engine<'a> {
                     }
                     self.stats.samples += rows.len() as u64;
                     self.stats.lost_reports += m.lost as u64;
-                    bars.point_done(plan, i, p.separation);
+                    watch.point_done(plan, i, p.separation);
                 }
                 None if INTERRUPTED.load(Ordering::SeqCst) => {
                     self.quiet_off();
@@ -845,12 +696,12 @@ impl<'a> Engine<'a> {
     fn stop(
         &mut self,
         store: &mut RunDir,
-        bars: &Bars,
+        watch: &dyn Watch,
         p: &Point,
         board: &str,
         e: anyhow::Error,
     ) -> Result<anyhow::Error> {
-        bars.log(&format!("fault at point {}: {e:#}; stop", p.index));
+        watch.log(&format!("fault at point {}: {e:#}; stop", p.index));
         store.log(Event::Fault {
             at: now(),
             point: p.index,
@@ -877,7 +728,7 @@ impl<'a> Engine<'a> {
         &mut self,
         store: &mut RunDir,
         p: &Point,
-        bars: &Bars,
+        watch: &dyn Watch,
     ) -> Result<Option<(Measured, u32)>> {
         let mut attempts = 0u32;
         let mut first_failure: Option<Instant> = None;
@@ -904,11 +755,11 @@ impl<'a> Engine<'a> {
             };
             let fault = match r {
                 Ok(m) => {
-                    bars.message("");
+                    watch.message("");
                     return Ok(Some((m, attempts)));
                 }
                 Err(Fault::Interrupted) => return Ok(None),
-                Err(Fault::Fatal(e)) => return Err(self.stop(store, bars, p, "host", e)?),
+                Err(Fault::Fatal(e)) => return Err(self.stop(store, watch, p, "host", e)?),
                 Err(f) => f,
             };
             let (board, what) = match &fault {
@@ -919,7 +770,7 @@ impl<'a> Engine<'a> {
             let since = *first_failure.get_or_insert_with(Instant::now);
             if since.elapsed().as_secs_f64() > self.plan.give_up_s {
                 let action = format!("stop: no recovery within {} s", self.plan.give_up_s);
-                bars.log(&format!(
+                watch.log(&format!(
                     "fault at point {}: {board}: {what}; {action}",
                     p.index
                 ));
@@ -938,7 +789,7 @@ impl<'a> Engine<'a> {
                 "pause {:.1} s, reconnect, retry point",
                 backoff.as_secs_f64()
             );
-            bars.log(&format!(
+            watch.log(&format!(
                 "fault at point {}: {board}: {what}; {action}",
                 p.index
             ));
@@ -949,7 +800,7 @@ impl<'a> Engine<'a> {
                 what: what.clone(),
                 action,
             })?;
-            bars.message(&format!(
+            watch.message(&format!(
                 "paused: {board}: {what}; retry in {:.1} s",
                 backoff.as_secs_f64()
             ));
@@ -974,7 +825,7 @@ impl<'a> Engine<'a> {
                     .and_then(|()| self.check_beacon(false))
                 {
                     Ok(()) => {}
-                    Err(Fault::Fatal(e)) => return Err(self.stop(store, bars, p, "beacon", e)?),
+                    Err(Fault::Fatal(e)) => return Err(self.stop(store, watch, p, "beacon", e)?),
                     Err(f) => {
                         ok = false;
                         reconnect_error = Some(("beacon", at_port(&self.beacon.path, f)));
@@ -988,7 +839,7 @@ impl<'a> Engine<'a> {
                 reopened.1 = true;
                 match reconnect(&mut || self.sensor.connect()) {
                     Ok(_) => {}
-                    Err(Fault::Fatal(e)) => return Err(self.stop(store, bars, p, "sensor", e)?),
+                    Err(Fault::Fatal(e)) => return Err(self.stop(store, watch, p, "sensor", e)?),
                     Err(f) => {
                         ok = false;
                         reconnect_error = Some(("sensor", at_port(&self.sensor.path, f)));
@@ -999,7 +850,7 @@ impl<'a> Engine<'a> {
                 match self.restore() {
                     Ok(()) => {}
                     // A refusal (a dead-man timeout too short, a request the board refuses).
-                    Err(Fault::Fatal(e)) => return Err(self.stop(store, bars, p, "host", e)?),
+                    Err(Fault::Fatal(e)) => return Err(self.stop(store, watch, p, "host", e)?),
                     Err(f) => {
                         ok = false;
                         let (board, path) = match &f {
@@ -1022,7 +873,7 @@ impl<'a> Engine<'a> {
                         _ => "sensor board",
                     },
                 };
-                bars.log(&format!(
+                watch.log(&format!(
                     "reconnected ({which}); measuring point {} again",
                     p.index
                 ));
@@ -1293,168 +1144,6 @@ fn sleep_interruptible(d: Duration) -> bool {
     !INTERRUPTED.load(Ordering::SeqCst)
 }
 
-/// The progress bars: the whole run and the current separation, with ETA. When stderr is not
-/// a terminal (a run under `nohup`, `tee`, cron or systemd) there are no bars; plain log lines
-/// take their place ([`Bars::log`]): the start, each separation finished, the progress with
-/// its ETA at least every [`PROGRESS_EVERY`] (a separation of the Ch VI plan takes hours),
-/// each fault, retry and reconnection, each wait for the operator, the stop.
-#[derive(Clone)]
-pub struct Bars {
-    /// The bars' container (prompts suspend it).
-    pub multi: MultiProgress,
-    total: ProgressBar,
-    sep: ProgressBar,
-    /// Log lines instead of bars: when the session started.
-    log: Option<Instant>,
-    /// When the last line about progress was logged.
-    last_progress: Arc<Mutex<Instant>>,
-}
-
-/// Log mode: the longest time without a line about progress.
-pub const PROGRESS_EVERY: Duration = Duration::from_secs(60);
-
-/// The log line after point `i` (0-based) of `n`, at `separation`, when a separation is done
-/// (`per` points each) or `since` the last progress line is [`PROGRESS_EVERY`] or more;
-/// `per_sec` and `eta` are the run's rate and estimate, as the terminal's run bar shows them
-/// (its points done of all, its ETA). Both lines say how many points are done of how many
-/// (`1234/69600 points`: a count, where `point 9` elsewhere is an index, from 0); the rate and
-/// the ETA are left out while there is no estimate yet, and once the run is done.
-fn progress_line(
-    i: usize,
-    n: usize,
-    per: usize,
-    separation: f64,
-    since: Duration,
-    per_sec: f64,
-    eta: Duration,
-) -> Option<String> {
-    let done = i + 1;
-    let rate = || {
-        if done >= n || !per_sec.is_finite() || per_sec <= 0.0 {
-            return String::new();
-        }
-        let s = eta.as_secs();
-        format!(
-            "; {:.1} points/min, ETA {}:{:02}:{:02}",
-            per_sec * 60.0,
-            s / 3600,
-            s / 60 % 60,
-            s % 60
-        )
-    };
-    if done.is_multiple_of(per.max(1)) || done == n {
-        Some(format!(
-            "separation {separation} in done: {done}/{n} points{}",
-            rate()
-        ))
-    } else if since >= PROGRESS_EVERY {
-        Some(format!("{done}/{n} points, at {separation} in{}", rate()))
-    } else {
-        None
-    }
-}
-
-impl Bars {
-    /// Bars on stderr; with `quiet`, neither bars nor log lines. Log lines replace the bars
-    /// when stderr is not a terminal.
-    pub fn new(quiet: bool) -> Bars {
-        Bars::with(quiet, !quiet && !std::io::stderr().is_terminal())
-    }
-
-    /// Bars (hidden when `hidden` or when stderr is not a terminal), and log lines when `log`.
-    pub fn with(hidden: bool, log: bool) -> Bars {
-        let multi = MultiProgress::with_draw_target(if hidden || log {
-            ProgressDrawTarget::hidden()
-        } else {
-            ProgressDrawTarget::stderr_with_hz(10)
-        });
-        let style = |t: &str| {
-            ProgressStyle::with_template(t)
-                .unwrap_or_else(|_| ProgressStyle::default_bar())
-                .progress_chars("=> ")
-        };
-        let total = multi.add(ProgressBar::new(0).with_style(style(
-            "run        [{bar:40}] {pos}/{len} points  {elapsed_precise} ETA {eta_precise}  {msg}",
-        )));
-        let sep = multi.add(ProgressBar::new(0).with_style(style(
-            "{prefix:>10} [{bar:40}] {pos}/{len} points  ETA {eta}",
-        )));
-        Bars {
-            multi,
-            total,
-            sep,
-            log: log.then(Instant::now),
-            last_progress: Arc::new(Mutex::new(Instant::now())),
-        }
-    }
-
-    /// The start of a log line, `cta sweep [+H:MM:SS]` (time since the session started);
-    /// `None` when not logging.
-    fn log_prefix(&self) -> Option<String> {
-        self.log.map(|t0| {
-            let s = t0.elapsed().as_secs();
-            format!("cta sweep [+{}:{:02}:{:02}]", s / 3600, s / 60 % 60, s % 60)
-        })
-    }
-
-    /// A line of the log on stderr (only when logging instead of drawing bars).
-    pub fn log(&self, line: &str) {
-        if let Some(prefix) = self.log_prefix() {
-            // Not `eprintln!`, which panics when stderr has gone (a closed pipe or terminal).
-            let _ = writeln!(std::io::stderr(), "{prefix} {line}");
-        }
-    }
-
-    fn start(&self, plan: &Plan, from: usize) {
-        self.total.set_length(plan.len() as u64);
-        self.total.set_position(from as u64);
-        self.total.reset_eta();
-        self.sep.set_length(plan.per_separation() as u64);
-        self.sep
-            .set_position((from % plan.per_separation().max(1)) as u64);
-    }
-
-    fn separation(&self, plan: &Plan, p: &Point) {
-        self.sep.set_prefix(format!("{} in", p.separation));
-        self.sep
-            .set_position((p.index % plan.per_separation().max(1)) as u64);
-        self.sep.reset_eta();
-    }
-
-    /// Point `i` of `plan`, at `separation`, is committed: the bars move, and in log mode a
-    /// line is logged when the separation is done or a while has passed ([`progress_line`]).
-    fn point_done(&self, plan: &Plan, i: usize, separation: f64) {
-        self.total.inc(1);
-        self.sep.inc(1);
-        if self.log.is_none() {
-            return;
-        }
-        let mut last = self.last_progress.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(line) = progress_line(
-            i,
-            plan.len(),
-            plan.per_separation(),
-            separation,
-            last.elapsed(),
-            self.total.per_sec(),
-            self.total.eta(),
-        ) {
-            self.log(&line);
-            *last = Instant::now();
-        }
-    }
-
-    fn message(&self, m: &str) {
-        self.total.set_message(m.to_string());
-    }
-
-    /// Remove the bars.
-    pub fn finish(&self) {
-        self.sep.finish_and_clear();
-        self.total.finish_and_clear();
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1466,32 +1155,5 @@ mod tests {
         // The counter wrapping after 2^32 reports is no reset.
         assert!(!went_back(2, u32::MAX - 1));
         assert!(went_back(0, 1 << 31));
-    }
-
-    /// In log mode a line comes at each separation's end, and in between at least every
-    /// [`PROGRESS_EVERY`], each with the points done of all, the rate and the ETA (but at
-    /// the end, and before the rate is known).
-    #[test]
-    fn log_lines_come_per_separation_and_every_minute() {
-        let eta = Duration::from_secs(3 * 3600 + 12 * 60 + 5);
-        let line = |i, since| progress_line(i, 2400, 800, 10.0, since, 0.2, eta);
-        assert_eq!(
-            line(799, Duration::ZERO).as_deref(),
-            Some("separation 10 in done: 800/2400 points; 12.0 points/min, ETA 3:12:05")
-        );
-        assert_eq!(
-            line(2399, Duration::ZERO).as_deref(),
-            Some("separation 10 in done: 2400/2400 points")
-        );
-        assert_eq!(line(5, PROGRESS_EVERY - Duration::from_millis(1)), None);
-        assert_eq!(
-            line(5, PROGRESS_EVERY).as_deref(),
-            Some("6/2400 points, at 10 in; 12.0 points/min, ETA 3:12:05")
-        );
-        // No estimate yet: no rate, no ETA.
-        assert_eq!(
-            progress_line(799, 2400, 800, 10.0, Duration::ZERO, 0.0, Duration::ZERO).as_deref(),
-            Some("separation 10 in done: 800/2400 points")
-        );
     }
 }

@@ -1,9 +1,10 @@
-//! `cta sweep`: autonomous CTA data collection over serial, resumable, with a simulated CTA
-//! (thesis Ch IV "autonomy in data collection", Ch VI data-collection scheme).
+//! Autonomous CTA data collection over serial, resumable, with a simulated CTA (thesis Ch IV
+//! "autonomy in data collection", Ch VI data-collection scheme).
 //!
 //! * [`plan`]: the plan file (TOML), validated with errors naming file, line and key.
 //! * [`engine`]: the run: both boards over the shared wire protocol ([`crate::boards::link`]),
-//!   operator prompts, faults, retries with backoff, progress bars.
+//!   the operator's manual steps, faults, retries with backoff.
+//! * [`watch`]: what a running sweep reports to whoever shows its progress.
 //! * [`corners`]: the plate's tilt from the operator's corner readings.
 //! * [`store`]: the run directory: measurement CSV appended and synced per point, journal,
 //!   manifest, exact resume.
@@ -20,147 +21,62 @@ pub mod plan;
 pub mod sim;
 pub mod status;
 pub mod store;
+pub mod watch;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
-use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use serde_json::json;
 
-use engine::{
-    interruption, interruption_signal, Bars, Ending, Engine, Operator, Prompt, Scripted,
-    SimOperator, INTERRUPTED, SIGNAL,
-};
+use engine::{interruption, Ending, Engine, Operator, Scripted, SimOperator, INTERRUPTED, SIGNAL};
+use watch::{Unwatched, Watch};
 use plan::Plan;
 use sim::{Faults, SimCta, SimSettings};
 use store::{now, Event, PointStatus, RunDir};
 
-/// `cta sweep`: run a plan on the CTA (or the simulated CTA) into a run directory.
-#[derive(clap::Args, Debug, Clone, Default)]
-#[command(
-    about = "Collect CTA data autonomously: a plan of separations x beacons x frequencies x power \
-             levels x sensitivities, over serial, resumable",
-    long_about = "Collect CTA data autonomously (thesis Ch IV, Ch VI). A plan (TOML, see host/SWEEP.md and \
-host/plans/) lists the separations, beacons, frequencies, power levels, sensitivity settings, samples per point, \
-settle time and timeouts. For every point the beacon board lights one LED, the sensor board streams NorthStar \
-reports, and the samples are appended to RUN_DIR/data.csv (the measurement format of host/MEASUREMENTS.md) and \
-synced to disk before the point is journalled. The run asks the operator to move the plate (entering the four \
-corner measurements: their mean is recorded as the separation, and the larger of its differences from the \
-highest and the lowest corner as its uncertainty, Ch IV) and to flip the power switches; --yes runs without asking.\n\n\
-Nothing is lost and nothing is written twice: after Ctrl-C, a killed process or a power cut, \
-`cta sweep --resume RUN_DIR` continues with the next point; `cta sweep --status RUN_DIR` says how far a run has \
-got without changing anything, also while it runs. An unplugged or silent board pauses the run, which \
-retries with backoff and continues when the board is back. Every fault and retry is in RUN_DIR/journal.jsonl \
-and RUN_DIR/manifest.json.\n\n\
-Without --beacon/--sensor the run uses the simulated CTA: both boards' firmware behind pseudo-terminals, the \
-simulated NorthStar seeing what the beacon board lights through the emulator (eqs 60-63), the plate moving \
-itself. Example:\n  cta sweep --plan host/plans/short.toml --out run1 --sim-noise 20\n  \
-cta sweep --resume run1\n  cta sweep --status run1\n  \
-cta sweep --plan plan.toml --out lab1 --beacon /dev/ttyUSB0 --sensor /dev/ttyUSB1"
-)]
-pub struct SweepArgs {
-    /// The plan (TOML; see host/SWEEP.md). Not needed with --resume (the run keeps its copy,
-    /// RUN_DIR/plan.toml); given with --resume, it may differ from the run's plan only in the
-    /// keys an edit of RUN_DIR/plan.toml may change (timeouts, retries, heartbeat, reconnection
-    /// timing), and then replaces RUN_DIR/plan.toml.
-    #[arg(long, value_name = "PLAN.toml")]
+/// What a sweep session is asked to do: a new run or a resume, on which boards, and how the
+/// simulated CTA behaves. The command line's `cta sweep` options, without the display ones.
+#[derive(Debug, Clone, Default)]
+pub struct SweepOptions {
+    /// The plan file. With `resume` it may replace the run's plan.toml where only timing
+    /// differs.
     pub plan: Option<PathBuf>,
-    /// Run directory to create (data.csv, journal.jsonl, manifest.json, plan.toml).
-    #[arg(long, value_name = "RUN_DIR", conflicts_with = "resume")]
+    /// Run directory to create.
     pub out: Option<PathBuf>,
-    /// Continue the run in RUN_DIR exactly where it stopped.
-    #[arg(long, value_name = "RUN_DIR")]
+    /// Run directory to continue exactly where it stopped.
     pub resume: Option<PathBuf>,
-    /// Overwrite an existing, non-empty --out directory.
-    #[arg(long)]
+    /// Overwrite an existing, non-empty `out`.
     pub force: bool,
-    /// Serial port of the beacon board (e.g. /dev/ttyUSB0). With --sensor: real hardware.
-    #[arg(long, value_name = "PORT", requires = "sensor")]
+    /// Serial port of the beacon board; with `sensor`, a run on hardware.
     pub beacon: Option<String>,
-    /// Serial port of the sensor board (e.g. /dev/ttyUSB1).
-    #[arg(long, value_name = "PORT", requires = "beacon")]
+    /// Serial port of the sensor board.
     pub sensor: Option<String>,
-    /// Use the simulated CTA (the default when no ports are given).
-    #[arg(long, conflicts_with_all = ["beacon", "sensor"])]
-    pub sim: bool,
-    /// Simulated CTA: noise of a strong signal, counts 1-sigma (grows as the signal weakens);
-    /// default 10, and on --resume the run's own.
-    #[arg(long, value_name = "COUNTS")]
+    /// Simulated CTA: noise of a strong signal, counts 1-sigma.
     pub sim_noise: Option<f64>,
-    /// Simulated CTA: spot magnitude noise, percent of the magnitude (1-sigma, 0-25); default
-    /// 0, and on --resume the run's own. The NorthStar's real figure is unmeasured: a what-if
-    /// for `cta noise` -> `cta sensor floor --magnitude-noise`.
-    #[arg(long, value_name = "PERCENT")]
+    /// Simulated CTA: spot magnitude noise, percent.
     pub sim_magnitude_noise: Option<f64>,
-    /// Simulated CTA: scatter of the LEDs' brightness, percent (0-50; each LED of the array
-    /// drawn once, log-normal, multiplying its magnitudes; the truth records the factors);
-    /// default 0, and on --resume the run's own. What `cta calibrate` measures back.
-    #[arg(long, value_name = "PERCENT")]
+    /// Simulated CTA: LED brightness scatter, percent.
     pub sim_led_brightness: Option<f64>,
-    /// Simulated CTA: inject an effect of the analysis vocabulary (repeatable), e.g.
-    /// `beacon_tilt=2,45`, `plate_offset=0.05`, `cell_gain=0.03`.
-    #[arg(long, value_name = "NAME=VALUE")]
+    /// Simulated CTA: effects of the analysis vocabulary (`NAME=VALUE`).
     pub sim_effect: Vec<String>,
-    /// Simulated CTA: random seed (noise, geometry draws); default 1, and on --resume the
-    /// run's own.
-    #[arg(long, value_name = "N")]
+    /// Simulated CTA: random seed.
     pub sim_seed: Option<u64>,
-    /// Simulated CTA: run the simulated NorthStar at the plan's rate (10 Hz, as the real
-    /// sensor) and honour settle times, instead of unthrottled. Journalled: a resume keeps the
-    /// mode the last session ran in (--sim-realtime or --sim-unthrottled change it, with a note).
-    #[arg(long, conflicts_with = "sim_unthrottled")]
+    /// Simulated CTA: run at the plan's rate and honour settle times.
     pub sim_realtime: bool,
-    /// Simulated CTA, with --resume: run unthrottled although the last session ran with
-    /// --sim-realtime (the data are the same either way).
-    #[arg(long, requires = "resume")]
+    /// Simulated CTA, on a resume: run unthrottled although the last session did not.
     pub sim_unthrottled: bool,
-    /// Simulated CTA: inject faults (testing): `drop=P`, `corrupt=P` (per byte, both lines),
-    /// `vanish=BOARD@N:MS` (unplugged), `silent=BOARD@N:MS`, `stall=sensor@N:MS`, triggered at
-    /// the N-th point attempt of the session, and `reset=BOARD@N` (the board restarts, its
-    /// port staying up: the beacon as the N-th attempt starts, the sensor as it ends),
-    /// comma-separated.
-    #[arg(long, value_name = "SPEC")]
+    /// Simulated CTA: faults to inject ([`Faults::parse`]).
     pub sim_fault: Option<String>,
-    /// Do not ask: separations are the plan's nominal values (recorded as not measured),
-    /// power switches assumed set. For scripted runs.
-    #[arg(long, short = 'y')]
+    /// Ask nothing: separations are the plan's nominal values, power switches assumed set.
     pub yes: bool,
-    /// No progress bars, and no log lines when stderr is not a terminal (the summary is still
-    /// printed).
-    #[arg(long, short = 'q')]
-    pub quiet: bool,
-    /// Do not fsync the data and journal (by default synced after each point, grouped to at
-    /// most one sync every 250 ms); faster: a power cut may then lose the last points, a killed
-    /// process still loses nothing.
-    #[arg(long)]
+    /// Do not fsync the data and journal.
     pub no_sync: bool,
-    /// With --resume, when RUN_DIR/data.csv was cut short (it holds fewer bytes than the
-    /// journal committed): resume from the last point it still holds whole, once its bytes and
-    /// every earlier point's are checked against the hashes journalled with them. The journal
-    /// lines after that point and the bytes past it are moved to RUN_DIR/recovered-N/, and
-    /// the points after it are measured again. Refused when the bytes left are not what was
-    /// written.
-    #[arg(long, requires = "resume")]
+    /// On a resume, recover a data.csv cut short ([`RunDir::resume_recovering`]).
     pub recover_truncated: bool,
-    /// Say how far the run in RUN_DIR has got, without changing anything (no lock, no cut, no
-    /// write; also while another `cta sweep` is running it): points done of all, per
-    /// separation, the last commit, sessions, faults, whether it is complete, running or
-    /// stopped, and the command that continues it.
-    #[arg(
-        long,
-        value_name = "RUN_DIR",
-        conflicts_with_all = [
-            "out", "resume", "plan", "beacon", "sensor", "sim", "force", "yes", "sim_noise",
-            "sim_magnitude_noise", "sim_led_brightness", "sim_effect", "sim_seed", "sim_realtime", "sim_unthrottled",
-            "sim_fault", "quiet", "no_sync", "recover_truncated"
-        ]
-    )]
-    pub status: Option<PathBuf>,
-    /// With --status: JSON instead of the table.
-    #[arg(long, requires = "status")]
-    pub json: bool,
+    /// The command line that started the session, journalled with it.
+    pub command: Vec<String>,
 }
 
 /// What a finished session did (for tests and callers).
@@ -185,92 +101,6 @@ pub struct Summary {
     pub already_complete: bool,
 }
 
-/// `cta sweep`.
-pub fn run(args: &SweepArgs) -> Result<()> {
-    if let Some(dir) = &args.status {
-        return status::run(dir, args.json);
-    }
-    catch_stop_signals();
-    let s = sweep(args)?;
-    print_summary(&s);
-    match &s.ending {
-        Ending::Complete => Ok(()),
-        Ending::GaveUp(what) => bail!(
-            "a board stayed unreachable ({what}); the run is saved: continue with `{}`",
-            s.resume
-        ),
-        // Not a success: `cta sweep ... && cta fit ...` must not go on with partial data.
-        Ending::Interrupted => Err(Interrupted {
-            signal: interruption(),
-            exit_code: 128 + interruption_signal(),
-            dir: s.dir.clone(),
-            resume: s.resume.clone(),
-            next_point: s.next_point,
-            points: s.points,
-        }
-        .into()),
-    }
-}
-
-/// Catch SIGINT (Ctrl-C), SIGTERM (`kill`, systemd, `docker stop`) and SIGHUP (a closed
-/// terminal or SSH session) with `signal_hook`'s flag handlers: the first asks the run to stop
-/// cleanly (LEDs off, sensor idle, the stop journalled; [`SIGNAL`] says which), a second one
-/// leaves at once with 128 + the signal (everything committed is on disk). A signal ignored
-/// when the sweep started stays ignored: under `nohup` a hang-up does not stop the run.
-fn catch_stop_signals() {
-    use signal_hook::flag;
-    for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
-        if ignored(sig) {
-            continue;
-        }
-        // In this order: the second signal finds the flag set and exits; the first sets it.
-        let registered =
-            flag::register_conditional_shutdown(sig, 128 + sig, Arc::clone(&INTERRUPTED))
-                .and_then(|_| flag::register_usize(sig, Arc::clone(&SIGNAL), sig as usize))
-                .and_then(|_| flag::register(sig, Arc::clone(&INTERRUPTED)));
-        if let Err(e) = registered {
-            eprintln!(
-                "warning: cannot catch signal {sig} ({e}): it would stop the sweep uncleanly"
-            );
-        }
-    }
-}
-
-/// Whether `sig` is ignored (SIG_IGN), as `nohup` leaves SIGHUP.
-pub(crate) fn ignored(sig: libc::c_int) -> bool {
-    // SAFETY: a read-only sigaction query into a zeroed struct.
-    unsafe {
-        let mut old: libc::sigaction = std::mem::zeroed();
-        libc::sigaction(sig, std::ptr::null(), &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN
-    }
-}
-
-/// The error [`run`] returns when Ctrl-C (or SIGTERM, SIGHUP) stopped the sweep: the run is
-/// saved and resumable but incomplete, so the command must not exit with success. The binary
-/// exits with its [`Interrupted::exit_code`] ([`crate::exit_on_error`]), otherwise with its generic
-/// error status.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error(
-    "interrupted ({signal}) with {next_point} of {points} points done (next: point \
-     {next_point}); the run is saved: continue with `{resume}`"
-)]
-pub struct Interrupted {
-    /// What stopped it: `Ctrl-C`, `SIGTERM` or `SIGHUP`.
-    pub signal: &'static str,
-    /// Exit status: 128 + the signal's number, the shell's convention for a command a signal
-    /// stopped (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), so a script can tell them apart; the
-    /// sweep stopped itself cleanly, it was not killed.
-    pub exit_code: i32,
-    /// The run directory.
-    pub dir: PathBuf,
-    /// The command that continues the run ([`Summary::resume`]).
-    pub resume: String,
-    /// Next point to measure (its index, from 0; also the number of points done).
-    pub next_point: usize,
-    /// Points in the plan.
-    pub points: usize,
-}
-
 /// `N of M points done (next: point N)`: how far a run has got. Points are numbered from 0,
 /// as in the journal (`i`, `next_point`), the log (`fault at point 9`) and data.csv's
 /// comments, so the next point's index is the number done.
@@ -282,55 +112,21 @@ pub fn points_done(next: usize, points: usize) -> String {
     }
 }
 
-fn print_summary(s: &Summary) {
-    let st = &s.stats;
-    if s.already_complete {
-        println!(
-            "sweep {}: already complete: {}; nothing to measure, no board was opened",
-            s.dir.display(),
-            points_done(s.next_point, s.points)
-        );
-        println!("  data: {}", s.dir.join(store::DATA).display());
-        return;
-    }
-    let state = match &s.ending {
-        Ending::Complete => "complete".to_string(),
-        Ending::Interrupted => format!(
-            "interrupted by {} with {} (continue with `{}`)",
-            interruption(),
-            points_done(s.next_point, s.points),
-            s.resume
-        ),
-        Ending::GaveUp(_) => format!(
-            "stopped with {}: a board stayed unreachable",
-            points_done(s.next_point, s.points)
-        ),
-    };
-    println!("sweep {}: {state}", s.dir.display());
-    println!(
-        "  points this session: {} ({} ok, {} no signal, {} partial); run: {}/{}",
-        st.ok + st.no_signal + st.partial,
-        st.ok,
-        st.no_signal,
-        st.partial,
-        s.next_point,
-        s.points
-    );
-    println!(
-        "  samples: {}   faults: {}   retries: {}   reconnections: {}   lost reports: {}",
-        st.samples, st.faults, st.retries, st.reconnects, st.lost_reports
-    );
-    println!(
-        "  time: {:.1} s ({:.0} samples/s)   data: {}",
-        s.seconds,
-        st.samples as f64 / s.seconds.max(1e-9),
-        s.dir.join(store::DATA).display()
-    );
+/// Run (or resume) a sweep, showing nothing and asking nothing: a run on hardware must be
+/// scripted (`yes`). See [`sweep_with`].
+pub fn sweep(args: &SweepOptions) -> Result<Summary> {
+    sweep_with(args, &Unwatched, None)
 }
 
-/// Run (or resume) a sweep; returns the session summary. [`run`] is this plus the Ctrl-C
-/// handler and the printed summary.
-pub fn sweep(args: &SweepArgs) -> Result<Summary> {
+/// Run (or resume) a sweep; returns the session summary. `watch` sees its progress, notes and
+/// log; `prompt` is the operator asked for the manual steps of a run on hardware (plate moves,
+/// quadrants, power switches) unless `yes`. The stop flag [`INTERRUPTED`] is cleared at the
+/// start; whoever sets it (a signal handler) stops the run cleanly.
+pub fn sweep_with(
+    args: &SweepOptions,
+    watch: &dyn Watch,
+    prompt: Option<&mut dyn Operator>,
+) -> Result<Summary> {
     INTERRUPTED.store(false, Ordering::SeqCst);
     SIGNAL.store(0, Ordering::SeqCst);
     if let (Some(b), Some(s)) = (&args.beacon, &args.sensor) {
@@ -338,7 +134,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     }
     let t0 = Instant::now();
     let sync = !args.no_sync;
-    let command: Vec<String> = std::env::args().collect();
+    let command = args.command.clone();
 
     // The run directory, the plan, and what simulates it.
     let (store, plan, sim_settings) = if let Some(dir) = &args.resume {
@@ -367,7 +163,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         // Every point committed: nothing to measure, so no board is opened (a hardware run
         // needs no ports for it).
         if store.next_point() >= plan.len() {
-            return already_complete(store, &plan, t0);
+            return already_complete(store, &plan, t0, watch);
         }
         let first_sim = store.events.iter().find_map(|e| match e {
             Event::Session { sim, .. } => Some(sim.clone()),
@@ -522,7 +318,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
         }
     };
     for note in &store.notes {
-        eprintln!("cta: note: {}: {note}", store.dir.display());
+        watch.note(&store.dir, note);
     }
     let from = store.next_point();
     let n = store.sessions() + 1;
@@ -539,7 +335,6 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     })?;
     // From here on, whatever fails (a full disk, a read-only file, a board refusing) is
     // recorded as the session's stop, as far as the disk allows, before the error is returned.
-    let bars = Bars::new(args.quiet);
     let result = (|| -> Result<Ending> {
         if let Some(s) = &sim {
             let path = store.dir.join(store::TRUTH);
@@ -547,12 +342,21 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                 .with_context(|| format!("{}: cannot write", path.display()))?;
         }
         write_manifest(&store, &plan, "running")?;
-        let mut operator: Box<dyn Operator + '_> = match &sim {
-            Some(s) => Box::new(SimOperator(s)),
-            None if args.yes => Box::new(Scripted),
-            None => Box::new(Prompt::new(&bars)),
+        let mut scripted = Scripted;
+        let mut simulated;
+        let operator: &mut dyn Operator = match (&sim, prompt) {
+            (Some(s), _) => {
+                simulated = SimOperator(s);
+                &mut simulated
+            }
+            (None, _) if args.yes => &mut scripted,
+            (None, Some(p)) => p,
+            (None, None) => bail!(
+                "a run on hardware needs an operator for the plate moves and power switches, or \
+                 --yes for a scripted run"
+            ),
         };
-        bars.log(&format!(
+        watch.log(&format!(
             "sweep {}: plan `{}`, {} points ({} per separation), {} on the {}{}",
             store.dir.display(),
             plan.name,
@@ -569,15 +373,14 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
                 _ => "",
             },
         ));
-        engine.run(&mut store, operator.as_mut(), from, &bars)
+        engine.run(&mut store, operator, from, watch)
     })();
-    bars.finish();
     let ending = match result {
         Ok(ending) => ending,
         Err(e) => {
             let recorded = store.stop_after_failure(format!("error: {e:#}"));
             if let Err(w) = recorded.and_then(|_| write_manifest(&store, &plan, "stopped")) {
-                eprintln!("cta: warning: the stop could not be recorded in full: {w:#}");
+                watch.warning(&format!("the stop could not be recorded in full: {w:#}"));
             }
             return Err(e.context(format!(
                 "sweep stopped with {}; the run is saved: continue with `{}`",
@@ -607,7 +410,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
             "stopped"
         },
     )?;
-    bars.log(&format!("stopped: {reason}; {next}/{} points", plan.len()));
+    watch.log(&format!("stopped: {reason}; {next}/{} points", plan.len()));
     Ok(Summary {
         dir: store.dir.clone(),
         ending,
@@ -687,13 +490,18 @@ pub(crate) fn run_dir_given(dir: &Path, option: &str) -> Result<()> {
 /// something to cut: bytes appended to data.csv since, a torn journal line; or a --plan to
 /// take in) the resume makes those changes as any resume does ([`RunDir::begin`]), says them,
 /// and journals the complete stop with them as its `notes`; the manifest says `complete`.
-fn already_complete(mut store: RunDir, plan: &Plan, t0: Instant) -> Result<Summary> {
+fn already_complete(
+    mut store: RunDir,
+    plan: &Plan,
+    t0: Instant,
+    watch: &dyn Watch,
+) -> Result<Summary> {
     let recorded =
         matches!(store.events.last(), Some(Event::Stop { reason, .. }) if reason == "complete");
     if !recorded || !store.notes.is_empty() {
         store.begin()?;
         for note in &store.notes {
-            eprintln!("cta: note: {}: {note}", store.dir.display());
+            watch.note(&store.dir, note);
         }
         store.log(Event::Stop {
             at: now(),
@@ -858,14 +666,14 @@ fn same_apparatus(
     );
 }
 
-fn parse_faults(args: &SweepArgs) -> Result<Faults> {
+fn parse_faults(args: &SweepOptions) -> Result<Faults> {
     match &args.sim_fault {
         Some(s) => Faults::parse(s).map_err(|e| anyhow::anyhow!("--sim-fault: {e}")),
         None => Ok(Faults::default()),
     }
 }
 
-fn sim_settings(args: &SweepArgs) -> Result<Option<SimSettings>> {
+fn sim_settings(args: &SweepOptions) -> Result<Option<SimSettings>> {
     if args.beacon.is_some() {
         let sim_only = args.sim_noise.is_some()
             || args.sim_magnitude_noise.is_some()

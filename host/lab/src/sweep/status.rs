@@ -602,17 +602,6 @@ impl Status {
     }
 }
 
-/// `cta sweep --status RUN_DIR [--json]`.
-pub fn run(dir: &Path, json: bool) -> Result<()> {
-    let s = status(dir)?;
-    if json {
-        println!("{}", serde_json::to_string_pretty(&s.to_json())?);
-    } else {
-        print!("{}", s.render());
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

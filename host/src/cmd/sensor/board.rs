@@ -159,28 +159,12 @@ pub(super) fn run(command: &SensorCommand, conn: &SensorConn) -> Result<()> {
 /// the reading of reports then returns, and the board is set idle before the command ends.
 static STOP: LazyLock<Arc<AtomicBool>> = LazyLock::new(Default::default);
 
-/// Whether `sig` is ignored (SIG_IGN), as `nohup` leaves SIGHUP.
-fn ignored(sig: libc::c_int) -> bool {
-    // SAFETY: a read-only sigaction query into a zeroed struct.
-    unsafe {
-        let mut old: libc::sigaction = std::mem::zeroed();
-        libc::sigaction(sig, std::ptr::null(), &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN
-    }
-}
-
 /// Catch Ctrl-C, SIGTERM and SIGHUP while reports stream: the first stops the reading (the
 /// board is then set idle: otherwise it would go on solving and sending until the next
 /// command), a second one leaves at once (128 + the signal). A signal ignored at the start
 /// (SIGHUP under `nohup`) stays ignored, as in `cta sweep`.
 fn catch_stop() {
-    use signal_hook::{consts, flag};
-    for sig in [consts::SIGINT, consts::SIGTERM, consts::SIGHUP] {
-        if ignored(sig) {
-            continue;
-        }
-        let _ = flag::register_conditional_shutdown(sig, 128 + sig, STOP.clone())
-            .and_then(|_| flag::register(sig, STOP.clone()));
-    }
+    let _ = crate::signals::catch_stop(&STOP, None);
 }
 
 /// After `stream` or `pose` read their reports (or failed to): the board back to idle, and
