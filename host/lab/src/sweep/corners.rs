@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use super::store::{self, Event};
+use super::error::{Context, Result};
 
 /// Where the four corners are read: at x, y = +/-`ROD_XY_IN` in the sensor board's frame N
 /// (in). Ch IV's level bound, 5 mils per foot "over one foot from the center", puts the
@@ -82,7 +83,7 @@ pub struct RunCorners {
 impl RunCorners {
     /// The corner readings journalled beside the measurement file `data`
     /// (`DIR/journal.jsonl` for `DIR/data.csv`): `None` when there is no journal there.
-    pub fn beside(data: &Path) -> Option<Result<RunCorners, String>> {
+    pub fn beside(data: &Path) -> Option<Result<RunCorners>> {
         let dir = data.parent().unwrap_or(Path::new("."));
         let journal = dir.join(store::JOURNAL);
         if !journal.is_file() {
@@ -92,11 +93,10 @@ impl RunCorners {
     }
 
     /// Read the corner readings of the journal `journal`.
-    pub fn read(journal: &Path) -> Result<RunCorners, String> {
-        let bytes = std::fs::read(journal)
-            .map_err(|e| format!("{}: cannot read: {e}", journal.display()))?;
-        let (events, _torn) =
-            super::status::parse_journal(journal, &bytes).map_err(|e| format!("{e:#}"))?;
+    pub fn read(journal: &Path) -> Result<RunCorners> {
+        let bytes =
+            std::fs::read(journal).with_context(|| format!("{}: cannot read", journal.display()))?;
+        let (events, _torn) = super::status::parse_journal(journal, &bytes)?;
         let mut plates: Vec<PlateCorners> = Vec::new();
         for e in events {
             let Event::Separation(s) = e else { continue };

@@ -22,7 +22,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, LazyLock};
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Result};
+use super::error::{Error, Result};
 use cta_core::wire::beacon::{
     Beacon, BeaconRequest, BeaconResponse, FreqSet, LedMode, LedSetting, DEADMAN_DEFAULT_MS,
 };
@@ -76,7 +76,7 @@ pub enum Fault {
     /// The sensor board answers but sends no reports.
     Stalled(String),
     /// A board refused a request: the plan asks for something it cannot do. Stops the run.
-    Fatal(anyhow::Error),
+    Fatal(Error),
     /// Ctrl-C.
     Interrupted,
 }
@@ -90,7 +90,7 @@ fn link_fault<E: std::fmt::Debug + std::fmt::Display>(
             Fault::Lost(board, e.to_string())
         }
         LinkError::Refused { .. } | LinkError::WrongBoard { .. } | LinkError::Encode(_) => {
-            Fault::Fatal(anyhow!("{board} board: {e}"))
+            Fault::Fatal(Error::Board(format!("{board} board: {e}")))
         }
         LinkError::Unexpected { .. } => Fault::Lost(board, e.to_string()),
     }
@@ -111,7 +111,7 @@ impl<P: Protocol> Conn<P> {
         let mut link = Link::new(port, self.config);
         let id = link.check_board().map_err(|e| match e {
             LinkError::WrongBoard { .. } => {
-                Fault::Fatal(anyhow!("{} port {}: {e}", self.name, self.path))
+                Fault::Fatal(Error::Board(format!("{} port {}: {e}", self.name, self.path)))
             }
             e => Fault::Lost(self.name, e.to_string()),
         })?;
@@ -371,14 +371,14 @@ impl<'a> Engine<'a> {
         let needed = (2 * heartbeat).max(heartbeat + blocked + 500);
         if u64::from(s.limits.deadman_ms) < needed {
             let port = &self.beacon.path;
-            return Err(Fault::Fatal(anyhow!(
+            return Err(Fault::Fatal(Error::Board(format!(
                 "beacon board on {port}: its dead-man timeout is {} ms, shorter than the {needed} ms \
                  the plan needs (twice its heartbeat, {heartbeat} ms, or a heartbeat and a request \
                  to the sensor board with its retries, {blocked} ms, and 0.5 s): it would turn the \
                  LED off mid-point. Set it back with `cta beacon --port {port} limits --deadman-ms \
                  {DEADMAN_DEFAULT_MS}` (or lower [timing] heartbeat_ms), then resume",
                 s.limits.deadman_ms
-            )));
+            ))));
         }
         let now = Instant::now();
         let prev = self.beacon_seen.replace(BeaconSeen {
@@ -454,7 +454,7 @@ impl<'a> Engine<'a> {
         let wrong = table_mismatches(self.plan, &table);
         if !wrong.is_empty() {
             let port = &self.beacon.path;
-            return Err(Fault::Fatal(anyhow!(
+            return Err(Fault::Fatal(Error::Board(format!(
                 "beacon board on {port}{}: its frequency table does not hold the frequencies the \
                  plan records (the NorthStar table): {}; lit from it, the data would \
                  name the wrong frequency. Restore the NorthStar table with `cta beacon --port \
@@ -466,7 +466,7 @@ impl<'a> Engine<'a> {
                 } else {
                     "run the sweep again"
                 }
-            )));
+            ))));
         }
         self.table_mhz = table;
         Ok(())
@@ -699,8 +699,8 @@ impl<'a> Engine<'a> {
         watch: &dyn Watch,
         p: &Point,
         board: &str,
-        e: anyhow::Error,
-    ) -> Result<anyhow::Error> {
+        e: Error,
+    ) -> Result<Error> {
         watch.log(&format!("fault at point {}: {e:#}; stop", p.index));
         store.log(Event::Fault {
             at: now(),
@@ -1122,13 +1122,13 @@ fn at_port(path: &str, f: Fault) -> String {
     }
 }
 
-fn fault_error(path: &str, f: Fault) -> anyhow::Error {
+fn fault_error(path: &str, f: Fault) -> Error {
     match f {
-        Fault::Lost(b, w) if w.contains(path) => anyhow!("{b} board: {w}"),
-        Fault::Lost(b, w) => anyhow!("{b} board on {path}: {w}"),
-        Fault::Stalled(w) => anyhow!("sensor board on {path}: {w}"),
+        Fault::Lost(b, w) if w.contains(path) => Error::Board(format!("{b} board: {w}")),
+        Fault::Lost(b, w) => Error::Board(format!("{b} board on {path}: {w}")),
+        Fault::Stalled(w) => Error::Board(format!("sensor board on {path}: {w}")),
         Fault::Fatal(e) => e,
-        Fault::Interrupted => anyhow!("interrupted"),
+        Fault::Interrupted => Error::Board(format!("interrupted")),
     }
 }
 

@@ -5,6 +5,7 @@
 //! * [`engine`]: the run: both boards over the shared wire protocol ([`crate::boards::link`]),
 //!   the operator's manual steps, faults, retries with backoff.
 //! * [`watch`]: what a running sweep reports to whoever shows its progress.
+//! * [`error`]: why a sweep could not go on.
 //! * [`corners`]: the plate's tilt from the operator's corner readings.
 //! * [`store`]: the run directory: measurement CSV appended and synced per point, journal,
 //!   manifest, exact resume.
@@ -17,6 +18,7 @@ use crate::data::{Dataset, ReadError};
 
 pub mod corners;
 pub mod engine;
+pub mod error;
 pub mod plan;
 pub mod sim;
 pub mod status;
@@ -27,7 +29,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use error::{bail, Context};
+pub use error::{Error, Result};
 use serde_json::json;
 
 use engine::{interruption, Ending, Engine, Operator, Scripted, SimOperator, INTERRUPTED, SIGNAL};
@@ -668,7 +671,7 @@ fn same_apparatus(
 
 fn parse_faults(args: &SweepOptions) -> Result<Faults> {
     match &args.sim_fault {
-        Some(s) => Faults::parse(s).map_err(|e| anyhow::anyhow!("--sim-fault: {e}")),
+        Some(s) => Faults::parse(s).map_err(|e| Error::Refused(format!("--sim-fault: {e}"))),
         None => Ok(Faults::default()),
     }
 }
@@ -691,7 +694,7 @@ fn sim_settings(args: &SweepOptions) -> Result<Option<SimSettings>> {
     let d = SimSettings::default();
     for e in &args.sim_effect {
         crate::sim::effects::Effect::parse(e)
-            .map_err(|m| anyhow::anyhow!("--sim-effect {e}: {m}"))?;
+            .map_err(|m| Error::Refused(format!("--sim-effect {e}: {m}")))?;
     }
     Ok(Some(SimSettings {
         seed: args.sim_seed.unwrap_or(d.seed),

@@ -35,7 +35,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context, Result};
+use super::error::{bail, Context, Error, Result};
 use cta_core::emulator::{grid_position, saturate_i16, Emulator};
 use cta_core::pose::Spot;
 use cta_core::wire::beacon::{LedMode, LED_COUNT};
@@ -119,11 +119,20 @@ pub struct Faults {
     pub events: Vec<ScheduledFault>,
 }
 
+/// A fault spec that could not be read: which part, and what was expected.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct FaultSpecError(pub String);
+
 impl Faults {
     /// Parse a comma-separated spec: `drop=P`, `corrupt=P`,
     /// `KIND=BOARD@N:MS` with KIND `vanish`, `silent` or `stall`, BOARD `beacon` or `sensor`,
     /// and `reset=BOARD@N` ([`FaultKind::Reset`]).
-    pub fn parse(spec: &str) -> Result<Faults, String> {
+    pub fn parse(spec: &str) -> Result<Faults, FaultSpecError> {
+        Faults::parse_spec(spec).map_err(FaultSpecError)
+    }
+
+    fn parse_spec(spec: &str) -> Result<Faults, String> {
         let mut f = Faults::default();
         for part in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             let (k, v) = part
@@ -376,7 +385,7 @@ impl Endpoint {
         let (master, slave) = TTYPort::pair().context("cannot create a pseudo-terminal")?;
         let name = slave
             .name()
-            .ok_or_else(|| anyhow::anyhow!("pseudo-terminal without a name"))?;
+            .ok_or_else(|| Error::Refused(format!("pseudo-terminal without a name")))?;
         let _ = std::fs::remove_file(&self.link);
         std::os::unix::fs::symlink(&name, &self.link)
             .with_context(|| format!("cannot link {}", self.link.display()))?;
@@ -760,10 +769,10 @@ impl SimCta {
         let effects = settings
             .effects
             .iter()
-            .map(|s| Effect::parse(s).map_err(|e| anyhow::anyhow!("--sim-effect {s}: {e}")))
+            .map(|s| Effect::parse(s).map_err(|e| Error::Refused(format!("--sim-effect {s}: {e}"))))
             .collect::<Result<Vec<_>>>()?;
         crate::sim::effects::check_unique(&effects)
-            .map_err(|e| anyhow::anyhow!("--sim-effect: {e}"))?;
+            .map_err(|e| Error::Refused(format!("--sim-effect: {e}")))?;
         if !(settings.noise.is_finite() && settings.noise >= 0.0) {
             bail!(
                 "--sim-noise {}: must be a non-negative number of counts",

@@ -12,7 +12,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use super::error::{bail, Context, Error, Result};
 use serde_json::{json, Value};
 
 use super::plan::Plan;
@@ -129,7 +129,7 @@ fn status_held(dir: &Path, holder: Holder) -> Result<Status> {
     let (events, torn) = parse_journal(&jp, &bytes)?;
     let plan = journalled_plan(&events)
         .map(Ok)
-        .unwrap_or_else(|| Plan::load(&dir.join(store::PLAN)).map_err(anyhow::Error::from))?;
+        .unwrap_or_else(|| Plan::load(&dir.join(store::PLAN)).map_err(Error::from))?;
     let total = plan.len();
     let per = plan.per_separation().max(1);
 

@@ -33,7 +33,7 @@ use std::io::{BufRead, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::os::unix::io::AsRawFd;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use super::error::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
 use super::plan::{Change, Plan, RESUME_MAY_CHANGE};

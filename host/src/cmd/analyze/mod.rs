@@ -219,7 +219,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<()> {
             Some(Ok(rc)) => opts.corners = Some(rc),
             Some(Err(e)) => bar.suspend(|| {
                 eprintln!(
-                    "warning: {e}: the run's corner readings cannot be used, so the plates are \
+                    "warning: {e:#}: the run's corner readings cannot be used, so the plates are \
                      taken as level (--ignore-corners says so without this warning)"
                 )
             }),

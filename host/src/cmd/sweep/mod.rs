@@ -208,7 +208,7 @@ pub fn sweep(args: &SweepArgs) -> Result<Summary> {
     let mut prompt = Prompt::new(&bars);
     let r = cta_lab::sweep::sweep_with(&args.options(), &bars, Some(&mut prompt));
     bars.finish();
-    r
+    Ok(r?)
 }
 
 /// The error [`run`] returns when Ctrl-C (or SIGTERM, SIGHUP) stopped the sweep: the run is

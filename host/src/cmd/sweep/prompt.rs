@@ -6,8 +6,8 @@ use std::sync::atomic::Ordering;
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::time::Duration;
 
-use anyhow::{anyhow, Result};
 use cta_lab::sweep::engine::{Operator, INTERRUPTED};
+use cta_lab::sweep::{Error, Result};
 use cta_lab::sweep::plan::Point;
 use cta_lab::sweep::sim::separation_entry;
 use cta_lab::sweep::store::{levelness_question, SeparationEntry};
@@ -27,11 +27,6 @@ pub struct Prompt {
     /// question.
     lines: Option<Receiver<std::io::Result<Option<String>>>>,
 }
-
-/// Why a question got no answer: the run was interrupted while waiting.
-#[derive(Debug, thiserror::Error)]
-#[error("interrupted while waiting for the operator")]
-pub struct AskInterrupted;
 
 impl Prompt {
     /// Prompts hiding `bars` while they ask.
@@ -73,15 +68,23 @@ impl Prompt {
             loop {
                 if INTERRUPTED.load(Ordering::SeqCst) {
                     eprintln!();
-                    return Err(AskInterrupted.into());
+                    return Err(Error::Operator(
+                        "interrupted while waiting for the operator".into(),
+                    ));
                 }
                 match lines.recv_timeout(Duration::from_millis(50)) {
                     Ok(Ok(Some(s))) => return Ok(s.trim().to_string()),
-                    Ok(Err(e)) => return Err(anyhow!("cannot read the operator's answer: {e}")),
+                    Ok(Err(e)) => {
+                        return Err(Error::Operator(format!(
+                            "cannot read the operator's answer: {e}"
+                        )))
+                    }
                     Ok(Ok(None)) | Err(RecvTimeoutError::Disconnected) => {
-                        return Err(anyhow!(
-                        "stdin closed while waiting for the operator (use --yes for scripted runs)"
-                    ))
+                        return Err(Error::Operator(
+                            "stdin closed while waiting for the operator (use --yes for scripted \
+                             runs)"
+                                .into(),
+                        ))
                     }
                     Err(RecvTimeoutError::Timeout) => {}
                 }
