@@ -7,10 +7,13 @@ pub mod cmd;
 pub mod conn;
 pub mod signals;
 
+/// `cta --version`: the package version and the commit it was built from.
+const VERSION: &str = concat!(env!("CARGO_PKG_VERSION"), " (", env!("CTA_COMMIT"), ")");
+
 #[derive(Parser)]
 #[command(
     name = "cta",
-    version,
+    version = VERSION,
     about = "Characterize a NorthStar coarse sun sensor in the near field: simulate, sweep, fit, evaluate, \
 calibrate, analyze (start with `cta demo`)",
     long_about = "CTA turns the NorthStar IR coarse sun sensor (four photocells in a pyramid) into a 6-dof \
@@ -74,6 +77,10 @@ pub enum Cmd {
     /// Talk to the sensor board (STM32F103C8): identify, stream spots, load a calibration
     /// and constellation, read poses; simulated board; the pose accuracy table.
     Sensor(cmd::sensor::SensorArgs),
+    /// Print the shell completion script (bash, zsh, fish, powershell, elvish).
+    Completions(cmd::completions::CompletionsArgs),
+    /// Write the man pages (cta.1 and one per command).
+    Man(cmd::completions::ManArgs),
 }
 
 /// List options whose value may start with a minus sign (`--separations -5,3` is not a
@@ -127,6 +134,8 @@ pub fn main() {
         Cmd::Noise(a) => cmd::noise::run(a),
         Cmd::Beacon(a) => cmd::beacon::run(a),
         Cmd::Sensor(a) => cmd::sensor::run(a),
+        Cmd::Completions(a) => cmd::completions::completions(a),
+        Cmd::Man(a) => cmd::completions::man(a),
     };
     exit_on_error(r);
 }
