@@ -77,6 +77,9 @@ pub enum Cmd {
     /// Talk to the sensor board (STM32F103C8): identify, stream spots, load a calibration
     /// and constellation, read poses; simulated board; the pose accuracy table.
     Sensor(cmd::sensor::SensorArgs),
+    /// Solve logged spot frames (`cta sensor stream --json`) on the host with the board's
+    /// solver: pose, 1-sigma, residual and status per frame.
+    Pose(cmd::pose::PoseArgs),
     /// Print the shell completion script (bash, zsh, fish, powershell, elvish).
     Completions(cmd::completions::CompletionsArgs),
     /// Write the man pages (cta.1 and one per command).
@@ -134,6 +137,7 @@ pub fn main() {
         Cmd::Noise(a) => cmd::noise::run(a),
         Cmd::Beacon(a) => cmd::beacon::run(a),
         Cmd::Sensor(a) => cmd::sensor::run(a),
+        Cmd::Pose(a) => cmd::pose::run(a),
         Cmd::Completions(a) => cmd::completions::completions(a),
         Cmd::Man(a) => cmd::completions::man(a),
     };

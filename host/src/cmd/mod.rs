@@ -10,6 +10,7 @@ pub mod evaluate;
 pub mod fit;
 pub mod nearfield;
 pub mod noise;
+pub mod pose;
 pub mod sensor;
 pub mod simulate;
 pub mod sweep;

@@ -7,6 +7,7 @@ pub mod error;
 pub mod floor;
 pub mod head;
 pub mod limits;
+pub mod offline;
 pub mod plate;
 
 pub use error::Error;

@@ -18,7 +18,7 @@
 //! cta sensor accuracy                                     # the accuracy table (simulated data)
 //! ```
 
-mod board;
+pub(crate) mod board;
 mod render;
 mod sim;
 mod tables;
