@@ -147,12 +147,15 @@ pub fn fit_observations(
             "one separation only: d3 and H are (nearly) parallel there (Ch V); fit two separations, e.g. 20,25".into(),
         );
     }
-    if seps.iter().any(|&s| s < 20.0) {
+    // 20 in within the separation matching of the whole tool: a plate measured at 19.9992
+    // is the recommended 20 in.
+    let near = |s: f64| s < 20.0 - crate::data::SEP_MATCH_IN;
+    if seps.iter().any(|&s| near(s)) {
         warnings.push(format!(
             "separations below 20 in ({}) carry near-field errors the pinhole model cannot follow: they bias the fit \
              (virtual eye, H); the thesis recommends calibrating at 20-30 in (Ch VI), or use `cta analyze` for the \
              near-field model",
-            seps.iter().filter(|&&s| s < 20.0).map(|s| s.to_string()).collect::<Vec<_>>().join(", ")
+            seps.iter().filter(|&&s| near(s)).map(|s| s.to_string()).collect::<Vec<_>>().join(", ")
         ));
     }
     let sat = ds

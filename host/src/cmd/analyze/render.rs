@@ -111,15 +111,18 @@ pub fn render_text(a: &Analysis) -> String {
         "\nchi2/dof {:.3} -> {:.3}; held-out RMS {:.2} -> {:.2} counts",
         a.chi2_dof_before, a.chi2_dof_after, a.rms_before, a.rms_after
     );
+    // One width a column, for the header and the rows alike: a separation of the form
+    // 19.9992 or 100.25 stays in its column.
     let _ = writeln!(
         s,
-        "\n sep(in)  angle std before  after (deg)   held-out RMS before  after  noise alone (counts)"
+        "\n{:>8}  {:>16}  {:>11}  {:>19}  {:>6}  {:>11}",
+        "sep (in)", "angle std before", "after (deg)", "held-out RMS before", "after", "noise alone (counts)"
     );
     for (k, sep) in a.separations.iter().enumerate() {
         let _ = writeln!(
             s,
-            " {:>6}   {:>16.4}  {:>11.4}   {:>19.1}  {:>5.1}  {:>11.1}",
-            sep,
+            "{:>8}  {:>16.4}  {:>11.4}  {:>19.1}  {:>6.1}  {:>11.1}",
+            sep.to_string(),
             a.angle_std_before_deg[k],
             a.angle_std_after_deg[k],
             a.heldout_rms_by_sep_before[k],

@@ -314,3 +314,35 @@ fn independent_causes_report_no_correlation_between_them() {
     let html = report::render(&a).unwrap();
     assert!(!html.contains("correlation between causes"));
 }
+
+/// The per-separation table keeps its columns whatever the separations' digits: a plate
+/// recorded at 19.9992 in lines up with one at 3 in.
+#[test]
+fn the_per_separation_table_aligns() {
+    let (ds, _) = SimConfig {
+        effects: Vec::new(),
+        separations: vec![3.0, 12.5, 19.9992, 30.0],
+        ..sim("cell_gain=0", 2)
+    }
+    .run();
+    let a = analyze(&ds, &Options::default(), &Silent).unwrap();
+    let text = render_text(&a);
+    let rows: Vec<&str> = text
+        .lines()
+        .skip_while(|l| !l.trim_start().starts_with("sep (in)"))
+        .take(5)
+        .collect();
+    assert_eq!(rows.len(), 5, "{text}");
+    assert!(rows[2].trim_start().starts_with("12.5 "), "{text}");
+    assert!(rows[3].trim_start().starts_with("19.9992 "), "{text}");
+    // Every row ends each column where the header does.
+    let ends = |l: &str| -> Vec<usize> {
+        let b = l.as_bytes();
+        (1..b.len()).filter(|&i| b[i] == b' ' && b[i - 1] != b' ').collect()
+    };
+    let first = ends(rows[1]);
+    for r in &rows[2..] {
+        assert_eq!(ends(r), first, "{text}");
+    }
+    assert_eq!(rows[0].find("(in)").unwrap() + 4, first[0], "{text}");
+}
