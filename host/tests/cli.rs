@@ -1323,3 +1323,27 @@ fn evaluate_counts_reports_at_the_rail() {
     assert_ne!(w["angle_std_deg"][0], e["angle_std_deg"][0]);
     assert_eq!(w["angle_std_deg"][2], e["angle_std_deg"][2]);
 }
+
+/// `cta evaluate CAL.json DATA.csv`: Figure 57 of a sensor calibration, its near-field model
+/// and its pinhole model on the same reports, against the truth sidecar; the near-field model
+/// is the better close in, as the calibration is meant to be.
+#[test]
+fn evaluate_takes_a_sensor_calibration() {
+    let d = tmpdir("evalcal");
+    let csv = d.join("sim.csv");
+    let cal = d.join("cal.json");
+    let plot = d.join("fig57.svg");
+    common::simulate_at(&csv, "3,10,20,30", "2", "4", &[]);
+    let o = cta(&["calibrate", s(&csv), "--out", s(&cal)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = json(&cta(&["evaluate", s(&cal), s(&csv), "--json", "--plot", s(&plot)]));
+    let evs = v.as_array().expect("one evaluation a model");
+    assert_eq!(evs.len(), 2, "{v}");
+    assert_eq!(evs[0]["model"], "near-field (eqs 60-63)");
+    assert_eq!(evs[1]["model"], "pinhole (eq 65)");
+    assert_eq!(evs[0]["reference"], "truth");
+    let at3 = |e: &serde_json::Value| e["angle_mean_deg"][0].as_f64().unwrap();
+    assert!(at3(&evs[0]) * 5.0 < at3(&evs[1]), "{v}");
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.contains("near-field (eqs 60-63)") && svg.contains("pinhole (eq 65)"));
+}

@@ -1,4 +1,5 @@
-//! `cta evaluate`: the error in angle of a saved fit per separation (eq 67, Figure 57).
+//! `cta evaluate`: the error in angle of a saved fit or a sensor calibration per separation
+//! (eq 67, Figure 57).
 
 use crate::args::{announce_plot, parse_xyz};
 use crate::cmd::fit::{prepare, sig};
@@ -7,7 +8,10 @@ use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use cta_lab::analyze::digits::pm_parts;
 use cta_lab::data::fmt_list;
-use cta_lab::fit::{self, Evaluation, FitReport, Reference};
+use cta_core::collinearity::Params;
+use cta_core::pose::Calibration;
+use cta_lab::boards::files::read_json;
+use cta_lab::fit::{self, DirectionModel, Evaluation, FitReport, Reference};
 use cta_lab::sim::Truth;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -15,7 +19,10 @@ use std::path::PathBuf;
 /// Ch V: the error in angle of a fit per separation (eq 67, Figure 57).
 #[derive(Debug, Args)]
 pub struct EvaluateArgs {
-    /// A fit saved by `cta fit --save`.
+    /// A fit saved by `cta fit --save`, or a sensor calibration (`cta calibrate --out`):
+    /// then its near-field model and, when it has one, its pinhole model, each a table and a
+    /// curve of the plot.
+    #[arg(value_name = "FIT_OR_CAL.json")]
     pub fit: PathBuf,
     /// Measurement file to evaluate on.
     pub file: PathBuf,
@@ -89,7 +96,7 @@ fn check_fit_argument(a: &EvaluateArgs) -> Result<()> {
 
 /// Where the error in angle is measured from: the truth sidecar's head, `--head`, or (with a
 /// warning) the fit's own eye point.
-fn reference(a: &EvaluateArgs, rep: &FitReport) -> Result<Reference> {
+fn reference(a: &EvaluateArgs, own: [f64; 3], what: &str) -> Result<Reference> {
     let truth = match Truth::load_for(&a.file) {
         Some(Ok(t)) => Some(t),
         Some(Err(e)) => bail!("{e}"),
@@ -117,57 +124,114 @@ fn reference(a: &EvaluateArgs, rep: &FitReport) -> Result<Reference> {
         (None, None) => {
             eprintln!(
                 "warning: {}: no truth sidecar and no --head, so the error in angle is measured \
-                 from the fit's own eye point (d = {:.3}, {:.3}, {:.3} in): it shows only how \
+                 from the {what} (d = {:.3}, {:.3}, {:.3} in): it shows only how \
                  consistent the model is with itself, not the error Figure 57 plots (far \
                  smaller near the fit's separations, comparable or larger close in). Give the \
                  head centre measured on the CTA with --head X,Y,Z (inches, board frame N)",
                 a.file.display(),
-                rep.x()[0],
-                rep.x()[1],
-                rep.x()[2]
+                own[0],
+                own[1],
+                own[2]
             );
             Reference::Fit
         }
     })
 }
 
-/// Run `cta evaluate`. The table (or JSON) is printed before `--plot` is written.
+/// Run `cta evaluate`: a saved fit, or a sensor calibration (its near-field model, and its
+/// pinhole model when it has one). The table (or JSON) is printed before `--plot` is written.
 pub fn run(a: &EvaluateArgs) -> Result<()> {
     check_fit_argument(a)?;
-    let rep = FitReport::load(&a.fit)?;
+    let (cal, rep) = match FitReport::load(&a.fit) {
+        Ok(rep) => (None, Some(rep)),
+        Err(e) => match read_json::<Calibration>(&a.fit.display().to_string()) {
+            Ok(cal) => (Some(cal), None),
+            Err(_) => return Err(e.into()),
+        },
+    };
     let prepared = prepare(&a.file, a.separations.as_deref(), a.drop_glitches)?;
-    let reference = reference(a, &rep)?;
     let budget = load_budget(a.budget.as_deref())?;
-    let mut ev = fit::evaluate(
-        &rep.x(),
-        &prepared.data,
-        reference,
-        budget.rss_inches(),
-        a.without_rail,
-    );
-    if ev.separation_in.is_empty() {
-        bail!(
-            "{}: every report is at the 16-bit rail, so --without-rail leaves nothing to \
-             evaluate; leave out --without-rail to count them",
-            a.file.display()
-        );
+    // The models to evaluate, each with the title of its table.
+    let pinhole_of_cal = cal.as_ref().and_then(|c| {
+        c.pinhole.map(|ph| {
+            let f = |v: [f32; 3]| v.map(|x| x as f64);
+            let [d, p] = [f(ph.d), f(ph.p)];
+            Params::from_column_slice(&[d[0], d[1], d[2], p[0], p[1], p[2], c.h as f64])
+        })
+    });
+    let fit_x = rep.as_ref().map(|r| r.x());
+    let mut models: Vec<(DirectionModel<'_>, String)> = Vec::new();
+    if let (Some(rep), Some(x)) = (&rep, &fit_x) {
+        models.push((
+            DirectionModel::Pinhole(x),
+            format!("the fit on {} in", fmt_list(&rep.separations)),
+        ));
     }
-    ev.budget = budget.source();
+    if let Some(c) = &cal {
+        models.push((
+            DirectionModel::NearField(c),
+            format!("the calibration's near-field model ({})", a.fit.display()),
+        ));
+        if let Some(x) = &pinhole_of_cal {
+            models.push((
+                DirectionModel::Pinhole(x),
+                "the calibration's pinhole model".to_string(),
+            ));
+        }
+    }
+    let own = models[0].0.own_point();
+    let what = if cal.is_some() {
+        "calibration's own head centre"
+    } else {
+        "fit's own eye point"
+    };
+    let reference = reference(a, [own.x, own.y, own.z], what)?;
+    let mut evs = Vec::new();
+    for (m, title) in &models {
+        let mut ev = fit::evaluate(*m, &prepared.data, reference, budget.rss_inches(), a.without_rail);
+        if ev.separation_in.is_empty() {
+            bail!(
+                "{}: no report left to evaluate with {} (every report at the 16-bit rail with \
+                 --without-rail, or none the model could turn into a direction)",
+                a.file.display(),
+                title
+            );
+        }
+        ev.budget = budget.source();
+        evs.push((ev, title.clone()));
+    }
     if let Some(p) = &a.plot {
         cta_lab::plot::check_plot_path(p)?;
     }
     if a.json {
-        let out = EvaluationOutput {
-            evaluation: &ev,
-            glitches_left_out: prepared.glitches_left_out,
-            data_notes: &prepared.notes,
-        };
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        let out: Vec<EvaluationOutput> = evs
+            .iter()
+            .map(|(ev, _)| EvaluationOutput {
+                evaluation: ev,
+                glitches_left_out: prepared.glitches_left_out,
+                data_notes: &prepared.notes,
+            })
+            .collect();
+        // A fit gives one object, as before; a calibration one per model.
+        if rep.is_some() {
+            println!("{}", serde_json::to_string_pretty(&out[0])?);
+        } else {
+            println!("{}", serde_json::to_string_pretty(&out)?);
+        }
     } else {
-        print_evaluation(&rep, &ev, &prepared.notes);
+        for (i, (ev, title)) in evs.iter().enumerate() {
+            if i > 0 {
+                println!();
+            }
+            print_evaluation(title, ev, &prepared.notes);
+        }
     }
     if let Some(p) = &a.plot {
-        ev.plot(&rep.separations, p)
+        let fit_separations = rep.as_ref().map(|r| r.separations.clone()).unwrap_or_default();
+        let others: Vec<&Evaluation> = evs[1..].iter().map(|(e, _)| e).collect();
+        evs[0]
+            .0
+            .plot(&fit_separations, &others, p)
             .map_err(|e| anyhow!("{e}; the table above is complete, the plot was not written"))?;
         announce_plot(p);
     }
@@ -176,10 +240,9 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
 
 /// The text table of `cta evaluate`: the mean error with its standard error (to the digits
 /// that resolves), the standard deviation and the CTA uncertainty to 3 significant digits.
-fn print_evaluation(rep: &FitReport, ev: &Evaluation, data_notes: &[String]) {
+fn print_evaluation(title: &str, ev: &Evaluation, data_notes: &[String]) {
     println!(
-        "Error in angle (eq 67) of the fit on {} in, against the {}:",
-        fmt_list(&rep.separations),
+        "Error in angle (eq 67) of {title}, against the {}:",
         match ev.reference.as_str() {
             "truth" => "true head offset (truth sidecar)",
             "head" => "head centre given (--head)",

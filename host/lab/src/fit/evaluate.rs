@@ -4,6 +4,8 @@
 use crate::data::{fmt_list, Dataset, Sample, RAIL};
 use crate::plot::{write_svg, Panel, PlotError, Series};
 use cta_core::collinearity::{self, Params};
+use cta_core::emulator::Emulator;
+use cta_core::pose::Calibration;
 use cta_core::uncertainty;
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -43,6 +45,15 @@ pub struct Evaluation {
     pub reference_in: [f64; 3],
     /// The CTA uncertainty budget behind `cta_uncertainty_deg`: "thesis Table 2" or the file.
     pub budget: String,
+    /// The model whose directions are evaluated: "pinhole (eq 65)" or "near-field (eqs
+    /// 60-63)".
+    pub model: String,
+    /// Reports per separation whose direction the model could not give (the near-field
+    /// model has no beacon position on the plate that reproduces them, e.g. an output at the
+    /// rail); left out of `reports` and the statistics.
+    pub unsolved: Vec<usize>,
+    /// Separations left out because the model gave no report there a direction, inches.
+    pub all_unsolved_in: Vec<f64>,
 }
 
 impl Evaluation {
@@ -109,8 +120,15 @@ impl Evaluation {
     }
 
     /// Draw Figure 57 (the std and |mean| of the error in angle and the mean CTA uncertainty
-    /// against separation) to the SVG file `path`; `fit_separations` are the fit's.
-    pub fn plot(&self, fit_separations: &[f64], path: &Path) -> Result<(), PlotError> {
+    /// against separation) to the SVG file `path`; `fit_separations` are the fit's (none
+    /// for a calibration); the std of each of `others`, another model on the same data, is
+    /// drawn beside.
+    pub fn plot(
+        &self,
+        fit_separations: &[f64],
+        others: &[&Evaluation],
+        path: &Path,
+    ) -> Result<(), PlotError> {
         let pts = |v: &[f64]| {
             self.separation_in
                 .iter()
@@ -124,8 +142,12 @@ impl Evaluation {
             "Error in angle vs separation (thesis Figure 57)",
             &[Panel {
                 title: format!(
-                    "fit on {} in; angle against the {}{}",
-                    fmt_list(fit_separations),
+                    "{}; angle against the {}{}",
+                    if fit_separations.is_empty() {
+                        format!("{} of a calibration", self.model)
+                    } else {
+                        format!("fit on {} in", fmt_list(fit_separations))
+                    },
                     self.reference,
                     if self.rail_left_out {
                         "; reports at the rail left out"
@@ -139,9 +161,31 @@ impl Evaluation {
                 log_y: true,
                 // One value per separation: marked, so that a few separations joined by
                 // straight lines do not read as a measured curve.
-                series: vec![
-                    Series::new("std of the error in angle", pts(&self.angle_std_deg))
-                        .with_markers(),
+                series: [
+                    vec![Series::new(
+                        if others.is_empty() {
+                            "std of the error in angle".to_string()
+                        } else {
+                            format!("std of the error in angle, {}", self.model)
+                        },
+                        pts(&self.angle_std_deg),
+                    )
+                    .with_markers()],
+                    others
+                        .iter()
+                        .map(|o| {
+                            Series::new(
+                                format!("std of the error in angle, {}", o.model),
+                                o.separation_in
+                                    .iter()
+                                    .copied()
+                                    .zip(o.angle_std_deg.iter().copied())
+                                    .collect(),
+                            )
+                            .with_markers()
+                        })
+                        .collect(),
+                    vec![
                     // Not in the thesis's figure, but part of the error: a bias common to
                     // the beacons of a separation (attitude the fit absorbed), often larger.
                     Series::new(
@@ -156,8 +200,9 @@ impl Evaluation {
                         format!("mean CTA uncertainty (eq 36, {})", self.budget),
                         pts(&self.cta_uncertainty_deg),
                     )
-                    .with_markers(),
-                ],
+                    .with_markers()],
+                ]
+                .concat(),
             }],
             1,
         )
@@ -188,12 +233,64 @@ impl Reference {
     }
 }
 
-/// Evaluate a fit on a dataset, the error in angle measured from `reference`; `u` is the
+/// The model whose directions [`evaluate`] compares with the truth.
+#[derive(Debug, Clone, Copy)]
+pub enum DirectionModel<'a> {
+    /// The 7-parameter collinearity model (eq 65): the direction of eq 67 from its eye point.
+    Pinhole(&'a Params<f64>),
+    /// A sensor calibration's near-field model (eqs 60-63): the beacon position on its plate
+    /// (the plane of the beacon's recorded z) whose modelled output is the report, seen from
+    /// the calibration's head centre `d`.
+    NearField(&'a Calibration),
+}
+
+impl DirectionModel<'_> {
+    /// "pinhole (eq 65)" or "near-field (eqs 60-63)".
+    pub fn name(&self) -> &'static str {
+        match self {
+            DirectionModel::Pinhole(_) => "pinhole (eq 65)",
+            DirectionModel::NearField(_) => "near-field (eqs 60-63)",
+        }
+    }
+
+    /// The model's own head point: the eye point `d` of eq 65, or the calibration's `d`.
+    pub fn own_point(&self) -> Vector3<f64> {
+        match self {
+            DirectionModel::Pinhole(x) => Vector3::new(x[0], x[1], x[2]),
+            DirectionModel::NearField(c) => Vector3::new(c.d[0] as f64, c.d[1] as f64, c.d[2] as f64),
+        }
+    }
+}
+
+/// The beacon position on the plane `z = r.z` whose output under `em` is `y`, by Newton's
+/// method on the two in-plane coordinates from the recorded position `r`; `None` when it
+/// does not converge (no position gives that output, or a cell has no signal on the way).
+fn position_on_plate(em: &Emulator<f64>, y: [f64; 2], r: &Vector3<f64>) -> Option<Vector3<f64>> {
+    let mut q = *r;
+    for _ in 0..30 {
+        let (out, dr, _) = em.output_gradient(&q)?;
+        let res = [y[0] - out[0], y[1] - out[1]];
+        let j = nalgebra::Matrix2::new(dr[0].x, dr[0].y, dr[1].x, dr[1].y);
+        let step = j.lu().solve(&nalgebra::Vector2::new(res[0], res[1]))?;
+        // No wild jumps off the plate: a step longer than the plate's half width is no root.
+        if !(step.norm() < 10.0) {
+            return None;
+        }
+        q.x += step.x;
+        q.y += step.y;
+        if step.norm() < 1e-10 {
+            return Some(q);
+        }
+    }
+    None
+}
+
+/// Evaluate a model on a dataset, the error in angle measured from `reference`; `u` is the
 /// CTA's 1-sigma position uncertainty per axis, inches (eq 26's root-sum-square). With
 /// `without_rail`, reports with an output at the 16-bit rail are left out (counted in
 /// [`Evaluation::at_rail`]).
 pub fn evaluate(
-    x: &Params<f64>,
+    model: DirectionModel<'_>,
     ds: &Dataset,
     reference: Reference,
     u: [f64; 3],
@@ -201,7 +298,26 @@ pub fn evaluate(
 ) -> Evaluation {
     let d = match reference {
         Reference::Truth(d) | Reference::Head(d) => d,
-        Reference::Fit => Vector3::new(x[0], x[1], x[2]),
+        Reference::Fit => model.own_point(),
+    };
+    let em = match model {
+        DirectionModel::NearField(cal) => Some(cta_firmware_sensor::sim::physics(cal)),
+        DirectionModel::Pinhole(_) => None,
+    };
+    let own = model.own_point();
+    let error = |s: &Sample| -> Option<f64> {
+        let r = Vector3::from(s.r);
+        match (model, &em) {
+            (DirectionModel::Pinhole(x), _) => {
+                Some(collinearity::angle_error(x, [s.x, s.y], &r, &d).to_degrees())
+            }
+            (DirectionModel::NearField(_), Some(em)) => {
+                let est = position_on_plate(em, [s.x, s.y], &r)? - own;
+                let truth = r - d;
+                Some(est.cross(&truth).norm().atan2(est.dot(&truth)).to_degrees())
+            }
+            (DirectionModel::NearField(_), None) => None,
+        }
     };
     let mut ev = Evaluation {
         separation_in: Vec::new(),
@@ -215,6 +331,9 @@ pub fn evaluate(
         reference: reference.name().into(),
         reference_in: [d.x, d.y, d.z],
         budget: "thesis Table 2".into(),
+        model: model.name().into(),
+        unsolved: Vec::new(),
+        all_unsolved_in: Vec::new(),
     };
     let railed = |s: &Sample| s.x.abs() >= RAIL || s.y.abs() >= RAIL;
     for sep in ds.separations() {
@@ -231,28 +350,34 @@ pub fn evaluate(
                 continue;
             }
         }
-        let errs: Vec<f64> = rows
+        let solved: Vec<(&Sample, f64)> = rows
             .iter()
-            .map(|s| collinearity::angle_error(x, [s.x, s.y], &Vector3::from(s.r), &d).to_degrees())
+            .filter_map(|s| error(s).map(|e| (*s, e)))
             .collect();
-        let n = errs.len() as f64;
-        let mean = errs.iter().sum::<f64>() / n;
-        let var = if errs.len() > 1 {
-            errs.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0)
+        let unsolved = rows.len() - solved.len();
+        if solved.is_empty() {
+            ev.all_unsolved_in.push(sep);
+            continue;
+        }
+        let n = solved.len() as f64;
+        let mean = solved.iter().map(|(_, e)| e).sum::<f64>() / n;
+        let var = if solved.len() > 1 {
+            solved.iter().map(|(_, e)| (e - mean).powi(2)).sum::<f64>() / (n - 1.0)
         } else {
             0.0
         };
-        let cta = rows
+        let cta = solved
             .iter()
-            .map(|s| uncertainty::angle_3d(&(Vector3::from(s.r) - d), u).to_degrees())
+            .map(|(s, _)| uncertainty::angle_3d(&(Vector3::from(s.r) - d), u).to_degrees())
             .sum::<f64>()
             / n;
         ev.separation_in.push(sep);
         ev.angle_std_deg.push(var.sqrt());
         ev.angle_mean_deg.push(mean);
         ev.cta_uncertainty_deg.push(cta);
-        ev.reports.push(rows.len());
+        ev.reports.push(solved.len());
         ev.at_rail.push(at_rail);
+        ev.unsolved.push(unsolved);
     }
     ev
 }

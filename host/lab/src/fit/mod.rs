@@ -13,7 +13,7 @@ mod report;
 mod tests;
 pub mod wiring;
 
-pub use evaluate::{evaluate, Evaluation, Reference};
+pub use evaluate::{evaluate, DirectionModel, Evaluation, Reference};
 pub use file::{fit_file, prepare, FileFitError, Prepared};
 pub use pinhole::{chi2_warning, fit, fit_observations, FitError};
 pub use report::{describe_stop, FitFileError, FitReport, InvalidFit, MAX_H, MODEL};
