@@ -144,6 +144,27 @@ pub fn main() {
     exit_on_error(r);
 }
 
+/// The provenance of an output this run makes from `inputs`: the tool with its commit, now,
+/// the command line and each input's SHA-256.
+pub fn provenance(inputs: &[&std::path::Path]) -> cta_lab::provenance::Provenance {
+    cta_lab::provenance::Provenance::now(
+        concat!("cta ", env!("CARGO_PKG_VERSION"), " (", env!("CTA_COMMIT"), ")"),
+        std::env::args().collect(),
+        inputs,
+    )
+}
+
+/// `value` as pretty JSON with the provenance of `inputs` under `provenance`.
+pub fn json_with_provenance(
+    value: &impl serde::Serialize,
+    inputs: &[&std::path::Path],
+) -> serde_json::Result<String> {
+    // Through the text, not `to_value`: an `f32` keeps its shortest digits (1.0000306, not
+    // 1.0000306367874146).
+    let v: serde_json::Value = serde_json::from_str(&serde_json::to_string(value)?)?;
+    serde_json::to_string_pretty(&provenance(inputs).attach(v))
+}
+
 /// What the binary does with a command's error: prints `cta: error: ...` with its causes and
 /// exits with 1, or an interrupted sweep's [`cmd::sweep::Interrupted::exit_code`] (128 + the
 /// signal). Returns on success.

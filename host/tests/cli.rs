@@ -399,8 +399,14 @@ fn demo_runs_end_to_end() {
         "calibration.svg",
         "run/data.csv",
         "report/index.html",
+        "index.html",
     ] {
         assert!(out.join(f).exists(), "{f} missing");
+    }
+    // The index shows every plot the demo made.
+    let index = std::fs::read_to_string(out.join("index.html")).unwrap();
+    for svg in ["nearfield.svg", "uncertainty.svg", "figure57.svg", "calibration.svg"] {
+        assert!(index.contains(&format!("<img src=\"{svg}\"")), "{svg} not shown");
     }
     // Never overwritten without --force.
     let again = cta(&["demo", "--out", s(&out)]);
@@ -1337,7 +1343,7 @@ fn evaluate_takes_a_sensor_calibration() {
     let o = cta(&["calibrate", s(&csv), "--out", s(&cal)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v = json(&cta(&["evaluate", s(&cal), s(&csv), "--json", "--plot", s(&plot)]));
-    let evs = v.as_array().expect("one evaluation a model");
+    let evs = v["models"].as_array().expect("one evaluation a model");
     assert_eq!(evs.len(), 2, "{v}");
     assert_eq!(evs[0]["model"], "near-field (eqs 60-63)");
     assert_eq!(evs[1]["model"], "pinhole (eq 65)");
@@ -1346,4 +1352,52 @@ fn evaluate_takes_a_sensor_calibration() {
     assert!(at3(&evs[0]) * 5.0 < at3(&evs[1]), "{v}");
     let svg = std::fs::read_to_string(&plot).unwrap();
     assert!(svg.contains("near-field (eqs 60-63)") && svg.contains("pinhole (eq 65)"));
+}
+
+/// Outputs say where they came from: the saved fit, `--json`, the calibration file and the
+/// analysis report carry the tool with its commit, the date, the command line and the input
+/// file's SHA-256, read back here against the file's own hash.
+#[test]
+fn outputs_carry_their_provenance() {
+    use sha2::{Digest, Sha256};
+    let d = tmpdir("prov");
+    let csv = d.join("sim.csv");
+    common::simulate_at(&csv, "10,20,25,30", "2", "3", &[]);
+    let want: String = Sha256::digest(std::fs::read(&csv).unwrap())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    let check = |p: &serde_json::Value, what: &str| {
+        assert!(p["software"].as_str().unwrap().starts_with("cta "), "{what}: {p}");
+        assert!(p["date_utc"].as_str().unwrap().ends_with('Z'), "{what}: {p}");
+        assert!(p["command"].as_array().unwrap().len() > 2, "{what}: {p}");
+        let hashes: Vec<&str> = p["inputs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|f| f["sha256"].as_str())
+            .collect();
+        assert!(hashes.contains(&want.as_str()), "{what}: {p}");
+    };
+    let fit = d.join("fit.json");
+    let v = json(&cta(&["fit", s(&csv), "--separations", "25,30", "--save", s(&fit), "--json"]));
+    check(&v["provenance"], "fit --json");
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&fit).unwrap()).unwrap();
+    check(&saved["provenance"], "fit.json");
+    // The saved fit still loads.
+    let o = cta(&["evaluate", s(&fit), s(&csv), "--json"]);
+    check(&json(&o)["provenance"], "evaluate --json");
+    let cal = d.join("cal.json");
+    let o = cta(&["calibrate", s(&csv), "--out", s(&cal)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let c: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap();
+    check(&c["fitted"]["run"], "cal.json");
+    let report = d.join("report");
+    let o = cta(&["analyze", s(&csv), "--report", s(&report), "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(html.contains("<h2>Provenance</h2>") && html.contains(&want), "no provenance");
+    assert!(html.contains("name=viewport") && !html.contains("host/ANALYZE.md"));
 }

@@ -14,6 +14,7 @@ pub mod nearfield;
 pub mod noise;
 pub mod plot;
 pub mod progress;
+pub mod provenance;
 pub mod pose;
 pub mod sim;
 pub mod sweep;

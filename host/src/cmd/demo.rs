@@ -44,7 +44,7 @@ const DEMO_README_HEAD: &str = "written by `cta demo`: `cta demo --force` delete
 
 /// What the demo writes into its folder: `--force` deletes a folder holding only these, with
 /// [`DEMO_README`].
-const DEMO_ENTRIES: [&str; 10] = [
+const DEMO_ENTRIES: [&str; 11] = [
     DEMO_README,
     "nearfield.svg",
     "uncertainty.svg",
@@ -55,6 +55,32 @@ const DEMO_ENTRIES: [&str; 10] = [
     "cal.json",
     "calibration.svg",
     "report",
+    "index.html",
+];
+
+/// The demo's plots, each with what it claims: the captions of its `index.html`.
+const DEMO_FIGURES: [(&str, &str); 4] = [
+    (
+        "nearfield.svg",
+        "Ch II: each near-field error (proximity, intensity, the beacon's pattern) against the \
+         distance in sensor diameters, and where it falls below the sensor's 0.1 deg noise.",
+    ),
+    (
+        "uncertainty.svg",
+        "Ch IV: the apparatus's own uncertainty (Table 2's budget) against the near-field error \
+         it is built to measure.",
+    ),
+    (
+        "figure57.svg",
+        "Figure 57: the error in angle of the 20-30 in pinhole calibration at every separation. \
+         It grows close in, where the pinhole model cannot follow the near field.",
+    ),
+    (
+        "calibration.svg",
+        "The sensor board's calibration: the residuals of the pinhole and the near-field model \
+         per separation against the noise. The near-field model, with the hidden gains it \
+         recovered, stays at the noise close in.",
+    ),
 ];
 
 /// Delete an earlier demo's folder; refuse a folder holding anything the demo does not write.
@@ -118,7 +144,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
              top-level README.md):\nnearfield.svg, uncertainty.svg: Ch II errors and Ch IV budget\n\
              plan.toml, run/: the simulated sweep\nfit.json, figure57.svg: the 20-30 in \
              calibration and Figure 57\ncal.json, calibration.svg: the sensor board's \
-             calibration\nreport/index.html: cta analyze's report\n"
+             calibration\nreport/index.html: cta analyze's report\nindex.html: every plot with its caption\n"
         )
         .as_bytes(),
     )
@@ -195,11 +221,27 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     let report = p("report");
     let analyze = analyze_args(&data, &report);
     crate::cmd::analyze::run(&analyze)?;
+    let page = cta_lab::html::gallery(
+        "cta demo",
+        &format!(
+            "The main job on the simulated CTA, with the hidden effect `{}`: every plot the demo \
+             made, with what it shows.",
+            a.effect
+        ),
+        &DEMO_FIGURES,
+        &[
+            ("report/index.html", "cta analyze's report: the hidden effect named, its parameters and the held-out gain"),
+            ("run/data.csv", "the sweep's measurements (run/: its journal, manifest and truth)"),
+            ("cal.json", "the sensor board's calibration, for cta sensor load-calibration"),
+        ],
+    );
+    cta_lab::data::write_output(&p("index.html"), page.as_bytes()).map_err(anyhow::Error::msg)?;
     println!(
         "\nDemo output in {}: nearfield.svg, uncertainty.svg, run/ (sweep data, manifest, truth), fit.json, \
-         figure57.svg, cal.json (for `cta sensor load-calibration`) and calibration.svg, and the analysis report: open {}",
+         figure57.svg, cal.json (for `cta sensor load-calibration`) and calibration.svg, and the analysis report: open {} (every plot with its caption: {})",
         a.out.display(),
-        report.join("index.html").display()
+        report.join("index.html").display(),
+        p("index.html").display()
     );
     print!("{}", rehearsal(&run_dir, &cal, &a.effect)?);
     Ok(())

@@ -212,11 +212,13 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
                 data_notes: &prepared.notes,
             })
             .collect();
-        // A fit gives one object, as before; a calibration one per model.
+        // A fit gives one object, as before; a calibration one per model, under `models`.
+        let inputs = [a.fit.as_path(), a.file.as_path()];
         if rep.is_some() {
-            println!("{}", serde_json::to_string_pretty(&out[0])?);
+            println!("{}", crate::json_with_provenance(&out[0], &inputs)?);
         } else {
-            println!("{}", serde_json::to_string_pretty(&out)?);
+            let models = serde_json::json!({ "models": out });
+            println!("{}", crate::json_with_provenance(&models, &inputs)?);
         }
     } else {
         for (i, (ev, title)) in evs.iter().enumerate() {

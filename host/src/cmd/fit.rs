@@ -68,7 +68,7 @@ pub fn run(a: &FitArgs) -> Result<()> {
     }
     let prepared = prepare(&a.file, a.separations.as_deref(), a.drop_glitches)?;
     let rep = fit::fit_file(prepared, a.weights.into(), &a.file)?;
-    let json = serde_json::to_string_pretty(&rep)?;
+    let json = crate::json_with_provenance(&rep, &[a.file.as_path()])?;
     if a.json {
         println!("{json}");
     } else {

@@ -73,7 +73,7 @@ fn options(a: &NearfieldArgs) -> Result<NearfieldOptions> {
 pub fn run(a: &NearfieldArgs) -> Result<()> {
     let table = NearfieldTable::new(&options(a)?);
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&to_json(&table))?);
+        println!("{}", crate::json_with_provenance(&to_json(&table), &[])?);
     } else {
         print_table(&table);
     }

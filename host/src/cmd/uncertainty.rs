@@ -44,7 +44,8 @@ pub fn run(a: &UncertaintyArgs) -> Result<()> {
     let budget = load_budget(a.budget.as_deref())?;
     let table = UncertaintyTable::new(budget, a.diameter_in);
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&to_json(&table))?);
+        let inputs: Vec<&std::path::Path> = a.budget.iter().map(|p| p.as_path()).collect();
+        println!("{}", crate::json_with_provenance(&to_json(&table), &inputs)?);
     } else {
         print_table(&table);
     }

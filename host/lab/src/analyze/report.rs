@@ -16,6 +16,7 @@ use super::{
 };
 use crate::html::escape as html_escape;
 use crate::plot::{render_svg, Panel, Series};
+use crate::provenance::Provenance;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::fmt::Write;
@@ -51,10 +52,10 @@ pub fn check(dir: &Path) -> Result<(), ReportError> {
 
 /// Write `DIR/index.html` (missing folders created; refused over a file `cta` did not write,
 /// [`check`]; errors read `cannot write PATH: reason`).
-pub fn write(dir: &Path, a: &Analysis) -> Result<(), ReportError> {
+pub fn write(dir: &Path, a: &Analysis, provenance: Option<&Provenance>) -> Result<(), ReportError> {
     let index = dir.join("index.html");
     check(dir)?;
-    let html = render(a).map_err(|why| ReportError::Plot {
+    let html = render(a, provenance).map_err(|why| ReportError::Plot {
         path: index.clone(),
         why,
     })?;
@@ -194,13 +195,14 @@ table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #ccc;paddin
 text-align:left;vertical-align:top}th{background:#eee}.verdict{font-size:1.3em;padding:0.5em;\
 background:#f4f4e8;border-left:6px solid #c90}.acc{background:#e6f4e6}svg{max-width:100%;height:auto}";
 
-/// The whole page.
-pub fn render(a: &Analysis) -> Result<String, DrawError> {
+/// The whole page, with where it came from when `provenance` is given.
+pub fn render(a: &Analysis, provenance: Option<&Provenance>) -> Result<String, DrawError> {
     let mut s = String::new();
     let _ = write!(
         s,
-        "<!doctype html><html><head><meta charset=utf-8><title>cta analyze: {}</title>\
-         <style>{STYLE}</style></head><body>",
+        "<!doctype html><html><head><meta charset=utf-8>\
+         <meta name=viewport content=\"width=device-width, initial-scale=1\">\
+         <title>cta analyze: {}</title><style>{STYLE}</style></head><body>",
         html_escape(&a.file)
     );
     let _ = write!(
@@ -463,8 +465,37 @@ pub fn render(a: &Analysis) -> Result<String, DrawError> {
     for w in &af.worst_beacons {
         let _ = write!(s, "<li>{}: {:.2}</li>", w.label, w.chi2_per_row);
     }
-    s.push_str("</ul><p>Method: host/ANALYZE.md. Equation numbers are Stancliffe (2010)'s.</p></body></html>");
+    s.push_str(
+        "</ul><p>Method: <code>cta analyze --help</code> and the analysis guide shipped with CTA \
+         (ANALYZE.md). Equation numbers are Stancliffe (2010)'s.</p>",
+    );
+    if let Some(p) = provenance {
+        provenance_html(&mut s, p);
+    }
+    s.push_str("</body></html>");
     Ok(s)
+}
+
+/// The page's provenance: what made it, when, from which command and which files.
+fn provenance_html(s: &mut String, p: &Provenance) {
+    let _ = write!(
+        s,
+        "<h2>Provenance</h2><table><tr><th>made by</th><td>{}</td></tr><tr><th>date (UTC)</th>\
+         <td>{}</td></tr><tr><th>command</th><td><code>{}</code></td></tr>",
+        html_escape(&p.software),
+        html_escape(&p.date_utc),
+        html_escape(&p.command.join(" "))
+    );
+    for f in &p.inputs {
+        let _ = write!(
+            s,
+            "<tr><th>input</th><td>{} ({} bytes), SHA-256 <code>{}</code></td></tr>",
+            html_escape(&f.path),
+            f.bytes.map_or("?".into(), |b| b.to_string()),
+            f.sha256.as_deref().unwrap_or("unreadable")
+        );
+    }
+    s.push_str("</table>");
 }
 
 fn param_table(s: &mut String, params: &[super::Param]) {

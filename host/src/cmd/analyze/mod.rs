@@ -231,12 +231,12 @@ pub fn run(args: &AnalyzeArgs) -> Result<()> {
     bar.finish_and_clear();
     // Printed before the report is written: the analysis is never lost to a failed write.
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&a)?);
+        println!("{}", crate::json_with_provenance(&a, &[args.file.as_path()])?);
     } else {
         print!("{}", render_text(&a));
     }
     if let Some(dir) = &args.report {
-        report::write(dir, &a).map_err(|e| {
+        report::write(dir, &a, Some(&crate::provenance(&[args.file.as_path()]))).map_err(|e| {
             anyhow!("{e}; the analysis above is complete, the report was not written")
         })?;
         eprintln!("report: {}", dir.join("index.html").display());

@@ -288,7 +288,7 @@ fn two_causes_that_trade_report_their_correlation() {
         (Some(q(names[0])), Some(q(names[1])))
     );
     assert_eq!(j["rho"].as_f64(), Some(r.rho));
-    let html = report::render(&a).unwrap();
+    let html = report::render(&a, None).unwrap();
     let causes_table = html.find("<h2>Named causes</h2>").unwrap();
     let shown = html
         .find(&format!("<i>{}</i>", line.trim()))
@@ -311,7 +311,7 @@ fn independent_causes_report_no_correlation_between_them() {
     assert!(!render_text(&a).contains("correlation between causes"));
     let json = serde_json::to_value(&a).unwrap();
     assert_eq!(json["cross_correlations"].as_array().map(Vec::len), Some(0));
-    let html = report::render(&a).unwrap();
+    let html = report::render(&a, None).unwrap();
     assert!(!html.contains("correlation between causes"));
 }
 

@@ -116,7 +116,8 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
         magnitude: !a.no_magnitude,
         magnitude_sensitivity: a.magnitude_sensitivity,
     };
-    let rep = calibrate::calibrate_file(all, &opts)?;
+    let mut rep = calibrate::calibrate_file(all, &opts)?;
+    rep.file.fitted.run = Some(crate::provenance(&[a.file.as_path()]));
     // The report is printed whether or not the writes succeed, and a failed write is the
     // error after it.
     let saved = match &a.out {
@@ -132,7 +133,7 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
         None => Ok(()),
     };
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&rep)?);
+        println!("{}", crate::json_with_provenance(&rep, &[a.file.as_path()])?);
     } else {
         render::print_report(&rep, saved.as_ref().map(|o| o.as_deref()).ok());
     }

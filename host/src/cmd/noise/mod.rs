@@ -51,7 +51,7 @@ pub fn run(args: &NoiseArgs) -> Result<()> {
     let r = cta_lab::noise::analyze_noise(&ds)?;
     // The report first: a plot that cannot be written loses nothing.
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&r)?);
+        println!("{}", crate::json_with_provenance(&r, &[args.file.as_path()])?);
     } else {
         print!("{}", render_text(&r));
     }

@@ -222,7 +222,7 @@ fn print_table(
     draw: impl FnOnce(&Path) -> Result<()>,
 ) -> Result<()> {
     if json {
-        println!("{}", serde_json::to_string_pretty(table)?);
+        println!("{}", crate::json_with_provenance(table, &[])?);
     } else {
         print!("{text}");
     }

@@ -171,7 +171,7 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     if let Some(dir) = &args.status {
         let s = status::status(dir)?;
         if args.json {
-            println!("{}", serde_json::to_string_pretty(&s.to_json())?);
+            println!("{}", crate::json_with_provenance(&s.to_json(), &[])?);
         } else {
             print!("{}", s.render());
         }

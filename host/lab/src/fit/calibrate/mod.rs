@@ -561,6 +561,7 @@ pub fn calibrate(
                 pinned_points: pinned,
                 glitches_left_out: 0,
                 correlations: nf.correlations.clone(),
+                run: None,
             },
             led_brightness: Vec::new(),
         },
