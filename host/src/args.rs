@@ -118,13 +118,13 @@ pub fn check_diameter(d: f64) -> Result<()> {
 /// Print the warnings a command's library call returned, as `warning: ...` on stderr.
 pub fn print_warnings(warnings: &[String]) {
     for w in warnings {
-        eprintln!("warning: {w}");
+        crate::say::warning(w);
     }
 }
 
 /// Announce a plot written (on stderr, after the table it draws).
 pub fn announce_plot(path: &std::path::Path) {
-    eprintln!("plot: {}", path.display());
+    crate::say::line(format_args!("plot: {}", path.display()));
 }
 
 /// Parse `x,y` (two numbers, comma-separated: `--offset 0.3,-0.2`).

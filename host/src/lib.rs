@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 pub mod args;
 pub mod cmd;
 pub mod conn;
+pub mod say;
 pub mod signals;
 
 /// `cta --version`: the package version and the commit it was built from.
@@ -30,6 +31,10 @@ Step by step:  cta simulate --out sim.csv --separations 20,25 && cta fit sim.csv
 cta evaluate fit.json sim.csv"
 )]
 pub struct Cli {
+    /// Say nothing on stderr but errors: no warnings, notes, progress or "plot: FILE" lines
+    /// (the results on stdout and the files are the same).
+    #[arg(long, short = 'q', global = true)]
+    quiet: bool,
     #[command(subcommand)]
     cmd: Cmd,
 }
@@ -124,6 +129,7 @@ pub fn main() {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let cli = parse();
+    say::set_quiet(cli.quiet);
     let r = match &cli.cmd {
         Cmd::Nearfield(a) => cmd::nearfield::run(a),
         Cmd::Uncertainty(a) => cmd::uncertainty::run(a),
@@ -132,8 +138,14 @@ pub fn main() {
         Cmd::Evaluate(a) => cmd::evaluate::run(a),
         Cmd::Calibrate(a) => cmd::calibrate::run(a),
         Cmd::Demo(a) => cmd::demo::run(a),
-        Cmd::Sweep(a) => cmd::sweep::run(a),
-        Cmd::Analyze(a) => cmd::analyze::run(a),
+        Cmd::Sweep(a) => cmd::sweep::run(&cmd::sweep::SweepArgs {
+            quiet: cli.quiet,
+            ..a.clone()
+        }),
+        Cmd::Analyze(a) => cmd::analyze::run(&cmd::analyze::AnalyzeArgs {
+            quiet: cli.quiet,
+            ..a.clone()
+        }),
         Cmd::Noise(a) => cmd::noise::run(a),
         Cmd::Beacon(a) => cmd::beacon::run(a),
         Cmd::Sensor(a) => cmd::sensor::run(a),

@@ -1401,3 +1401,38 @@ fn outputs_carry_their_provenance() {
     assert!(html.contains("<h2>Provenance</h2>") && html.contains(&want), "no provenance");
     assert!(html.contains("name=viewport") && !html.contains("host/ANALYZE.md"));
 }
+
+/// `--quiet`, before or after the command: no warning, note or "plot:" line on stderr; the
+/// result on stdout is the same. Errors are still said.
+#[test]
+fn quiet_silences_warnings_not_errors() {
+    let d = tmpdir("quiet");
+    let csv = d.join("sim.csv");
+    let bare = d.join("bare.csv");
+    let fit = d.join("fit.json");
+    let plot = d.join("fig.svg");
+    common::simulate_at(&csv, "25,30", "2", "3", &[]);
+    // Without its truth sidecar, the evaluation warns that it measures from the fit's eye.
+    std::fs::copy(&csv, &bare).unwrap();
+    let o = cta(&["fit", s(&csv), "--save", s(&fit)]);
+    assert!(o.status.success());
+    let eval = |extra: &[&str]| {
+        let mut args = vec!["evaluate", s(&fit), s(&bare)];
+        args.extend_from_slice(extra);
+        cta(&args)
+    };
+    let loud = eval(&[]);
+    let said = String::from_utf8_lossy(&loud.stderr);
+    assert!(said.contains("warning:") && said.contains("no truth sidecar"), "{said}");
+    for quiet in [eval(&["--quiet"]), eval(&["-q"])] {
+        assert!(quiet.status.success());
+        assert_eq!(String::from_utf8_lossy(&quiet.stderr), "");
+        assert_eq!(quiet.stdout, loud.stdout);
+    }
+    let o = cta(&["--quiet", "nearfield", "--plot", s(&plot)]);
+    assert!(o.status.success() && o.stderr.is_empty(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(plot.exists());
+    let o = cta(&["--quiet", "fit", s(&d.join("missing.csv"))]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("cta: error:"));
+}

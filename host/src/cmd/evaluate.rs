@@ -122,8 +122,8 @@ fn reference(a: &EvaluateArgs, own: [f64; 3], what: &str) -> Result<Reference> {
             Reference::Head(nalgebra::Vector3::from(h))
         }
         (None, None) => {
-            eprintln!(
-                "warning: {}: no truth sidecar and no --head, so the error in angle is measured \
+            crate::say::warning(format_args!(
+                "{}: no truth sidecar and no --head, so the error in angle is measured \
                  from the {what} (d = {:.3}, {:.3}, {:.3} in): it shows only how \
                  consistent the model is with itself, not the error Figure 57 plots (far \
                  smaller near the fit's separations, comparable or larger close in). Give the \
@@ -132,7 +132,7 @@ fn reference(a: &EvaluateArgs, own: [f64; 3], what: &str) -> Result<Reference> {
                 own[0],
                 own[1],
                 own[2]
-            );
+            ));
             Reference::Fit
         }
     })

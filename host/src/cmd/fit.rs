@@ -113,7 +113,7 @@ fn print_fit(rep: &FitReport, file: &Path) {
     }
     let (truth, truth_warning) = Truth::load_for_fit(file);
     if let Some(w) = truth_warning {
-        eprintln!("warning: {w}");
+        crate::say::warning(w);
     }
     for n in cta_core::collinearity::NAMES {
         let t = truth.as_ref().map(|t| match n {

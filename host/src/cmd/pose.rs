@@ -57,7 +57,7 @@ pub fn run(a: &PoseArgs) -> Result<()> {
     let cal: Calibration = read_json(&cal_file)?;
     let con = constellation(&a.constellation, a.brightness.as_deref())?;
     for w in &con.warnings {
-        eprintln!("warning: {w}");
+        crate::say::warning(w);
     }
     let frames = read_frames(&a.frames)?;
     let options = OfflineOptions {
@@ -77,7 +77,7 @@ pub fn run(a: &PoseArgs) -> Result<()> {
         }
     }
     let ok = poses.iter().filter(|p| p.status == PoseStatus::Ok).count();
-    eprintln!(
+    crate::say::line(format_args!(
         "{}: {} frames, {ok} solved ({}), {} not",
         a.frames.display(),
         poses.len(),
@@ -86,6 +86,6 @@ pub fn run(a: &PoseArgs) -> Result<()> {
             ModelArg::Pinhole => "pinhole model",
         },
         poses.len() - ok
-    );
+    ));
     Ok(())
 }

@@ -141,7 +141,7 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
         .map_err(|e| anyhow!("{e}; the simulation was not saved"))?;
     let plural =
         |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
-    eprintln!(
+    crate::say::line(format_args!(
         "wrote {} ({} x {} x {}, {} outside the field of view) to {} (truth: {})",
         plural(ds.samples.len(), "report", "reports"),
         plural(cfg.separations.len(), "separation", "separations"),
@@ -150,9 +150,9 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
         plural(truth.skipped_points, "point", "points"),
         a.out.display(),
         tp.display()
-    );
+    ));
     if let Some(w) = sim::rail_note(&cfg, &ds) {
-        eprintln!("{w}");
+        crate::say::line(w);
     }
     Ok(())
 }

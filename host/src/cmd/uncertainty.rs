@@ -30,7 +30,7 @@ pub struct UncertaintyArgs {
 pub fn load_budget(path: Option<&Path>) -> Result<Budget> {
     let budget = Budget::load_or_table2(path)?;
     if let (Some(w), Some(p)) = (&budget.unit_warning, &budget.file) {
-        eprintln!("warning: {}: {w}", p.display());
+        crate::say::warning(format_args!("{}: {w}", p.display()));
     }
     Ok(budget)
 }

@@ -155,8 +155,8 @@ pub struct AnalyzeArgs {
     /// Print the result as JSON instead of text.
     #[arg(long)]
     pub json: bool,
-    /// No progress bar.
-    #[arg(long, short)]
+    /// No progress bar: the global `--quiet`.
+    #[arg(skip)]
     pub quiet: bool,
 }
 
@@ -208,7 +208,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<()> {
     let (mut ds, warnings) =
         cta_lab::sweep::read_measurements(&args.file).map_err(anyhow::Error::msg)?;
     for w in warnings {
-        bar.suspend(|| eprintln!("warning: {w}"));
+        bar.suspend(|| crate::say::warning(w));
     }
     if let Some(s) = &args.separations {
         let seps = parse_separations(s).map_err(anyhow::Error::msg)?;
@@ -218,10 +218,10 @@ pub fn run(args: &AnalyzeArgs) -> Result<()> {
         match RunCorners::beside(&args.file) {
             Some(Ok(rc)) => opts.corners = Some(rc),
             Some(Err(e)) => bar.suspend(|| {
-                eprintln!(
-                    "warning: {e:#}: the run's corner readings cannot be used, so the plates are \
+                crate::say::warning(format_args!(
+                    "{e:#}: the run's corner readings cannot be used, so the plates are \
                      taken as level (--ignore-corners says so without this warning)"
-                )
+                ))
             }),
             None => {}
         }
@@ -239,7 +239,7 @@ pub fn run(args: &AnalyzeArgs) -> Result<()> {
         report::write(dir, &a, Some(&crate::provenance(&[args.file.as_path()]))).map_err(|e| {
             anyhow!("{e}; the analysis above is complete, the report was not written")
         })?;
-        eprintln!("report: {}", dir.join("index.html").display());
+        crate::say::line(format_args!("report: {}", dir.join("index.html").display()));
     }
     Ok(())
 }

@@ -97,7 +97,7 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
     }
     let (all, warnings) = cta_lab::sweep::read_measurements(&a.file).map_err(|e| anyhow!("{e}"))?;
     for w in warnings {
-        eprintln!("warning: {w}");
+        crate::say::warning(w);
     }
     let separations = match &a.separations {
         None => None,

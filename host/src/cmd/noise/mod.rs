@@ -46,7 +46,7 @@ pub struct NoiseArgs {
 pub fn run(args: &NoiseArgs) -> Result<()> {
     let (ds, warnings) = cta_lab::sweep::read_measurements(&args.file).map_err(anyhow::Error::msg)?;
     for w in warnings {
-        eprintln!("warning: {w}");
+        crate::say::warning(w);
     }
     let r = cta_lab::noise::analyze_noise(&ds)?;
     // The report first: a plot that cannot be written loses nothing.
@@ -57,7 +57,7 @@ pub fn run(args: &NoiseArgs) -> Result<()> {
     }
     if let Some(dir) = &args.plot {
         let index = cta_lab::noise::write_plots(dir, &r, &render_text(&r))?;
-        eprintln!("plots: {}", index.display());
+        crate::say::line(format_args!("plots: {}", index.display()));
     }
     Ok(())
 }

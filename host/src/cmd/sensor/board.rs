@@ -55,7 +55,7 @@ pub(super) fn run(command: &SensorCommand, conn: &SensorConn) -> Result<()> {
                 _ => String::new(),
             };
             for w in &con.warnings {
-                eprintln!("warning: {w}");
+                crate::say::warning(w);
             }
             let n = con.constellation.beacons.len();
             board.load_constellation(con.constellation, file)?;
@@ -118,12 +118,12 @@ pub(super) fn run(command: &SensorCommand, conn: &SensorConn) -> Result<()> {
         } => {
             catch_stop();
             if matches!(model, ModelArg::NearField) && board.lacks_near_field()? {
-                eprintln!(
-                    "warning: the board's calibration has no near-field part (`near_field` \
+                crate::say::warning(format_args!(
+                    "the board's calibration has no near-field part (`near_field` \
                      null): near-field poses use the nominal head (face angles 30 deg, cells \
                      0.175 in off centre, no gains or offsets); load one from `cta calibrate`, \
                      or use --model pinhole"
-                );
+                ));
             }
             board.set_mode(Mode::Pose((*model).into()))?;
             if !*json {

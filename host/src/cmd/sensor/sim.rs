@@ -108,10 +108,10 @@ pub(super) fn run(args: &SimArgs) -> Result<()> {
     if let Some(h) = &head {
         println!("simulated head: {}", h.describe);
         if !h.left_out.is_empty() {
-            eprintln!(
+            crate::say::line(format_args!(
                 "note: effects of the file left out: {} (the CTA plate's, not the head's)",
                 h.left_out.join(" ")
-            );
+            ));
         }
     }
     if args.configured {

@@ -208,7 +208,7 @@ fn target(check: cta_lab::pose::Result<()>, scene: &Scene) -> Result<TestScene> 
     check?;
     let target = scene.resolve()?;
     for w in &target.warnings {
-        eprintln!("warning: {w}");
+        crate::say::warning(w);
     }
     Ok(target)
 }

@@ -177,10 +177,10 @@ impl Watch for Bars {
         Bars::log(self, line);
     }
     fn note(&self, dir: &Path, note: &str) {
-        let _ = writeln!(std::io::stderr(), "cta: note: {}: {note}", dir.display());
+        crate::say::line(format_args!("cta: note: {}: {note}", dir.display()));
     }
     fn warning(&self, w: &str) {
-        let _ = writeln!(std::io::stderr(), "cta: warning: {w}");
+        crate::say::line(format_args!("cta: warning: {w}"));
     }
 }
 

@@ -105,8 +105,8 @@ pub struct SweepArgs {
     #[arg(long, short = 'y')]
     pub yes: bool,
     /// No progress bars, and no log lines when stderr is not a terminal (the summary is still
-    /// printed).
-    #[arg(long, short = 'q')]
+    /// printed): the global `--quiet`.
+    #[arg(skip)]
     pub quiet: bool,
     /// Do not fsync the data and journal (by default synced after each point, grouped to at
     /// most one sync every 250 ms); faster: a power cut may then lose the last points, a killed
@@ -131,7 +131,7 @@ pub struct SweepArgs {
         conflicts_with_all = [
             "out", "resume", "plan", "beacon", "sensor", "sim", "force", "yes", "sim_noise",
             "sim_magnitude_noise", "sim_led_brightness", "sim_effect", "sim_seed", "sim_realtime", "sim_unthrottled",
-            "sim_fault", "quiet", "no_sync", "recover_truncated"
+            "sim_fault", "no_sync", "recover_truncated"
         ]
     )]
     pub status: Option<PathBuf>,
@@ -178,7 +178,9 @@ pub fn run(args: &SweepArgs) -> Result<()> {
         return Ok(());
     }
     for (sig, e) in crate::signals::catch_stop(&INTERRUPTED, Some(&SIGNAL)) {
-        eprintln!("warning: cannot catch signal {sig} ({e}): it would stop the sweep uncleanly");
+        crate::say::warning(format_args!(
+            "cannot catch signal {sig} ({e}): it would stop the sweep uncleanly"
+        ));
     }
     let s = sweep(args)?;
     print_summary(&s);
