@@ -124,7 +124,17 @@ pub fn constellation_file(
     file: &str,
     brightness: Option<&str>,
 ) -> Result<ConstellationFile, Error> {
-    let (mut constellation, mut warnings) = read_constellation(file)?;
+    let (constellation, warnings) = read_constellation(file)?;
+    with_brightness(constellation, warnings, brightness)
+}
+
+/// `constellation` (read with `warnings`) with its beacons' brightness set from the
+/// calibration file `brightness`, when given ([`set_brightness`]).
+pub fn with_brightness(
+    mut constellation: Constellation,
+    mut warnings: Vec<String>,
+    brightness: Option<&str>,
+) -> Result<ConstellationFile, Error> {
     let brightness_set = match brightness {
         Some(cal) => {
             let (set, w) = set_brightness(&mut constellation, cal)?;

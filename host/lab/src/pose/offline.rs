@@ -15,8 +15,8 @@ use std::time::Instant;
 use cta_core::pose::{Calibration, Constellation, ModelKind, PoseSolver, SolverSettings};
 use cta_core::wire::sensor::{PoseReport, SpotReport};
 
-use super::plate::{built_in_constellation, set_brightness};
-use crate::boards::sensor::{constellation_file, ConstellationFile};
+use super::plate::built_in_constellation;
+use crate::boards::sensor::{constellation_file, with_brightness, ConstellationFile};
 
 /// The longest line a frames file may have: a report of 20 spots is about 1.2 KB.
 pub const MAX_LINE: usize = 16 * 1024;
@@ -121,21 +121,7 @@ pub fn constellation(
     if Path::new(spec).exists() {
         return constellation_file(spec, brightness);
     }
-    let mut c = built_in_constellation(spec)?;
-    let mut warnings = Vec::new();
-    let brightness_set = match brightness {
-        Some(cal) => {
-            let (set, w) = set_brightness(&mut c, cal)?;
-            warnings.extend(w);
-            Some(set)
-        }
-        None => None,
-    };
-    Ok(ConstellationFile {
-        constellation: c,
-        brightness_set,
-        warnings,
-    })
+    with_brightness(built_in_constellation(spec)?, Vec::new(), brightness)
 }
 
 /// How the frames are solved.
