@@ -84,7 +84,12 @@ impl BoardFile for Constellation {
 pub fn read_json<T: serde::de::DeserializeOwned + serde::Serialize + BoardFile>(
     file: &str,
 ) -> Result<T, Error> {
-    let text = std::fs::read_to_string(file).map_err(|error| Error::Read {
+    let text = crate::bounded::read_text(
+        std::path::Path::new(file),
+        crate::bounded::MAX_JSON_BYTES,
+        "a JSON file",
+    )
+    .map_err(|error| Error::Read {
         file: file.to_string(),
         error,
     })?;

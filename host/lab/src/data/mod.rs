@@ -24,8 +24,8 @@ pub use glitches::{
 pub use output::{check_derived_output, create_parent_folders, write_output, OutputError};
 pub use read::{file_looks_like_measurements, looks_like_measurements};
 pub use sample::{
-    any_sample_pinned, mean_near_rail, write_row, Dataset, Point, Sample, MAX_BEACON_ID, OPTIONAL,
-    RAIL, REQUIRED,
+    any_sample_pinned, comment_text, mean_near_rail, write_row, Dataset, Point, Sample,
+    MAX_BEACON_ID, OPTIONAL, RAIL, REQUIRED,
 };
 pub use separations::{
     fmt_list, nearest_within, parse_new_separations, parse_separations, SeparationError,

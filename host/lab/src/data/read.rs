@@ -2,12 +2,13 @@
 //! against its column's documented range (MEASUREMENTS.md).
 
 use std::collections::HashMap;
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufReader, Read};
 use std::path::Path;
 
 use super::error::printable;
 use super::sample::key_bits;
 use super::{Dataset, ReadError, Reason, Sample, MAX_BEACON_ID, OPTIONAL, REQUIRED};
+use crate::bounded::{read_line, Line, MAX_CSV_BYTES, MAX_LINE_BYTES};
 
 /// What a column may hold (MEASUREMENTS.md), checked on every row.
 #[derive(Debug, Clone, Copy)]
@@ -80,7 +81,7 @@ fn domain(column: &str) -> Domain {
 /// say what it got).
 pub fn looks_like_measurements(text: &str) -> bool {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    text.lines()
+    text.split(['\n', '\r'])
         .map(str::trim)
         .find(|l| !l.is_empty() && !l.starts_with('#'))
         .is_some_and(|h| {
@@ -263,6 +264,7 @@ impl Dataset {
         let mut buf: Vec<u8> = Vec::new();
         let mut ends: Vec<usize> = Vec::new();
         let mut line = 0usize;
+        let mut total = 0u64;
         let mut header = true;
         // The next line that is neither blank nor a comment, split into `buf`/`ends`: its
         // number, and its last byte (a newline, except on a file's last line, which has none
@@ -271,14 +273,22 @@ impl Dataset {
                         ends: &mut Vec<usize>|
          -> Result<Option<(usize, Option<u8>)>, ReadError> {
             loop {
-                raw.clear();
-                let n = br
-                    .read_until(b'\n', &mut raw)
+                let got = read_line(&mut br, &mut raw, MAX_LINE_BYTES)
                     .map_err(|e| ReadError::Io(p.clone(), e))?;
-                if n == 0 {
+                if got == Line::End {
                     return Ok(None);
                 }
                 line += 1;
+                if got == Line::TooLong {
+                    return Err(ReadError::LineTooLong {
+                        path: p.clone(),
+                        line,
+                    });
+                }
+                total += raw.len() as u64;
+                if total > MAX_CSV_BYTES {
+                    return Err(ReadError::TooBig(p.clone()));
+                }
                 let mut t: &[u8] = &raw;
                 // A UTF-8 byte-order mark (as Excel writes) is not part of the first column.
                 if line == 1 && t.starts_with(BOM) {
@@ -348,7 +358,7 @@ impl Dataset {
         // The last row, when no line break follows it: its line, last column and last value.
         let mut unended: Option<(usize, String, String)> = None;
         while let Some((line, last_byte)) = next(&mut buf, &mut ends)? {
-            let ended = last_byte == Some(b'\n');
+            let ended = matches!(last_byte, Some(b'\n' | b'\r'));
             let nf = ends.len();
             if nf < header.len() {
                 return Err(ReadError::ShortRow {

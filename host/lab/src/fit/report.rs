@@ -170,10 +170,11 @@ impl FitReport {
 
     /// Load a saved fit.
     pub fn load(path: &Path) -> Result<FitReport, FitFileError> {
-        let s = std::fs::read_to_string(path).map_err(|error| FitFileError::Read {
-            path: path.to_path_buf(),
-            error,
-        })?;
+        let s = crate::bounded::read_text(path, crate::bounded::MAX_JSON_BYTES, "a JSON file")
+            .map_err(|error| FitFileError::Read {
+                path: path.to_path_buf(),
+                error,
+            })?;
         let mut r: FitReport = serde_json::from_str(&s).map_err(|e| {
             // A sensor calibration (`cta calibrate --out`) is the usual mix-up.
             let cal = serde_json::from_str::<serde_json::Value>(&s)

@@ -19,6 +19,7 @@ use crate::data::{Dataset, ReadError};
 pub mod corners;
 pub mod engine;
 pub mod error;
+mod journal;
 pub mod plan;
 pub mod sim;
 pub mod status;
@@ -435,7 +436,7 @@ fn read_plan(path: &Path) -> Result<String> {
             path.display()
         );
     }
-    std::fs::read_to_string(path)
+    crate::bounded::read_text(path, crate::bounded::MAX_PLAN_BYTES, "a plan")
         .with_context(|| format!("{}: cannot read the plan", path.display()))
 }
 

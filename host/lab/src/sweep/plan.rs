@@ -520,12 +520,13 @@ impl Plan {
     /// Read and validate a plan file.
     pub fn load(path: &Path) -> Result<Plan, PlanError> {
         let file = path.display().to_string();
-        let src = std::fs::read_to_string(path).map_err(|e| PlanError {
-            file: file.clone(),
-            line: None,
-            key: None,
-            message: format!("cannot read the plan: {e}"),
-        })?;
+        let src = crate::bounded::read_text(path, crate::bounded::MAX_PLAN_BYTES, "a plan")
+            .map_err(|e| PlanError {
+                file: file.clone(),
+                line: None,
+                key: None,
+                message: format!("cannot read the plan: {e}"),
+            })?;
         Plan::parse(&file, &src)
     }
 
@@ -721,7 +722,25 @@ impl Plan {
                         ));
                     }
                 }
-                f.get_ref().clone()
+                // One channel twice would measure its points twice, under one key the data
+                // file's reader refuses as duplicate reports.
+                let list = f.get_ref();
+                for (i, &hz) in list.iter().enumerate() {
+                    if let Some(&first) =
+                        list[..i].iter().find(|&&a| channel_of(a) == channel_of(hz))
+                    {
+                        return Err(err(
+                            "frequencies_hz",
+                            f.span(),
+                            if first == hz {
+                                format!("{hz} Hz is listed twice")
+                            } else {
+                                format!("{first} Hz and {hz} Hz are one NorthStar frequency, listed twice")
+                            },
+                        ));
+                    }
+                }
+                list.clone()
             }
         };
 

@@ -1,8 +1,6 @@
 //! The `cta analyze` result as text.
 
-use cta_lab::analyze::{
-    correlation_lines, cross_correlation_line, pm_parts, unit, Analysis,
-};
+use cta_lab::analyze::{correlation_lines, cross_correlation_line, pm_parts, unit, Analysis};
 
 /// The analysis as `cta analyze` prints it: the verdict, the causes, the candidates not
 /// named, the residuals per separation and the final parameters.

@@ -595,11 +595,10 @@ pub fn fit_magnitude(
         Outcome::Law(m) => {
             let mut cal = rep.file.calibration;
             cal.magnitude = Some(m.law);
-            cal.validate()
-                .map_err(|error| Error::MagnitudeLaw {
-                    path: ds.path.clone(),
-                    error,
-                })?;
+            cal.validate().map_err(|error| Error::MagnitudeLaw {
+                path: ds.path.clone(),
+                error,
+            })?;
             rep.file.calibration = cal;
             rep.file.led_brightness = m.led_brightness.clone();
             let sigma = &mut rep.file.fitted.sigma;

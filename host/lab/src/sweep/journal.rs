@@ -1,0 +1,224 @@
+//! Journal lines a resume can check. Each line of `journal.jsonl` ends with `"chain"`: a hash
+//! (FNV-1a 64) of the line and of the chain of the line before it. A line edited, copied,
+//! moved or removed breaks the chain at the next line, so a forged `point` line (a copy of
+//! the last one with its index raised, which would make the run "complete" without that
+//! point's rows) is refused instead of believed; the points must also follow each other, each
+//! ending past where the point before left the data file. Journals of older
+//! versions, without chains, still load; once a line has its chain, every later line must.
+//!
+//! What a resume finds past the last committed point is never deleted: the decision of
+//! what to keep aside and when a manifest that says more was done than the journal commits is
+//! refused is here too ([`contradiction`]).
+
+use std::path::Path;
+
+use super::error::{bail, Result};
+
+use super::store::{Event, DATA, JOURNAL, MANIFEST};
+
+/// The chain before a journal's first line.
+pub(crate) const START: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// The key the chain is written under, as the last field of each line.
+const KEY: &str = ",\"chain\":\"";
+
+/// FNV-1a 64 of `bytes`, continuing from `h`.
+fn fnv(mut h: u64, bytes: &[u8]) -> u64 {
+    for &b in bytes {
+        h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// The chain of the line whose JSON (without its chain) is `json`, after a line of chain
+/// `prev`.
+fn link(prev: u64, json: &[u8]) -> u64 {
+    fnv(fnv(START, &prev.to_le_bytes()), json)
+}
+
+/// The journal line for `json` (one event: a JSON object, `{...}`, no line break) after a
+/// line of chain `prev`: the object with its `chain` as last field, and a line break; and
+/// the new chain.
+pub(crate) fn seal(prev: u64, json: &str) -> (String, u64) {
+    let h = link(prev, json.as_bytes());
+    let body = json.strip_suffix('}').unwrap_or(json);
+    (format!("{body}{KEY}{h:016x}\"}}\n"), h)
+}
+
+/// [`seal`] each line of `lines` (whole lines, each ending with a line break) in turn, from
+/// `prev`: the bytes to write and the chain after the last.
+pub(crate) fn seal_lines(prev: u64, lines: &[u8]) -> (Vec<u8>, u64) {
+    let mut out = Vec::with_capacity(lines.len() + 40);
+    let mut h = prev;
+    for l in lines.split(|&b| b == b'\n').filter(|l| !l.is_empty()) {
+        let (line, next) = seal(h, &String::from_utf8_lossy(l));
+        out.extend_from_slice(line.as_bytes());
+        h = next;
+    }
+    (out, h)
+}
+
+/// The JSON of one journal line (`line`, without its line break) once its chain is checked
+/// against `prev`; and the chain after it (`prev` for a line of an older version, which has
+/// none: accepted only while no line before had one, `sealed` false). `at` names the line in
+/// errors.
+pub(crate) fn check(
+    prev: u64,
+    sealed: bool,
+    line: &[u8],
+    at: &str,
+) -> Result<(Vec<u8>, u64, bool)> {
+    let line = line.trim_ascii_end();
+    let k = KEY.len();
+    let hex_end = line.len().saturating_sub(2);
+    let has = line.len() >= k + 18
+        && line.ends_with(b"\"}")
+        && &line[hex_end - 16 - k..hex_end - 16] == KEY.as_bytes();
+    if !has {
+        if sealed {
+            bail!(
+                "{at}: a journal line without its check (`chain`) after lines that have one: \
+                 added or edited by hand, or written by another program. Not resuming, nothing \
+                 was changed: restore {JOURNAL} as the sweep wrote it, or start a new run with \
+                 --out"
+            );
+        }
+        return Ok((line.to_vec(), prev, false));
+    }
+    let hex = std::str::from_utf8(&line[hex_end - 16..hex_end]).ok();
+    let given = hex.and_then(|h| u64::from_str_radix(h, 16).ok());
+    let mut json = line[..hex_end - 16 - k].to_vec();
+    json.push(b'}');
+    let h = link(prev, &json);
+    if given != Some(h) {
+        bail!(
+            "{at}: the journal line's check (`chain`) does not match: the line was edited, \
+             copied or moved, or a line before it was removed or changed (the sweep never \
+             writes such a line). Not resuming, nothing was changed: restore {JOURNAL} as the \
+             sweep wrote it, or start a new run with --out"
+        );
+    }
+    Ok((json, h, true))
+}
+
+/// The points of a journal must follow each other (0, 1, 2, ...; a recovery or a crash cuts
+/// the journal back, never leaves a gap or a repeat) and each must end later in the data
+/// file than the one before (every point writes its rows or a comment line): otherwise the
+/// journal would have a point "committed" whose rows are not in the data file. `lines` gives each event's line number.
+pub(crate) fn check_points(events: &[Event], lines: &[usize], path: &Path) -> Result<()> {
+    let mut prev: Option<(usize, u64)> = None;
+    for (e, line) in events.iter().zip(lines) {
+        let Event::Point { i, csv_end, .. } = e else {
+            continue;
+        };
+        let want = prev.map_or(0, |(p, _)| p + 1);
+        let before = prev.map_or(0, |(_, e)| e);
+        if *i != want || (prev.is_some() && *csv_end <= before) {
+            bail!(
+                "{}:{line}: point {i}, {}: the journal's points must follow each other, each \
+                 ending past where the one before left {DATA} (a line copied or edited?). \
+                 Not resuming, nothing was changed: restore {JOURNAL} as the sweep wrote it, or \
+                 start a new run with --out",
+                path.display(),
+                if *i != want {
+                    format!("where point {want} belongs")
+                } else {
+                    format!(
+                        "ending at byte {csv_end} of {DATA}, where point {} ended at {before}",
+                        i - 1
+                    )
+                }
+            );
+        }
+        prev = Some((*i, *csv_end));
+    }
+    Ok(())
+}
+
+/// The number of points `manifest.json` in `dir` says were done, when it says so.
+pub(crate) fn manifest_done(dir: &Path) -> Option<u64> {
+    let text = crate::bounded::read_text(
+        &dir.join(MANIFEST),
+        crate::bounded::MAX_JSON_BYTES,
+        "a manifest",
+    )
+    .ok()?;
+    let m: serde_json::Value = serde_json::from_str(&text).ok()?;
+    m["points"]["done"].as_u64()
+}
+
+/// When the manifest says more points were done than the journal commits (`next`, one past
+/// its last point), the journal lost lines the manifest saw (cut short, an older copy put
+/// back): resuming would measure those points again and cut their rows from the data file.
+/// The refusal says so; `--recover-truncated` goes ahead, keeping what it cuts aside.
+pub(crate) fn contradiction(
+    dir: &Path,
+    next: usize,
+    recover: bool,
+    resume: &str,
+) -> Result<Option<String>> {
+    let Some(done) = manifest_done(dir) else {
+        return Ok(None);
+    };
+    if done <= next as u64 {
+        return Ok(None);
+    }
+    let (mp, jp) = (dir.join(MANIFEST), dir.join(JOURNAL));
+    let said = format!(
+        "{} says {done} points were done, but {} commits {next} (the journal lost its last \
+         lines: cut short, or an older copy put back)",
+        mp.display(),
+        jp.display()
+    );
+    if !recover {
+        bail!(
+            "{said}. Resuming would measure points {next} to {} again and cut their rows from \
+             {DATA}. Not resuming, nothing was changed: put back the journal that goes with the \
+             manifest, if you have it, and resume as usual; or continue from point {next} with \
+             `{resume} --recover-truncated`, which keeps the bytes of {DATA} past point {} and \
+             the journal's last lines aside in {} and measures those points again",
+            done - 1,
+            next.saturating_sub(1),
+            super::store::recovery_folder(dir).display()
+        );
+    }
+    Ok(Some(said))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sealed line checks; the same line after another line, or with one byte changed,
+    /// does not; an unsealed line is accepted only before the first sealed one.
+    #[test]
+    fn a_line_checks_only_in_its_place_and_as_written() {
+        let a = r#"{"event":"point","i":0,"csv_end":10}"#;
+        let b = r#"{"event":"point","i":1,"csv_end":20}"#;
+        let (la, ha) = seal(START, a);
+        let (lb, hb) = seal(ha, b);
+        assert!(la.ends_with("\"}\n") && la.contains("\"chain\":\""), "{la}");
+        let (json, h, sealed) = check(START, false, la.as_bytes(), "j:1").unwrap();
+        assert_eq!((json.as_slice(), h, sealed), (a.as_bytes(), ha, true));
+        assert_eq!(check(ha, true, lb.as_bytes(), "j:2").unwrap().1, hb);
+        // The last line copied after itself, its index raised: its chain is the old one's.
+        let forged = lb.replace("\"i\":1", "\"i\":2");
+        let e = check(hb, true, forged.as_bytes(), "j:3")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("j:3: the journal line's check"), "{e}");
+        // A line copied verbatim: its chain follows the wrong line.
+        assert!(check(hb, true, lb.as_bytes(), "j:3").is_err());
+        // An older journal's line: accepted before any sealed line, refused after one.
+        assert_eq!(check(START, false, a.as_bytes(), "j:1").unwrap().1, START);
+        let e = check(ha, true, a.as_bytes(), "j:2")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("without its check"), "{e}");
+        let (bytes, h) = seal_lines(START, format!("{a}\n{b}\n").as_bytes());
+        assert_eq!(
+            (String::from_utf8(bytes).unwrap(), h),
+            (format!("{la}{lb}"), hb)
+        );
+    }
+}
