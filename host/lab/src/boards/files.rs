@@ -105,7 +105,12 @@ pub fn read_json<T: serde::de::DeserializeOwned + serde::Serialize + BoardFile>(
             });
         }
     };
-    let given: serde_json::Value = serde_json::from_str(&text).map_err(Error::Json)?;
+    // Every key is read again as JSON (a value the type skips, e.g. a number out of range
+    // in the host-side keys, fails here): the error names the file.
+    let given: serde_json::Value = serde_json::from_str(&text).map_err(|error| Error::Shape {
+        file: file.to_string(),
+        error,
+    })?;
     let known = serde_json::to_value(&t).map_err(Error::Json)?;
     if let Some((key, keys)) = unknown_key(&given, &known, "", T::HOST_KEYS) {
         return Err(Error::UnknownKey {

@@ -30,15 +30,26 @@ enum Domain {
     },
 }
 
+/// The largest separation or beacon coordinate a measurement file may hold, inches.
+pub const MAX_INCHES: f64 = 1000.0;
+
 fn domain(column: &str) -> Domain {
-    let above = |lo: f64, text| Domain::Range {
+    // The upper bounds are far past any rig (a CTA is a few feet across) and keep sums of
+    // squares finite: a position of 1e308 would turn fits and means into NaN and inf.
+    let above = |lo: f64, hi: f64, text| Domain::Range {
         lo,
         lo_open: true,
-        hi: f64::INFINITY,
+        hi,
         text,
     };
     match column {
-        "separation_in" => above(0.0, "> 0 in"),
+        "separation_in" => above(0.0, MAX_INCHES, "> 0 in, at most 1000 in"),
+        "beacon_x_in" | "beacon_y_in" | "beacon_z_in" => Domain::Range {
+            lo: -MAX_INCHES,
+            lo_open: false,
+            hi: MAX_INCHES,
+            text: "-1000..1000 in",
+        },
         "x" | "y" => Domain::Range {
             lo: -32768.0,
             lo_open: false,
@@ -50,7 +61,7 @@ fn domain(column: &str) -> Domain {
             hi: MAX_BEACON_ID as f64,
             text: "0..399 (100 x array + LED)",
         },
-        "frequency_hz" => above(0.0, "> 0 Hz"),
+        "frequency_hz" => above(0.0, 1e9, "> 0 Hz, at most 1e9 Hz"),
         "power" => Domain::Int {
             lo: 1.0,
             hi: 2.0,
@@ -69,8 +80,8 @@ fn domain(column: &str) -> Domain {
         "magnitude" => Domain::Range {
             lo: 0.0,
             lo_open: false,
-            hi: f64::INFINITY,
-            text: ">= 0",
+            hi: 1e9,
+            text: "0..1e9",
         },
         _ => Domain::Finite,
     }

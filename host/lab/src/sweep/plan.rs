@@ -532,6 +532,17 @@ impl Plan {
 
     /// Parse and validate plan text; `file` names it in errors.
     pub fn parse(file: &str, src: &str) -> Result<Plan, PlanError> {
+        if src.trim().is_empty() {
+            return Err(PlanError {
+                file: file.into(),
+                line: None,
+                key: None,
+                message: "the file is empty (a copy not finished, a disk that filled as it was \
+                          written?): a plan has `key = value` lines, e.g. `samples = 20`: see \
+                          host/plans/short.toml and host/SWEEP.md"
+                    .into(),
+            });
+        }
         let line_of = |offset: usize| src[..offset.min(src.len())].matches('\n').count() + 1;
         check_types(src).map_err(|(key, span, message)| PlanError {
             file: file.into(),

@@ -533,8 +533,8 @@ impl RunDir {
         sync: bool,
         lock: Lock,
     ) -> Result<RunDir> {
-        std::fs::write(dir.join(PLAN), plan_src)
-            .with_context(|| format!("{}: cannot write", dir.join(PLAN).display()))?;
+        // Whole or not at all: an empty plan.toml (a disk that filled) is not a plan.
+        write_atomically(&dir.join(PLAN), plan_src.as_bytes(), sync)?;
         let mut csv = File::create(dir.join(DATA))
             .with_context(|| format!("{}: cannot create", dir.join(DATA).display()))?;
         let mut head = String::new();
