@@ -21,7 +21,7 @@ pub const MAX_PLAN_BYTES: u64 = 1 << 20;
 /// `n` bytes in words: `64 KiB`, `1 GiB`.
 pub fn show_bytes(n: u64) -> String {
     for (unit, name) in [(1u64 << 30, "GiB"), (1 << 20, "MiB"), (1 << 10, "KiB")] {
-        if n >= unit && n % unit == 0 {
+        if n >= unit && n.is_multiple_of(unit) {
             return format!("{} {name}", n / unit);
         }
     }

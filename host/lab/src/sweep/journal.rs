@@ -10,11 +10,13 @@
 //! what to keep aside and when a manifest that says more was done than the journal commits is
 //! refused is here too ([`contradiction`]).
 
-use std::path::Path;
+use std::fs::File;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
 
-use super::error::{bail, Result};
+use super::error::{bail, Context, Result};
 
-use super::store::{Event, DATA, JOURNAL, MANIFEST};
+use super::store::{Event, DATA, DATA_TAIL, JOURNAL, JOURNAL_TAIL, MANIFEST};
 
 /// The chain before a journal's first line.
 pub(crate) const START: u64 = 0xcbf2_9ce4_8422_2325;
@@ -101,6 +103,69 @@ pub(crate) fn check(
     Ok((json, h, true))
 }
 
+/// A journal as read by a resume ([`read`]).
+pub(crate) struct Read {
+    /// Its events.
+    pub events: Vec<Event>,
+    /// The length of its whole lines (a torn last line left out).
+    pub good_len: u64,
+    /// Its length after each event's line.
+    pub line_ends: Vec<u64>,
+    /// The chain after each event's line.
+    pub chains: Vec<u64>,
+    /// The chain after its last whole line.
+    pub chain: u64,
+}
+
+/// Read the journal `jp` for a resume: every whole line checked ([`check`]) and parsed, the
+/// points checked ([`check_points`]); a torn last line (the process died mid-write) is left
+/// out, with a note in `notes`.
+pub(crate) fn read(jp: &Path, notes: &mut Vec<String>) -> Result<Read> {
+    let f = File::open(jp).with_context(|| format!("{}: cannot open", jp.display()))?;
+    let mut r = BufReader::new(f);
+    let mut out = Read {
+        events: Vec::new(),
+        good_len: 0,
+        line_ends: Vec::new(),
+        chains: Vec::new(),
+        chain: START,
+    };
+    let mut lines = Vec::new();
+    let mut sealed = false;
+    let mut line = Vec::new();
+    let mut lineno = 0;
+    loop {
+        line.clear();
+        let n = r
+            .read_until(b'\n', &mut line)
+            .with_context(|| format!("{}: cannot read", jp.display()))?;
+        if n == 0 {
+            break;
+        }
+        lineno += 1;
+        if !line.ends_with(b"\n") {
+            notes.push(format!(
+                "{JOURNAL}: dropped its torn last line ({n} bytes), which the previous session \
+                 was writing when it stopped"
+            ));
+            break;
+        }
+        let at = format!("{}:{lineno}", jp.display());
+        let (json, next, now_sealed) = check(out.chain, sealed, &line, &at)?;
+        match serde_json::from_slice::<Event>(&json) {
+            Ok(e) => out.events.push(e),
+            Err(e) => bail!("{at}: unreadable journal entry: {e}"),
+        }
+        (out.chain, sealed) = (next, now_sealed);
+        out.good_len += n as u64;
+        out.line_ends.push(out.good_len);
+        out.chains.push(out.chain);
+        lines.push(lineno);
+    }
+    check_points(&out.events, &lines, jp)?;
+    Ok(out)
+}
+
 /// The points of a journal must follow each other (0, 1, 2, ...; a recovery or a crash cuts
 /// the journal back, never leaves a gap or a repeat) and each must end later in the data
 /// file than the one before (every point writes its rows or a comment line): otherwise the
@@ -150,13 +215,16 @@ pub(crate) fn manifest_done(dir: &Path) -> Option<u64> {
 /// When the manifest says more points were done than the journal commits (`next`, one past
 /// its last point), the journal lost lines the manifest saw (cut short, an older copy put
 /// back): resuming would measure those points again and cut their rows from the data file.
-/// The refusal says so; `--recover-truncated` goes ahead, keeping what it cuts aside.
+/// The refusal says so; with `recover` (`--recover-truncated`) the resume goes ahead: the
+/// note to say, and the folder the `past` bytes of the data file beyond the journal's last
+/// point (and a torn journal line) are moved to.
 pub(crate) fn contradiction(
     dir: &Path,
+    events: &[Event],
     next: usize,
     recover: bool,
-    resume: &str,
-) -> Result<Option<String>> {
+    past: u64,
+) -> Result<Option<(String, PathBuf)>> {
     let Some(done) = manifest_done(dir) else {
         return Ok(None);
     };
@@ -164,6 +232,7 @@ pub(crate) fn contradiction(
         return Ok(None);
     }
     let (mp, jp) = (dir.join(MANIFEST), dir.join(JOURNAL));
+    let folder = super::store::recovery_folder(dir);
     let said = format!(
         "{} says {done} points were done, but {} commits {next} (the journal lost its last \
          lines: cut short, or an older copy put back)",
@@ -171,18 +240,26 @@ pub(crate) fn contradiction(
         jp.display()
     );
     if !recover {
+        let ports = super::last_session_ports(events);
         bail!(
             "{said}. Resuming would measure points {next} to {} again and cut their rows from \
              {DATA}. Not resuming, nothing was changed: put back the journal that goes with the \
              manifest, if you have it, and resume as usual; or continue from point {next} with \
-             `{resume} --recover-truncated`, which keeps the bytes of {DATA} past point {} and \
-             the journal's last lines aside in {} and measures those points again",
+             `{} --recover-truncated`, which keeps the bytes of {DATA} past point {} and the \
+             journal's torn last line aside in {} and measures those points again",
             done - 1,
+            super::resume_command(dir, ports.as_ref().map(|(b, s)| (b.as_str(), s.as_str()))),
             next.saturating_sub(1),
-            super::store::recovery_folder(dir).display()
+            folder.display()
         );
     }
-    Ok(Some(said))
+    let note = format!(
+        "{said}: --recover-truncated: resuming at point {next}; moved to {}: {DATA}'s {past} \
+         bytes past the last committed point ({DATA_TAIL}) and the journal's torn last line, if \
+         any ({JOURNAL_TAIL})",
+        folder.display()
+    );
+    Ok(Some((note, folder)))
 }
 
 #[cfg(test)]

@@ -640,49 +640,13 @@ impl RunDir {
         check_writable_run(dir)?;
         let (lock, stale) = Lock::acquire(dir)?;
         let mut notes: Vec<String> = stale.map(took_over).into_iter().collect();
-        let mut events = Vec::new();
-        let mut good_len = 0u64;
-        // The journal's length after each event's line, its chain, and its line number.
-        let mut line_ends: Vec<u64> = Vec::new();
-        let mut chains: Vec<u64> = Vec::new();
-        let mut event_lines: Vec<usize> = Vec::new();
-        let (mut chain, mut sealed) = (super::journal::START, false);
-        {
-            let f = File::open(&jp).with_context(|| format!("{}: cannot open", jp.display()))?;
-            let mut r = BufReader::new(f);
-            let mut line = Vec::new();
-            let mut lineno = 0;
-            loop {
-                line.clear();
-                let n = r
-                    .read_until(b'\n', &mut line)
-                    .with_context(|| format!("{}: cannot read", jp.display()))?;
-                if n == 0 {
-                    break;
-                }
-                lineno += 1;
-                if !line.ends_with(b"\n") {
-                    // Torn last line (the process died mid-write): dropped.
-                    notes.push(format!(
-                        "{JOURNAL}: dropped its torn last line ({n} bytes), which the previous \
-                         session was writing when it stopped"
-                    ));
-                    break;
-                }
-                let at = format!("{}:{lineno}", jp.display());
-                let (json, next, now_sealed) = super::journal::check(chain, sealed, &line, &at)?;
-                match serde_json::from_slice::<Event>(&json) {
-                    Ok(e) => events.push(e),
-                    Err(e) => bail!("{at}: unreadable journal entry: {e}"),
-                }
-                (chain, sealed) = (next, now_sealed);
-                good_len += n as u64;
-                line_ends.push(good_len);
-                chains.push(chain);
-                event_lines.push(lineno);
-            }
-        }
-        super::journal::check_points(&events, &event_lines, &jp)?;
+        let super::journal::Read {
+            mut events,
+            mut good_len,
+            line_ends,
+            chains,
+            mut chain,
+        } = super::journal::read(&jp, &mut notes)?;
         // The points are numbered by the plan: continuing with another one would leave points
         // never measured (or measured under other settings) while the run says complete. Each
         // session journals the plan it ran with; the last one is what this session continues.
@@ -888,37 +852,23 @@ impl RunDir {
             }
         }
         // A manifest that saw more points done than the journal commits: the journal lost
-        // lines, refused (or, with `recover`, gone ahead from the journal's last point, what is
-        // past it kept aside).
+        // lines, refused (or, with `recover`, gone ahead, what is past them kept aside).
         if recovery.is_none() {
             let next = last_point.map_or(0, |(i, _)| i + 1);
-            let command = super::resume_command(
-                dir,
-                super::last_session_ports(&events)
-                    .as_ref()
-                    .map(|(b, s)| (b.as_str(), s.as_str())),
-            );
-            match super::journal::contradiction(dir, next, recover, &command)? {
-                Some(said) => {
-                    let folder = recovery_folder(dir);
-                    notes.push(format!(
-                        "{said}: --recover-truncated: resuming at point {next}; moved to {}: \
-                         {DATA}'s {} bytes past the last committed point ({DATA_TAIL}) and the \
-                         journal's torn last line, if any ({JOURNAL_TAIL})",
-                        folder.display(),
-                        len.saturating_sub(end)
-                    ));
-                    recovery = Some(Recovery {
-                        folder,
-                        journal_from: good_len,
-                        data_from: end,
-                    });
-                }
-                None if recover => notes.push(format!(
+            if let Some((note, folder)) =
+                super::journal::contradiction(dir, &events, next, recover, len.saturating_sub(end))?
+            {
+                notes.push(note);
+                recovery = Some(Recovery {
+                    folder,
+                    journal_from: good_len,
+                    data_from: end,
+                });
+            } else if recover {
+                notes.push(format!(
                     "--recover-truncated: {DATA} holds every committed point ({end} bytes): \
                      nothing to recover"
-                )),
-                None => {}
+                ));
             }
         }
         // The committed data must be what was written: a file edited within them (a line
