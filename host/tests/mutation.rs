@@ -3,9 +3,9 @@
 //! given to the commands that read them. Every run must end with exit status 0 or 1 (no
 //! panic, no abort), print no NaN or inf, and on an error name the file.
 //!
-//! `cargo test -p cta --test mutation` tries 100 runs and 80 plans (seconds);
-//! `cargo test -p cta --test mutation -- --ignored` tries thousands (minutes). Each prints the
-//! counts it tried.
+//! `cargo test -p cta --test mutation` tries 140 runs and 80 plans (seconds);
+//! `cargo test -p cta --test mutation -- --ignored` tries 14,000 runs and 8,000 plans
+//! (minutes). Each prints the counts it tried.
 
 mod common;
 
@@ -202,6 +202,16 @@ fn run(name: &str, n: usize) {
         &mut rng,
         &mut faults,
     );
+    tried += campaign(&data, &m, &["analyze", "{}"], n, &mut rng, &mut faults);
+    let out = d.join("out-cal.json");
+    tried += campaign(
+        &data,
+        &m,
+        &["calibrate", "{}", "--out", s(&out)],
+        n,
+        &mut rng,
+        &mut faults,
+    );
     let mf = d.join("m-fit.json");
     tried += campaign(
         &std::fs::read(&fit).unwrap(),
@@ -251,5 +261,5 @@ fn mutated_files_are_read_or_refused_by_name_without_a_panic_or_nan() {
 #[test]
 #[ignore = "thousands of mutations: minutes; run with --ignored"]
 fn many_mutated_files() {
-    run("long", 400);
+    run("long", 2000);
 }
