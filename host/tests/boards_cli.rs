@@ -790,8 +790,8 @@ fn a_port_lost_mid_command_is_named_with_its_board() {
     // machine). The board is the simulated board's code (as `cta beacon sim` runs it), played
     // here on a pty of the test's own so the test sees the requests.
     use cta_core::schedule::{Modulator, NORTHSTAR_TABLE_MHZ};
-    use cta_core::wire::{beacon::BeaconRequest, FrameDecoder, Request, ResetCause, MAX_FRAME};
     use cta_firmware_beacon::pins::BEACON_LINES;
+    use cta_core::wire::{beacon::BeaconRequest, FrameDecoder, Request, ResetCause, MAX_FRAME};
     use serialport::SerialPort;
     use std::io::{Read, Write};
     use std::os::fd::AsRawFd;

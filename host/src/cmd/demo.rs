@@ -102,8 +102,7 @@ fn remove_earlier_demo(out: &std::path::Path) -> Result<()> {
 /// Run `cta demo`.
 pub fn run(a: &DemoArgs) -> Result<()> {
     // Refuse a bad effect before anything is deleted or written.
-    cta_lab::sim::effects::Effect::parse(&a.effect)
-        .map_err(|e| anyhow::anyhow!("--effect: {e}"))?;
+    cta_lab::sim::effects::Effect::parse(&a.effect).map_err(|e| anyhow::anyhow!("--effect: {e}"))?;
     if a.out.exists() {
         if !a.force {
             bail!("{} exists; pass --force to replace it", a.out.display());

@@ -251,7 +251,9 @@ fn a_noise_far_larger_than_the_residuals_is_pointed_out() {
     assert!(a.chi2_dof_before < 0.2, "{}", a.chi2_dof_before);
     let note = a.data_notes.join(" | ");
     assert!(
-        note.contains("far smaller than the noise assumed for one sample per point (32.8 counts)"),
+        note.contains(
+            "far smaller than the noise assumed for one sample per point (32.8 counts)"
+        ),
         "{note}"
     );
     let rerun: f64 = (note.split("rerun with --noise ").nth(1))
@@ -357,7 +359,9 @@ fn reported_correlation_matches_the_scatter_over_seeds() {
     let syy: f64 = dy.iter().map(|b| (b - my).powi(2)).sum();
     let sample = sxy / (sxx * syy).sqrt();
     let rep = reported.iter().sum::<f64>() / n;
-    println!("face_angle DX, DY over 400 seeds: sample correlation {sample:.3}, reported {rep:.3}");
+    println!(
+        "face_angle DX, DY over 400 seeds: sample correlation {sample:.3}, reported {rep:.3}"
+    );
     // The sampling error of a correlation near 0.7 from 400 pairs is ~0.026 (60 pairs
     // gave 0.80 against 0.68: too few).
     assert!(rep > 0.5, "reported {rep}");

@@ -44,8 +44,7 @@ pub struct NoiseArgs {
 
 /// Run `cta noise`.
 pub fn run(args: &NoiseArgs) -> Result<()> {
-    let (ds, warnings) =
-        cta_lab::sweep::read_measurements(&args.file).map_err(anyhow::Error::msg)?;
+    let (ds, warnings) = cta_lab::sweep::read_measurements(&args.file).map_err(anyhow::Error::msg)?;
     for w in warnings {
         eprintln!("warning: {w}");
     }
