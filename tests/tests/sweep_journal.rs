@@ -126,11 +126,25 @@ fn a_journal_cut_short_never_deletes_measured_rows() {
         e.contains(&run.join("manifest.json").display().to_string())
             && e.contains(&format!("says {} points were done", points.len()))
             && e.contains(&format!("commits {}", points.len() / 2))
+            && e.contains(&format!(
+                "are as the manifest recorded them (checked against its hash): the rows of \
+                 points {} to {} are whole in it",
+                points.len() / 2,
+                points.len() - 1
+            ))
             && e.contains("Not resuming, nothing was changed")
             && e.contains("--recover-truncated"),
         "{e}"
     );
     assert_eq!(snapshot(&run), before, "the refusal changed the run");
+    // A row past the journal's end changed: said not to be as recorded.
+    let mut changed = full.clone().into_bytes();
+    let k = changed.len() - 3;
+    changed[k] = if changed[k] == b'1' { b'2' } else { b'1' };
+    std::fs::write(run.join("data.csv"), &changed).unwrap();
+    let e = resume(&run, false).unwrap_err();
+    assert!(e.contains("are not as the manifest recorded them"), "{e}");
+    std::fs::write(run.join("data.csv"), &full).unwrap();
     let s = resume(&run, true).unwrap();
     assert_eq!(s.ending, Ending::Complete);
     assert_eq!(read(&run.join("data.csv")), full);

@@ -200,16 +200,37 @@ pub(crate) fn check_points(events: &[Event], lines: &[usize], path: &Path) -> Re
     Ok(())
 }
 
-/// The number of points `manifest.json` in `dir` says were done, when it says so.
-pub(crate) fn manifest_done(dir: &Path) -> Option<u64> {
+/// `manifest.json` in `dir`, when it reads as JSON.
+fn manifest(dir: &Path) -> Option<serde_json::Value> {
     let text = crate::bounded::read_text(
         &dir.join(MANIFEST),
         crate::bounded::MAX_JSON_BYTES,
         "a manifest",
     )
     .ok()?;
-    let m: serde_json::Value = serde_json::from_str(&text).ok()?;
-    m["points"]["done"].as_u64()
+    serde_json::from_str(&text).ok()
+}
+
+/// Whether the data file `dp` holds, in its first bytes, what the manifest `m` recorded of
+/// it through the last point it saw committed (`data.bytes`, `data.hash`: FNV-1a 64, as the
+/// journal's `csv_hash`). `None` when the manifest records nothing (an older version).
+fn data_as_recorded(m: &serde_json::Value, dp: &Path) -> Option<(u64, bool)> {
+    let bytes = m["data"]["bytes"].as_u64()?;
+    let hash = m["data"]["hash"].as_str()?;
+    let f = File::open(dp).ok()?;
+    let mut r = BufReader::new(std::io::Read::take(f, bytes));
+    let (mut h, mut n) = (START, 0u64);
+    loop {
+        let buf = r.fill_buf().ok()?;
+        if buf.is_empty() {
+            break;
+        }
+        h = fnv(h, buf);
+        n += buf.len() as u64;
+        let k = buf.len();
+        r.consume(k);
+    }
+    Some((bytes, n == bytes && format!("{h:016x}") == hash))
 }
 
 /// When the manifest says more points were done than the journal commits (`next`, one past
@@ -225,7 +246,10 @@ pub(crate) fn contradiction(
     recover: bool,
     past: u64,
 ) -> Result<Option<(String, PathBuf)>> {
-    let Some(done) = manifest_done(dir) else {
+    let Some(m) = manifest(dir) else {
+        return Ok(None);
+    };
+    let Some(done) = m["points"]["done"].as_u64() else {
         return Ok(None);
     };
     if done <= next as u64 {
@@ -233,9 +257,21 @@ pub(crate) fn contradiction(
     }
     let (mp, jp) = (dir.join(MANIFEST), dir.join(JOURNAL));
     let folder = super::store::recovery_folder(dir);
+    let checked = match data_as_recorded(&m, &dir.join(DATA)) {
+        Some((bytes, true)) => format!(
+            "; {DATA}'s first {bytes} bytes are as the manifest recorded them (checked against \
+             its hash): the rows of points {next} to {} are whole in it",
+            done - 1
+        ),
+        Some((bytes, false)) => format!(
+            "; {DATA}'s first {bytes} bytes are not as the manifest recorded them (its hash \
+             differs)"
+        ),
+        None => String::new(),
+    };
     let said = format!(
         "{} says {done} points were done, but {} commits {next} (the journal lost its last \
-         lines: cut short, or an older copy put back)",
+         lines: cut short, or an older copy put back){checked}",
         mp.display(),
         jp.display()
     );

@@ -791,6 +791,12 @@ fn write_manifest(store: &RunDir, plan: &Plan, state: &str) -> Result<()> {
         "points": { "total": plan.len(), "done": store.next_point(), "ok": ok, "no_signal": no_signal, "partial": partial },
         "samples": samples,
         "files": { "data": store::DATA, "journal": store::JOURNAL, "plan": store::PLAN },
+        // What data.csv held through the last committed point: a resume whose journal lost
+        // lines checks the rows past it against this (sweep/journal.rs).
+        "data": store.events.iter().rev().find_map(|e| match e {
+            Event::Point { csv_end, csv_hash: Some(h), .. } => Some(json!({ "bytes": csv_end, "hash": h })),
+            _ => None,
+        }),
         "sessions": sessions,
         "operator": operator,
         "faults": faults,
