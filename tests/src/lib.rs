@@ -8,7 +8,7 @@
 //! * this test binary re-executed as a child process that runs one test (a sweep that can be
 //!   killed, interrupted or run under a file size limit): [`child`], [`child_in_shell`],
 //!   [`child_paths`];
-//! * readers of what a run leaves on disk: [`journal`], [`journal_points`],
+//! * readers of what a run leaves on disk: [`journal`], [`journal_points`], [`older_journal`],
 //!   [`journal_field`], [`data_lines`], [`data_rows`], [`assert_same_data`], [`snapshot`];
 //! * a run made to look killed mid-way: [`crash_after`].
 
@@ -199,8 +199,9 @@ pub fn journal_field(line: &str, key: &str) -> u64 {
 
 /// The journal of `run` cut back to its first `points` point lines, as if the session had been
 /// killed with the data of the later points written but their journal lines not (`data.csv`
-/// keeps them: a resume discards them and measures those points again). Returns the length
-/// of `data.csv` the last point kept committed.
+/// keeps them: a resume sets them aside and measures those points again), and its manifest
+/// saying no more than `points` were done (a killed session's manifest is the one it wrote
+/// when it started). Returns the length of `data.csv` the last point kept committed.
 pub fn crash_after(run: &Path, points: usize) -> u64 {
     let j = journal(run);
     let mut kept = String::new();
@@ -218,6 +219,14 @@ pub fn crash_after(run: &Path, points: usize) -> u64 {
         kept.push('\n');
     }
     std::fs::write(run.join("journal.jsonl"), kept).unwrap();
+    let mp = run.join("manifest.json");
+    if let Ok(m) = std::fs::read_to_string(&mp) {
+        if let Some(at) = m.find("\"done\": ") {
+            let from = at + "\"done\": ".len();
+            let to = from + m[from..].find(|c: char| !c.is_ascii_digit()).unwrap();
+            std::fs::write(&mp, format!("{}{points}{}", &m[..from], &m[to..])).unwrap();
+        }
+    }
     end
 }
 
@@ -284,4 +293,16 @@ pub fn assert_same_data(expected: &Path, run: &Path) {
         sweep::data_path(expected).display(),
         sweep::data_path(run).display()
     );
+}
+
+/// A journal as an older version wrote it, without the check (`"chain"`) that ends each line
+/// now: for tests of what a resume does with the journals of older versions, whose lines
+/// they edit.
+pub fn older_journal(text: &str) -> String {
+    text.split_inclusive('\n')
+        .map(|l| match l.rfind(",\"chain\":\"") {
+            Some(k) => format!("{}}}\n", &l[..k]),
+            None => l.to_string(),
+        })
+        .collect()
 }

@@ -15,8 +15,8 @@ use cta_lab::sweep::sim::{Posing, SimCta, SimSettings};
 use cta_lab::sweep::store::{Event, RunDir};
 use cta_lab::sweep::{self, engine::Ending, SweepOptions};
 use cta_tests::{
-    child, child_paths, crash_after, journal, journal_field, resume_args, snapshot, sweep_args,
-    write_plan, TestDir,
+    child, child_paths, crash_after, journal, journal_field, older_journal, resume_args, snapshot,
+    sweep_args, write_plan, TestDir,
 };
 
 const PLAN: &str = r#"
@@ -166,7 +166,7 @@ fn uncommitted_leftovers_are_discarded_and_said() {
     assert_eq!(s.ending, Ending::Complete);
     let j = read(&run.join("journal.jsonl"));
     let note = format!(
-        "data.csv: discarded {} bytes ({rows} data rows, 0 comment lines) past the last \
+        "data.csv: set aside {} bytes ({rows} data rows, 0 comment lines) past the last \
          committed point, 19: not committed",
         leftover.len()
     );
@@ -183,7 +183,7 @@ fn uncommitted_leftovers_are_discarded_and_said() {
     let j = read(&run.join("journal.jsonl"));
     assert!(
         j.contains(
-            "discarded 8 bytes (1 data row, 0 comment lines) past the last committed point, 29"
+            "set aside 8 bytes (1 data row, 0 comment lines) past the last committed point, 29"
         ),
         "{j}"
     );
@@ -558,7 +558,7 @@ fn without_a_journalled_plan_a_given_plan_is_checked_against_plan_toml() {
     let (dir, run) = complete_run("given-old-journal");
     crash_after(&run, 20);
     let jp = run.join("journal.jsonl");
-    let old: String = read(&jp)
+    let old: String = older_journal(&read(&jp))
         .lines()
         .map(
             |l| match (l.find(",\"plan\":{"), l.find("},\"from_point\"")) {
@@ -601,7 +601,7 @@ fn a_journal_with_the_older_spread_loads_and_resumes_with_the_ch_iv_uncertainty(
     crash_after(&run, 20);
     let jp = run.join("journal.jsonl");
     let mut separations = 0;
-    let old: String = read(&jp)
+    let old: String = older_journal(&read(&jp))
         .lines()
         .map(|l| {
             let Some(a) = l.find(",\"uncertainty\":") else {
@@ -804,7 +804,7 @@ fn a_resume_on_another_kind_of_board_is_refused_naming_both() {
         assert_eq!(resume_on(&run, &same).unwrap().ending, Ending::Complete);
         assert_eq!(read(&run.join("data.csv")), full);
         assert!(
-            last_session(&run).contains("data.csv: discarded"),
+            last_session(&run).contains("data.csv: set aside"),
             "{}",
             last_session(&run)
         );
@@ -846,7 +846,7 @@ fn a_resume_whose_boards_do_not_answer_changes_nothing() {
     assert_eq!(read(&run.join("journal.jsonl")), journal, "journal touched");
     // The resume that goes ahead cuts the leftovers, says so, and completes the run.
     assert_eq!(resume_on(&run, &first).unwrap().ending, Ending::Complete);
-    assert!(last_session(&run).contains("data.csv: discarded"));
+    assert!(last_session(&run).contains("data.csv: set aside"));
     assert_eq!(read(&run.join("data.csv")), full);
 }
 

@@ -151,7 +151,7 @@ impl Budget {
     /// `x_plus`/`x_minus`...).
     pub fn load(path: &Path) -> Result<Budget, BudgetError> {
         let p = || path.to_path_buf();
-        let text = std::fs::read_to_string(path)
+        let text = crate::bounded::read_text(path, crate::bounded::MAX_PLAN_BYTES, "a budget file")
             .map_err(|error| BudgetError::Read { path: p(), error })?;
         let b: BudgetFile = toml::from_str(&text).map_err(|e| BudgetError::Toml {
             path: p(),

@@ -6,6 +6,7 @@
 
 pub mod analyze;
 pub mod boards;
+pub mod bounded;
 pub mod budget;
 pub mod data;
 pub mod fit;
@@ -13,9 +14,9 @@ pub mod html;
 pub mod nearfield;
 pub mod noise;
 pub mod plot;
+pub mod pose;
 pub mod progress;
 pub mod provenance;
-pub mod pose;
 pub mod sim;
 pub mod sweep;
 pub mod uncertainty;

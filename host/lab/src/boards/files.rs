@@ -84,7 +84,12 @@ impl BoardFile for Constellation {
 pub fn read_json<T: serde::de::DeserializeOwned + serde::Serialize + BoardFile>(
     file: &str,
 ) -> Result<T, Error> {
-    let text = std::fs::read_to_string(file).map_err(|error| Error::Read {
+    let text = crate::bounded::read_text(
+        std::path::Path::new(file),
+        crate::bounded::MAX_JSON_BYTES,
+        "a JSON file",
+    )
+    .map_err(|error| Error::Read {
         file: file.to_string(),
         error,
     })?;
@@ -100,7 +105,12 @@ pub fn read_json<T: serde::de::DeserializeOwned + serde::Serialize + BoardFile>(
             });
         }
     };
-    let given: serde_json::Value = serde_json::from_str(&text).map_err(Error::Json)?;
+    // Every key is read again as JSON (a value the type skips, e.g. a number out of range
+    // in the host-side keys, fails here): the error names the file.
+    let given: serde_json::Value = serde_json::from_str(&text).map_err(|error| Error::Shape {
+        file: file.to_string(),
+        error,
+    })?;
     let known = serde_json::to_value(&t).map_err(Error::Json)?;
     if let Some((key, keys)) = unknown_key(&given, &known, "", T::HOST_KEYS) {
         return Err(Error::UnknownKey {

@@ -120,6 +120,15 @@ pub enum ReadError {
         /// Control characters (binary data), not only bytes that are not UTF-8.
         control: bool,
     },
+    /// A line longer than [`crate::bounded::MAX_LINE_BYTES`] (no real row or comment is).
+    LineTooLong {
+        /// File.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+    },
+    /// More than [`crate::bounded::MAX_CSV_BYTES`] (no real measurement file is).
+    TooBig(PathBuf),
     /// A line that is not CSV (an unclosed quote).
     Syntax {
         /// File.
@@ -288,6 +297,19 @@ impl fmt::Display for ReadError {
                 line,
                 message,
             } => write!(f, "{}:{line}: {message}", path.display()),
+            ReadError::LineTooLong { path, line } => write!(
+                f,
+                "{}:{line}: a line longer than {} (the limit for a line of a measurement file; \
+                 a row is under 200 bytes): not a measurement file (a binary file, /dev/zero?)",
+                path.display(),
+                crate::bounded::show_bytes(crate::bounded::MAX_LINE_BYTES as u64)
+            ),
+            ReadError::TooBig(path) => write!(
+                f,
+                "{}: {}",
+                path.display(),
+                crate::bounded::too_big(crate::bounded::MAX_CSV_BYTES, "a measurement file")
+            ),
         }
     }
 }

@@ -2,12 +2,13 @@
 //! against its column's documented range (MEASUREMENTS.md).
 
 use std::collections::HashMap;
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufReader, Read};
 use std::path::Path;
 
 use super::error::printable;
 use super::sample::key_bits;
 use super::{Dataset, ReadError, Reason, Sample, MAX_BEACON_ID, OPTIONAL, REQUIRED};
+use crate::bounded::{read_line, Line, MAX_CSV_BYTES, MAX_LINE_BYTES};
 
 /// What a column may hold (MEASUREMENTS.md), checked on every row.
 #[derive(Debug, Clone, Copy)]
@@ -29,15 +30,26 @@ enum Domain {
     },
 }
 
+/// The largest separation or beacon coordinate a measurement file may hold, inches.
+pub const MAX_INCHES: f64 = 1000.0;
+
 fn domain(column: &str) -> Domain {
-    let above = |lo: f64, text| Domain::Range {
+    // The upper bounds are far past any rig (a CTA is a few feet across) and keep sums of
+    // squares finite: a position of 1e308 would turn fits and means into NaN and inf.
+    let above = |lo: f64, hi: f64, text| Domain::Range {
         lo,
         lo_open: true,
-        hi: f64::INFINITY,
+        hi,
         text,
     };
     match column {
-        "separation_in" => above(0.0, "> 0 in"),
+        "separation_in" => above(0.0, MAX_INCHES, "> 0 in, at most 1000 in"),
+        "beacon_x_in" | "beacon_y_in" | "beacon_z_in" => Domain::Range {
+            lo: -MAX_INCHES,
+            lo_open: false,
+            hi: MAX_INCHES,
+            text: "-1000..1000 in",
+        },
         "x" | "y" => Domain::Range {
             lo: -32768.0,
             lo_open: false,
@@ -49,7 +61,7 @@ fn domain(column: &str) -> Domain {
             hi: MAX_BEACON_ID as f64,
             text: "0..399 (100 x array + LED)",
         },
-        "frequency_hz" => above(0.0, "> 0 Hz"),
+        "frequency_hz" => above(0.0, 1e9, "> 0 Hz, at most 1e9 Hz"),
         "power" => Domain::Int {
             lo: 1.0,
             hi: 2.0,
@@ -68,8 +80,8 @@ fn domain(column: &str) -> Domain {
         "magnitude" => Domain::Range {
             lo: 0.0,
             lo_open: false,
-            hi: f64::INFINITY,
-            text: ">= 0",
+            hi: 1e9,
+            text: "0..1e9",
         },
         _ => Domain::Finite,
     }
@@ -80,7 +92,7 @@ fn domain(column: &str) -> Domain {
 /// say what it got).
 pub fn looks_like_measurements(text: &str) -> bool {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    text.lines()
+    text.split(['\n', '\r'])
         .map(str::trim)
         .find(|l| !l.is_empty() && !l.starts_with('#'))
         .is_some_and(|h| {
@@ -263,6 +275,7 @@ impl Dataset {
         let mut buf: Vec<u8> = Vec::new();
         let mut ends: Vec<usize> = Vec::new();
         let mut line = 0usize;
+        let mut total = 0u64;
         let mut header = true;
         // The next line that is neither blank nor a comment, split into `buf`/`ends`: its
         // number, and its last byte (a newline, except on a file's last line, which has none
@@ -271,14 +284,22 @@ impl Dataset {
                         ends: &mut Vec<usize>|
          -> Result<Option<(usize, Option<u8>)>, ReadError> {
             loop {
-                raw.clear();
-                let n = br
-                    .read_until(b'\n', &mut raw)
+                let got = read_line(&mut br, &mut raw, MAX_LINE_BYTES)
                     .map_err(|e| ReadError::Io(p.clone(), e))?;
-                if n == 0 {
+                if got == Line::End {
                     return Ok(None);
                 }
                 line += 1;
+                if got == Line::TooLong {
+                    return Err(ReadError::LineTooLong {
+                        path: p.clone(),
+                        line,
+                    });
+                }
+                total += raw.len() as u64;
+                if total > MAX_CSV_BYTES {
+                    return Err(ReadError::TooBig(p.clone()));
+                }
                 let mut t: &[u8] = &raw;
                 // A UTF-8 byte-order mark (as Excel writes) is not part of the first column.
                 if line == 1 && t.starts_with(BOM) {
@@ -348,7 +369,7 @@ impl Dataset {
         // The last row, when no line break follows it: its line, last column and last value.
         let mut unended: Option<(usize, String, String)> = None;
         while let Some((line, last_byte)) = next(&mut buf, &mut ends)? {
-            let ended = last_byte == Some(b'\n');
+            let ended = matches!(last_byte, Some(b'\n' | b'\r'));
             let nf = ends.len();
             if nf < header.len() {
                 return Err(ReadError::ShortRow {

@@ -99,7 +99,7 @@ impl Dataset {
     /// Write in the documented format (all columns, `comments` as leading `#` lines).
     pub fn write(&self, w: &mut impl Write, comments: &[String]) -> std::io::Result<()> {
         for c in comments {
-            writeln!(w, "# {c}")?;
+            writeln!(w, "# {}", comment_text(c))?;
         }
         writeln!(w, "{},{}", REQUIRED.join(","), OPTIONAL.join(","))?;
         for s in &self.samples {
@@ -107,6 +107,15 @@ impl Dataset {
         }
         Ok(())
     }
+}
+
+/// Free text (a plan's `name`, a note) made fit for one `#` comment line of a measurement
+/// file: every line break or other control character becomes a space, so no part of it can
+/// start a line of its own and be read as the header or a row.
+pub fn comment_text(text: &str) -> String {
+    text.chars()
+        .map(|c| if c.is_control() { ' ' } else { c })
+        .collect()
 }
 
 /// Write one row in the documented column order (REQUIRED then OPTIONAL).

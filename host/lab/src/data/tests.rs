@@ -282,7 +282,11 @@ fn documented_ranges_are_checked() {
             "0",
             "is not an integer in 1..2 (1 = 1 kOhm, 2 = 360 Ohm)",
         ),
-        ("frequency_hz", "-4050", "is out of range (allowed: > 0 Hz)"),
+        (
+            "frequency_hz",
+            "-4050",
+            "is out of range (allowed: > 0 Hz, at most 1e9 Hz)",
+        ),
         (
             "beacon",
             "500",
@@ -309,7 +313,9 @@ fn documented_ranges_are_checked() {
             "is not an integer in 0..399 (100 x array + LED)",
         ),
         ("sample", "-1", "is not an integer in 0..4294967295"),
-        ("magnitude", "-0.5", "is out of range (allowed: >= 0)"),
+        ("magnitude", "-0.5", "is out of range (allowed: 0..1e9)"),
+        // Finite but past any rig: sums of squares would overflow into inf and NaN.
+        ("magnitude", "2e9", "is out of range (allowed: 0..1e9)"),
         ("magnitude", "NaN", "is not a finite number"),
     ] {
         let e = err(row(&format!(",{col}"), &format!(",{v}"), "20", "1"));

@@ -29,6 +29,26 @@ pub enum FitError {
         /// Distinct beacon positions.
         beacons: usize,
     },
+    /// Too few beacon positions are left once the points with an output at the 16-bit rail
+    /// are set aside: a fit to clipped outputs would be meaningless (the rule `cta analyze`
+    /// and `cta noise` apply; [`crate::data::any_sample_pinned`]).
+    #[error(
+        "{}: {pinned} of {points} points have an output at the 16-bit limit (|count| >= 32767 \
+         in a sample): the {beacons} beacon position(s) off it give {} equations, fewer than \
+         the 7 parameters, and clipped outputs fit nothing: nothing fitted (beacons at the edge \
+         of the field of view, a sensitivity too high for the separation?)",
+        .path.display(), 2 * .beacons
+    )]
+    AtTheRail {
+        /// The measurement file.
+        path: PathBuf,
+        /// Points with a sample at the rail.
+        pinned: usize,
+        /// Points in the file.
+        points: usize,
+        /// Distinct beacon positions of the points off the rail.
+        beacons: usize,
+    },
     /// The data leave a direction of the parameters undetermined.
     #[error(
         "{}: the data cannot separate the parameters along [{null}] (eigenvalue ratio {ratio:.1e}); \
@@ -114,6 +134,26 @@ pub fn chi2_warning(rep: &FitReport, file: &Path, expected: Option<f64>) -> Opti
 
 /// Fit eq 65 to `ds` (already restricted to the wanted separations).
 pub fn fit(ds: &Dataset, weights: Weights) -> Result<FitReport, FitError> {
+    let points = ds.points();
+    let mut off: Vec<[u64; 3]> = Vec::new();
+    let mut pinned = 0;
+    for p in &points {
+        if crate::data::any_sample_pinned(p.rows.iter().map(|&i| &ds.samples[i])) {
+            pinned += 1;
+        } else {
+            off.push(p.first.r.map(f64::to_bits));
+        }
+    }
+    off.sort();
+    off.dedup();
+    if pinned > 0 && 2 * off.len() < 7 {
+        return Err(FitError::AtTheRail {
+            path: ds.path.clone(),
+            pinned,
+            points: points.len(),
+            beacons: off.len(),
+        });
+    }
     let obs = observations(ds, weights)?;
     let mut rep = fit_observations(ds, weights, obs)?;
     rep.chi2_expected = chi2_expected(ds, weights);

@@ -46,6 +46,11 @@ pub enum FitFileError {
     },
 }
 
+use super::calibrate::shown;
+
+/// The largest MRP component a saved fit may hold ([`InvalidFit::Range`]).
+pub const MAX_MRP: f64 = 1000.0;
+
 /// A field of a saved fit that `cta` refuses ([`FitReport::validate`]), named.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum InvalidFit {
@@ -62,12 +67,18 @@ pub enum InvalidFit {
     #[error("field `sigma` lacks `{0}`")]
     MissingSigma(&'static str),
     /// A sigma that is not finite and >= 0.
-    #[error("field `sigma.{0}`: {1} is not a finite number >= 0")]
+    #[error("field `sigma.{name}`: {v} is not a finite number >= 0", name = .0, v = shown(*.1))]
     Sigma(&'static str, f64),
+    /// An eye point or attitude no rig has: `d` beyond 1000 in
+    /// ([`crate::data::MAX_INCHES`]), an MRP component beyond 1000 (a turn of 359.6 deg;
+    /// larger ones overflow the attitude's arithmetic into NaN).
+    #[error("field `params.{name}`: {v} is out of range (allowed: {text})", name = .0, v = shown(*.1), text = .2)]
+    Range(&'static str, f64, &'static str),
     /// `H` outside (0, [`MAX_H`]].
     #[error(
-        "field `params.H`: {0} is out of range (allowed: 0 < H <= {MAX_H:e} counts; \
-         the NorthStar's is about 18918.6)"
+        "field `params.H`: {v} is out of range (allowed: 0 < H <= {MAX_H:e} counts; \
+         the NorthStar's is about 18918.6)",
+        v = shown(*.0)
     )]
     H(f64),
     /// A covariance that is not 7 x 7.
@@ -83,7 +94,7 @@ pub enum InvalidFit {
     #[error("field `separations`: {0} in is not a positive separation")]
     Separation(f64),
     /// A spread that is not finite and >= 0.
-    #[error("field `{0}`: {1} is not a finite number >= 0")]
+    #[error("field `{name}`: {v} is not a finite number >= 0", name = .0, v = shown(*.1))]
     Spread(&'static str, f64),
 }
 
@@ -170,10 +181,11 @@ impl FitReport {
 
     /// Load a saved fit.
     pub fn load(path: &Path) -> Result<FitReport, FitFileError> {
-        let s = std::fs::read_to_string(path).map_err(|error| FitFileError::Read {
-            path: path.to_path_buf(),
-            error,
-        })?;
+        let s = crate::bounded::read_text(path, crate::bounded::MAX_JSON_BYTES, "a JSON file")
+            .map_err(|error| FitFileError::Read {
+                path: path.to_path_buf(),
+                error,
+            })?;
         let mut r: FitReport = serde_json::from_str(&s).map_err(|e| {
             // A sensor calibration (`cta calibrate --out`) is the usual mix-up.
             let cal = serde_json::from_str::<serde_json::Value>(&s)
@@ -215,6 +227,19 @@ impl FitReport {
             let s = *self.sigma.get(n).ok_or(InvalidFit::MissingSigma(n))?;
             if !(s.is_finite() && s >= 0.0) {
                 return Err(InvalidFit::Sigma(n, s));
+            }
+        }
+        for (n, limit, text) in [
+            ("d1", crate::data::MAX_INCHES, "-1000..1000 in"),
+            ("d2", crate::data::MAX_INCHES, "-1000..1000 in"),
+            ("d3", crate::data::MAX_INCHES, "-1000..1000 in"),
+            ("p1", MAX_MRP, "-1000..1000"),
+            ("p2", MAX_MRP, "-1000..1000"),
+            ("p3", MAX_MRP, "-1000..1000"),
+        ] {
+            let v = self.params[n];
+            if v.abs() > limit {
+                return Err(InvalidFit::Range(n, v, text));
             }
         }
         let h = self.params["H"];

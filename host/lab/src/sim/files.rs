@@ -101,10 +101,11 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), WriteError> {
     // The truth sidecar is replaced too: an existing one must be a simulation's as well.
     let tp = Truth::path_for(out);
     if tp.exists() {
-        let generator = std::fs::read_to_string(&tp)
-            .ok()
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-            .and_then(|v| v["generator"].as_str().map(str::to_string));
+        let generator =
+            crate::bounded::read_text(&tp, crate::bounded::MAX_JSON_BYTES, "a JSON file")
+                .ok()
+                .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+                .and_then(|v| v["generator"].as_str().map(str::to_string));
         if !generator.is_some_and(|g| g.starts_with("cta ") && g.ends_with(" simulate")) {
             return Err(WriteError::TruthNotOurs {
                 out: out.to_path_buf(),

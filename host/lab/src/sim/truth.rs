@@ -91,7 +91,7 @@ impl Truth {
             error: e.to_string(),
         };
         Some(
-            std::fs::read_to_string(&p)
+            crate::bounded::read_text(&p, crate::bounded::MAX_JSON_BYTES, "a JSON file")
                 .map_err(|e| err(&e))
                 .and_then(|s| serde_json::from_str(&s).map_err(|e| err(&e))),
         )

@@ -19,6 +19,7 @@ use crate::data::{Dataset, ReadError};
 pub mod corners;
 pub mod engine;
 pub mod error;
+mod journal;
 pub mod plan;
 pub mod sim;
 pub mod status;
@@ -435,7 +436,7 @@ fn read_plan(path: &Path) -> Result<String> {
             path.display()
         );
     }
-    std::fs::read_to_string(path)
+    crate::bounded::read_text(path, crate::bounded::MAX_PLAN_BYTES, "a plan")
         .with_context(|| format!("{}: cannot read the plan", path.display()))
 }
 
@@ -790,6 +791,12 @@ fn write_manifest(store: &RunDir, plan: &Plan, state: &str) -> Result<()> {
         "points": { "total": plan.len(), "done": store.next_point(), "ok": ok, "no_signal": no_signal, "partial": partial },
         "samples": samples,
         "files": { "data": store::DATA, "journal": store::JOURNAL, "plan": store::PLAN },
+        // What data.csv held through the last committed point: a resume whose journal lost
+        // lines checks the rows past it against this (sweep/journal.rs).
+        "data": store.events.iter().rev().find_map(|e| match e {
+            Event::Point { csv_end, csv_hash: Some(h), .. } => Some(json!({ "bytes": csv_end, "hash": h })),
+            _ => None,
+        }),
         "sessions": sessions,
         "operator": operator,
         "faults": faults,

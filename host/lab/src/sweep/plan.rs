@@ -520,17 +520,29 @@ impl Plan {
     /// Read and validate a plan file.
     pub fn load(path: &Path) -> Result<Plan, PlanError> {
         let file = path.display().to_string();
-        let src = std::fs::read_to_string(path).map_err(|e| PlanError {
-            file: file.clone(),
-            line: None,
-            key: None,
-            message: format!("cannot read the plan: {e}"),
-        })?;
+        let src = crate::bounded::read_text(path, crate::bounded::MAX_PLAN_BYTES, "a plan")
+            .map_err(|e| PlanError {
+                file: file.clone(),
+                line: None,
+                key: None,
+                message: format!("cannot read the plan: {e}"),
+            })?;
         Plan::parse(&file, &src)
     }
 
     /// Parse and validate plan text; `file` names it in errors.
     pub fn parse(file: &str, src: &str) -> Result<Plan, PlanError> {
+        if src.trim().is_empty() {
+            return Err(PlanError {
+                file: file.into(),
+                line: None,
+                key: None,
+                message: "the file is empty (a copy not finished, a disk that filled as it was \
+                          written?): a plan has `key = value` lines, e.g. `samples = 20`: see \
+                          host/plans/short.toml and host/SWEEP.md"
+                    .into(),
+            });
+        }
         let line_of = |offset: usize| src[..offset.min(src.len())].matches('\n').count() + 1;
         check_types(src).map_err(|(key, span, message)| PlanError {
             file: file.into(),
@@ -721,7 +733,25 @@ impl Plan {
                         ));
                     }
                 }
-                f.get_ref().clone()
+                // One channel twice would measure its points twice, under one key the data
+                // file's reader refuses as duplicate reports.
+                let list = f.get_ref();
+                for (i, &hz) in list.iter().enumerate() {
+                    if let Some(&first) =
+                        list[..i].iter().find(|&&a| channel_of(a) == channel_of(hz))
+                    {
+                        return Err(err(
+                            "frequencies_hz",
+                            f.span(),
+                            if first == hz {
+                                format!("{hz} Hz is listed twice")
+                            } else {
+                                format!("{first} Hz and {hz} Hz are one NorthStar frequency, listed twice")
+                            },
+                        ));
+                    }
+                }
+                list.clone()
             }
         };
 

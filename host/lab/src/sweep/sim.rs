@@ -124,6 +124,11 @@ pub struct Faults {
 #[error("{0}")]
 pub struct FaultSpecError(pub String);
 
+/// The largest `drop=P` or `corrupt=P` (per byte): a request and its reply of some 50 bytes
+/// then get through 3 times in 4, so a session starts and runs (at 0.02 the identification
+/// already fails its 3 attempts).
+pub const MAX_BYTE_FAULT: f64 = 0.005;
+
 impl Faults {
     /// Parse a comma-separated spec: `drop=P`, `corrupt=P`,
     /// `KIND=BOARD@N:MS` with KIND `vanish`, `silent` or `stall`, BOARD `beacon` or `sensor`,
@@ -141,15 +146,25 @@ impl Faults {
             let prob = |v: &str| -> Result<f64, String> {
                 v.parse::<f64>()
                     .ok()
-                    .filter(|p| (0.0..=0.5).contains(p))
-                    .ok_or_else(|| format!("fault `{part}`: probability must be 0..=0.5"))
+                    .filter(|p| (0.0..=MAX_BYTE_FAULT).contains(p))
+                    .ok_or_else(|| {
+                        format!(
+                            "fault `{part}`: a probability per byte, 0..={MAX_BYTE_FAULT}: above \
+                             it most frames (tens of bytes) are lost and the boards cannot even be \
+                             identified"
+                        )
+                    })
             };
             match k {
                 "drop" => f.drop = prob(v)?,
                 "corrupt" => f.corrupt = prob(v)?,
                 "reset" => {
-                    let bad =
-                        || format!("fault `{part}`: expected reset=BOARD@N, e.g. reset=beacon@5");
+                    let bad = || {
+                        format!(
+                            "fault `{part}`: expected reset=BOARD@N, e.g. reset=beacon@5 (N, the \
+                             point attempt of the session that triggers it, counts from 1)"
+                        )
+                    };
                     let (b, n) = v.split_once('@').ok_or_else(bad)?;
                     let board = match b {
                         "beacon" => Which::Beacon,
@@ -165,7 +180,11 @@ impl Faults {
                 }
                 "vanish" | "silent" | "stall" => {
                     let bad = || {
-                        format!("fault `{part}`: expected {k}=BOARD@N:MS, e.g. {k}=sensor@5:1500")
+                        format!(
+                            "fault `{part}`: expected {k}=BOARD@N:MS, e.g. {k}=sensor@5:1500 (N, \
+                             the point attempt of the session that triggers it, counts from 1; \
+                             MS: how long, in milliseconds)"
+                        )
                     };
                     let (b, rest) = v.split_once('@').ok_or_else(bad)?;
                     let (n, ms) = rest.split_once(':').ok_or_else(bad)?;

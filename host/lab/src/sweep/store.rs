@@ -37,7 +37,7 @@ use super::error::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
 use super::plan::{Change, Plan, RESUME_MAY_CHANGE};
-use crate::data::{write_row, Sample, OPTIONAL, REQUIRED};
+use crate::data::{comment_text, write_row, Sample, OPTIONAL, REQUIRED};
 
 /// What became of a point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -360,6 +360,8 @@ pub struct RunDir {
     journal: File,
     /// Length of the journal's complete lines (a failed write is cut back to it).
     journal_len: u64,
+    /// The chain of the journal's last line ([`super::journal`]).
+    journal_chain: u64,
     /// Every event so far (this and previous sessions).
     pub events: Vec<Event>,
     sync: bool,
@@ -531,13 +533,13 @@ impl RunDir {
         sync: bool,
         lock: Lock,
     ) -> Result<RunDir> {
-        std::fs::write(dir.join(PLAN), plan_src)
-            .with_context(|| format!("{}: cannot write", dir.join(PLAN).display()))?;
+        // Whole or not at all: an empty plan.toml (a disk that filled) is not a plan.
+        write_atomically(&dir.join(PLAN), plan_src.as_bytes(), sync)?;
         let mut csv = File::create(dir.join(DATA))
             .with_context(|| format!("{}: cannot create", dir.join(DATA).display()))?;
         let mut head = String::new();
         for h in header {
-            head.push_str(&format!("# {h}\n"));
+            head.push_str(&format!("# {}\n", comment_text(h)));
         }
         head.push_str(&format!("{},{}\n", REQUIRED.join(","), OPTIONAL.join(",")));
         let dp = dir.join(DATA);
@@ -557,6 +559,7 @@ impl RunDir {
             csv_hash,
             journal,
             journal_len: 0,
+            journal_chain: super::journal::START,
             events: Vec::new(),
             sync,
             pending: Vec::new(),
@@ -637,40 +640,13 @@ impl RunDir {
         check_writable_run(dir)?;
         let (lock, stale) = Lock::acquire(dir)?;
         let mut notes: Vec<String> = stale.map(took_over).into_iter().collect();
-        let mut events = Vec::new();
-        let mut good_len = 0u64;
-        // The journal's length after each event's line.
-        let mut line_ends: Vec<u64> = Vec::new();
-        {
-            let f = File::open(&jp).with_context(|| format!("{}: cannot open", jp.display()))?;
-            let mut r = BufReader::new(f);
-            let mut line = Vec::new();
-            let mut lineno = 0;
-            loop {
-                line.clear();
-                let n = r
-                    .read_until(b'\n', &mut line)
-                    .with_context(|| format!("{}: cannot read", jp.display()))?;
-                if n == 0 {
-                    break;
-                }
-                lineno += 1;
-                if !line.ends_with(b"\n") {
-                    // Torn last line (the process died mid-write): dropped.
-                    notes.push(format!(
-                        "{JOURNAL}: dropped its torn last line ({n} bytes), which the previous \
-                         session was writing when it stopped"
-                    ));
-                    break;
-                }
-                match serde_json::from_slice::<Event>(line.trim_ascii_end()) {
-                    Ok(e) => events.push(e),
-                    Err(e) => bail!("{}:{lineno}: unreadable journal entry: {e}", jp.display()),
-                }
-                good_len += n as u64;
-                line_ends.push(good_len);
-            }
-        }
+        let super::journal::Read {
+            mut events,
+            mut good_len,
+            line_ends,
+            chains,
+            mut chain,
+        } = super::journal::read(&jp, &mut notes)?;
         // The points are numbered by the plan: continuing with another one would leave points
         // never measured (or measured under other settings) while the run says complete. Each
         // session journals the plan it ran with; the last one is what this session continues.
@@ -840,13 +816,9 @@ impl RunDir {
             });
             events.truncate(k + 1);
             good_len = line_ends[k];
+            chain = chains[k];
             last_point = Some((i, whole_end));
             end = whole_end;
-        } else if recover {
-            notes.push(format!(
-                "--recover-truncated: {DATA} holds every committed point ({end} bytes): nothing \
-                 to recover"
-            ));
         }
         if last_point.is_none() {
             // Nothing committed: rows past the header can only be a first session's uncommitted
@@ -879,19 +851,41 @@ impl RunDir {
                 );
             }
         }
+        // A manifest that saw more points done than the journal commits: the journal lost
+        // lines, refused (or, with `recover`, gone ahead, what is past them kept aside).
+        if recovery.is_none() {
+            let next = last_point.map_or(0, |(i, _)| i + 1);
+            if let Some((note, folder)) =
+                super::journal::contradiction(dir, &events, next, recover, len.saturating_sub(end))?
+            {
+                notes.push(note);
+                recovery = Some(Recovery {
+                    folder,
+                    journal_from: good_len,
+                    data_from: end,
+                });
+            } else if recover {
+                notes.push(format!(
+                    "--recover-truncated: {DATA} holds every committed point ({end} bytes): \
+                     nothing to recover"
+                ));
+            }
+        }
         // The committed data must be what was written: a file edited within them (a line
         // inserted, a value changed) would otherwise be cut at the journalled length in the
         // middle of a row, silently.
         let csv_hash = verify_committed(&dp, &events, end)?;
         if len > end && recovery.is_none() {
             // Rows of points whose journal line never made it (the session stopped between
-            // the two), or anything appended since: cut, and said.
+            // the two), or anything appended since: set aside (never deleted: they may be
+            // measurements whose journal lines were lost), and said.
             let (rows, comments) = data_lines(&dp, end)?;
             let plural =
                 |n: u64, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
+            let folder = recovery_folder(dir);
             notes.push(format!(
-                "{DATA}: discarded {} ({}, {}) past {}: not committed in the journal (written by \
-                 the previous session before it stopped, or added since); {}",
+                "{DATA}: set aside {} ({}, {}) past {}: not committed in the journal (written by \
+                 the previous session before it stopped, or added since), moved to {}; {}",
                 plural(len - end, "byte"),
                 plural(rows, "data row"),
                 plural(comments, "comment line"),
@@ -899,6 +893,9 @@ impl RunDir {
                     Some((i, _)) => format!("the last committed point, {i}"),
                     None => "the header (no committed point)".into(),
                 },
+                Path::new(folder.file_name().unwrap_or_default())
+                    .join(DATA_TAIL)
+                    .display(),
                 match last_point.map_or(0, |(i, _)| i + 1) {
                     n if n >= plan.len() => {
                         "every point is committed (the run is complete)".to_string()
@@ -906,6 +903,11 @@ impl RunDir {
                     n => format!("measuring resumes at point {n}"),
                 }
             ));
+            recovery = Some(Recovery {
+                folder,
+                journal_from: good_len,
+                data_from: end,
+            });
         }
         // Every check passed. What the resume changes in the run directory is done by
         // [`RunDir::begin`], once the session goes ahead (the boards answered as the run's
@@ -933,6 +935,7 @@ impl RunDir {
             csv_hash,
             journal,
             journal_len: good_len,
+            journal_chain: chain,
             events,
             sync,
             pending: Vec::new(),
@@ -1047,6 +1050,8 @@ impl RunDir {
     /// cut back to its last complete line, so a later line cannot follow a torn one.
     fn append_journal(&mut self, bytes: &[u8]) -> Result<()> {
         self.begin()?;
+        let (bytes, chain) = super::journal::seal_lines(self.journal_chain, bytes);
+        let bytes = bytes.as_slice();
         let r = self.journal.write_all(bytes).and_then(|_| {
             if self.sync {
                 self.journal.sync_data()
@@ -1061,6 +1066,7 @@ impl RunDir {
                 .with_context(|| format!("{}: cannot write", self.dir.join(JOURNAL).display()));
         }
         self.journal_len += bytes.len() as u64;
+        self.journal_chain = chain;
         Ok(())
     }
 
@@ -1113,7 +1119,7 @@ impl RunDir {
         self.begin()?;
         let mut buf = Vec::with_capacity(64 * rows.len() + 64);
         if let Some(c) = comment {
-            writeln!(buf, "# {c}")?;
+            writeln!(buf, "# {}", comment_text(c))?;
         }
         for r in rows {
             write_row(&mut buf, r)?;
@@ -1299,7 +1305,7 @@ fn verify_committed(path: &Path, events: &[Event], end: u64) -> Result<Fnv> {
 }
 
 /// The folder a recovery of `dir` moves what it cuts to: `recovered-N`, the first N not taken.
-fn recovery_folder(dir: &Path) -> PathBuf {
+pub(crate) fn recovery_folder(dir: &Path) -> PathBuf {
     (1..)
         .map(|n| dir.join(format!("recovered-{n}")))
         .find(|p| !p.exists())

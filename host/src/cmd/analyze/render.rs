@@ -1,8 +1,7 @@
 //! The `cta analyze` result as text.
 
-use cta_lab::analyze::{
-    correlation_lines, cross_correlation_line, pm_parts, unit, Analysis,
-};
+use crate::cmd::num;
+use cta_lab::analyze::{correlation_lines, cross_correlation_line, pm_parts, unit, Analysis};
 
 /// The analysis as `cta analyze` prints it: the verdict, the causes, the candidates not
 /// named, the residuals per separation and the final parameters.
@@ -121,13 +120,13 @@ pub fn render_text(a: &Analysis) -> String {
     for (k, sep) in a.separations.iter().enumerate() {
         let _ = writeln!(
             s,
-            "{:>8}  {:>16.4}  {:>11.4}  {:>19.1}  {:>6.1}  {:>11.1}",
+            "{:>8}  {}  {}  {}  {}  {}",
             sep.to_string(),
-            a.angle_std_before_deg[k],
-            a.angle_std_after_deg[k],
-            a.heldout_rms_by_sep_before[k],
-            a.heldout_rms_by_sep_after[k],
-            a.noise_rms_by_sep[k]
+            num(a.angle_std_before_deg[k], 16, 4, "-"),
+            num(a.angle_std_after_deg[k], 11, 4, "-"),
+            num(a.heldout_rms_by_sep_before[k], 19, 1, "-"),
+            num(a.heldout_rms_by_sep_after[k], 6, 1, "-"),
+            num(a.noise_rms_by_sep[k], 11, 1, "-")
         );
     }
     if a.angle_left_out > 0 {

@@ -4,6 +4,8 @@
 use cta_lab::data::Glitches;
 use cta_lab::noise::NoiseReport;
 
+use crate::cmd::num;
+
 /// The report as the table `cta noise` prints.
 pub fn render_text(r: &NoiseReport) -> String {
     use std::fmt::Write;
@@ -33,8 +35,14 @@ pub fn render_text(r: &NoiseReport) -> String {
     }
     let _ = writeln!(
         s,
-        "one-sample std over the file: X {:.2}, Y {:.2} counts; X-Y correlation {:+.3}\n",
-        r.std_all[0], r.std_all[1], r.xy_correlation
+        "one-sample std over the file: X {}, Y {} counts; X-Y correlation {}\n",
+        num(r.std_all[0], 0, 2, "undefined"),
+        num(r.std_all[1], 0, 2, "undefined"),
+        if r.xy_correlation.is_finite() {
+            format!("{:+.3}", r.xy_correlation)
+        } else {
+            "undefined (an axis does not vary)".into()
+        }
     );
     let _ = write!(s, "{}", render_glitches(&r.glitches));
     for f in &r.factors {
@@ -42,7 +50,10 @@ pub fn render_text(r: &NoiseReport) -> String {
             let _ = writeln!(s, "by {}: not recorded in the file\n", f.factor);
             continue;
         }
-        let test = if f.test_dof > 0 {
+        let test = if f.test_dof > 0 && !(f.statistic[0].is_finite() && f.statistic[1].is_finite())
+        {
+            "no test: a group's samples do not vary (noise-free or constant data)".into()
+        } else if f.test_dof > 0 {
             format!(
                 "{}: Bartlett chi2 X {:.1}, Y {:.1} on {} dof, 1 % bound {:.1}",
                 if f.significant {
@@ -76,8 +87,12 @@ pub fn render_text(r: &NoiseReport) -> String {
         for g in &f.groups {
             let _ = writeln!(
                 s,
-                "  {:<16} {:>7} {:>8} {:>10.2} {:>10.2}",
-                g.label, g.points, g.dof, g.std_x, g.std_y
+                "  {:<16} {:>7} {:>8} {} {}",
+                g.label,
+                g.points,
+                g.dof,
+                num(g.std_x, 10, 2, "-"),
+                num(g.std_y, 10, 2, "-")
             );
         }
         let _ = writeln!(s);
@@ -94,8 +109,12 @@ pub fn render_text(r: &NoiseReport) -> String {
     };
     let _ = writeln!(
         s,
-        "within-separation dispersion of point variances: {:.2} (1 = homogeneous){within_setting}",
-        r.within_separation_dispersion
+        "within-separation dispersion of point variances: {}{within_setting}",
+        if r.within_separation_dispersion.is_finite() {
+            format!("{:.2} (1 = homogeneous)", r.within_separation_dispersion)
+        } else {
+            "undefined (no point's samples vary)".into()
+        }
     );
     let _ = writeln!(s, "weighting: {}", r.weighting);
     match &r.magnitude {

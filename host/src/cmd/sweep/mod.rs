@@ -93,7 +93,8 @@ pub struct SweepArgs {
     /// --sim-realtime (the data are the same either way).
     #[arg(long, requires = "resume")]
     pub sim_unthrottled: bool,
-    /// Simulated CTA: inject faults (testing): `drop=P`, `corrupt=P` (per byte, both lines),
+    /// Simulated CTA: inject faults (testing): `drop=P`, `corrupt=P` (per byte, both lines,
+    /// P at most 0.005),
     /// `vanish=BOARD@N:MS` (unplugged), `silent=BOARD@N:MS`, `stall=sensor@N:MS`, triggered at
     /// the N-th point attempt of the session, and `reset=BOARD@N` (the board restarts, its
     /// port staying up: the beacon as the N-th attempt starts, the sensor as it ends),

@@ -44,9 +44,31 @@ pub enum Error {
         /// The measurement file.
         path: PathBuf,
     },
-    /// A noise the board does not take.
-    #[error("noise {0} counts: the board takes 0.01 to 10,000 counts")]
-    NoiseRange(f64),
+    /// A noise the board does not take: given with `--noise`, or measured from the file's
+    /// repeated samples (`path`; constant or noise-free data measure 0).
+    #[error(
+        "{}: the board takes 0.01 to 10,000 counts{}",
+        match path {
+            None => format!("--noise {}", crate::fit::calibrate::shown(*noise)),
+            Some(p) => format!(
+                "{}: the noise of its repeated samples is {} counts",
+                p.display(),
+                crate::fit::calibrate::shown(*noise)
+            ),
+        },
+        if path.is_some() {
+            " (do its X, Y vary at all? constant or noise-free data measure no noise): give the \
+             sensor's noise with --noise COUNTS"
+        } else {
+            ""
+        }
+    )]
+    NoiseRange {
+        /// The noise, counts.
+        noise: f64,
+        /// The measurement file, when the noise was measured from it.
+        path: Option<PathBuf>,
+    },
     /// A beacon pattern exponent the board does not take.
     #[error("--pattern-m {0}: the board takes 0 to 50")]
     PatternM(f64),

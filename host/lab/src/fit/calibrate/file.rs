@@ -70,7 +70,7 @@ pub struct Provenance {
 /// measurement file, and anything else only with `--force`.
 pub fn check_out(out: &Path, data: &Path, force: bool) -> Result<(), Error> {
     let earlier = |p: &Path| {
-        std::fs::read_to_string(p)
+        crate::bounded::read_text(p, crate::bounded::MAX_JSON_BYTES, "a JSON file")
             .ok()
             .and_then(|s| serde_json::from_str::<CalibrationFile>(&s).ok())
             .is_some_and(|f| f.fitted.by.starts_with(WRITER))

@@ -171,7 +171,7 @@ pub fn calibrate(
         });
     }
     let (noise, noise_source) = match (noise_arg, pooled.overall()) {
-        (Some(v), _) => (v, format!("--noise {v} counts")),
+        (Some(v), _) => (v, format!("--noise {} counts", shown(v))),
         (None, Some(v)) => (
             v,
             "measured: one-sample noise of the repeated samples, pooled over the file".into(),
@@ -183,7 +183,10 @@ pub fn calibrate(
         }
     };
     if !(noise.is_finite() && (0.01..=10_000.0).contains(&noise)) {
-        return Err(Error::NoiseRange(noise));
+        return Err(Error::NoiseRange {
+            noise,
+            path: noise_arg.is_none().then(|| ds.path.clone()),
+        });
     }
     if !(pattern_m.is_finite() && (0.0..=50.0).contains(&pattern_m)) {
         return Err(Error::PatternM(pattern_m));
@@ -596,11 +599,10 @@ pub fn fit_magnitude(
         Outcome::Law(m) => {
             let mut cal = rep.file.calibration;
             cal.magnitude = Some(m.law);
-            cal.validate()
-                .map_err(|error| Error::MagnitudeLaw {
-                    path: ds.path.clone(),
-                    error,
-                })?;
+            cal.validate().map_err(|error| Error::MagnitudeLaw {
+                path: ds.path.clone(),
+                error,
+            })?;
             rep.file.calibration = cal;
             rep.file.led_brightness = m.led_brightness.clone();
             let sigma = &mut rep.file.fitted.sigma;
@@ -674,4 +676,23 @@ pub fn plot(rep: &CalibrationReport, path: &Path) -> Result<(), Error> {
         1,
     )
     .map_err(Error::Plot)
+}
+
+/// A number for a message, to 4 significant digits (`0.0000000000005312494315246781` is
+/// `5.312e-13`; `32.768` stays `32.768`; NaN and infinities as Rust writes them).
+pub(crate) fn shown(v: f64) -> String {
+    if !v.is_finite() || v == 0.0 {
+        return format!("{v}");
+    }
+    let mag = v.abs().log10().floor() as i32;
+    if !(-3..6).contains(&mag) {
+        return format!("{v:.3e}");
+    }
+    let decimals = (3 - mag).max(0) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
 }
