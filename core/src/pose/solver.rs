@@ -2,6 +2,7 @@
 //! near-field (eqs 60-63) model; spot matching, the cold and warm starts, the carried
 //! linearisation, the fallback from the magnitudes to the spots alone, and the status gates.
 
+use super::cold;
 use super::magnitude::{MagSolve, MAGNITUDE_RMS_SIGMAS};
 use super::problem::{Obs, PoseProblem};
 use super::{
@@ -382,28 +383,32 @@ impl<T: Real> PoseSolver<T> {
         key
     }
 
-    /// The documented cold start: `q = 0` and `t` from the linear pinhole lines of sight.
+    /// The cold start, whatever the attitude: the plate pose of the homography of the spots'
+    /// pinhole lines of sight ([`cold::plate_pose`]; for the pinhole model, its own eye's
+    /// `d, C`), or its mirror tilt, whichever fits the lines of sight better and has every
+    /// beacon in front; `None` when neither does (or the fit is singular).
+    // Never inlined: its candidates stay off the solve's frame, which the whole GLSDC run
+    // keeps on the chip's stack.
+    #[inline(never)]
     pub fn cold_start(&self, obs: &[Obs<T>]) -> Option<SVector<T, 6>> {
         let d = Vector3::new(self.cal[0], self.cal[1], self.cal[2]);
-        let ct = mrp::dcm(&Vector3::new(self.cal[3], self.cal[4], self.cal[5])).transpose();
+        let c_p = mrp::dcm(&Vector3::new(self.cal[3], self.cal[4], self.cal[5]));
         let h = self.cal.h();
-        let mut a = Matrix3::<T>::zeros();
-        let mut b = Vector3::<T>::zeros();
-        // Whole spots only: a railed coordinate gives no line of sight.
-        for o in obs.iter().filter(|o| o.rows() == 2) {
-            let u = (ct * Vector3::new(o.y[0] / h, o.y[1] / h, T::one())).normalize();
-            // (t + r - d) x u = 0  <=>  [u x] t = (r - d) x u.
-            let s = mrp::skew(&u);
-            let st = s.transpose();
-            a += st * s;
-            b += st * (o.r - d).cross(&u);
+        let pp = cold::plate_pose(obs, h)?;
+        let tw = pp.twin();
+        let big = T::max_value().unwrap_or_else(T::one);
+        let (ra, rb) = (
+            pp.residual(obs, h).unwrap_or(big),
+            tw.residual(obs, h).unwrap_or(big),
+        );
+        let order = if rb < ra { [tw, pp] } else { [pp, tw] };
+        for c in order {
+            let x = SVector::<T, 6>::from(c.unknowns(&d, &c_p));
+            if x.iter().all(|v| v.is_finite()) && self.in_front(&x, obs) {
+                return Some(x);
+            }
         }
-        let t = a.cholesky()?.solve(&b);
-        let x = SVector::<T, 6>::new(t.x, t.y, t.z, T::zero(), T::zero(), T::zero());
-        if !(t.iter().all(|v| v.is_finite()) && self.in_front(&x, obs)) {
-            return None;
-        }
-        Some(x)
+        None
     }
 
     /// Solve for the pose from one frame of spots (with their magnitudes when the
@@ -460,28 +465,42 @@ impl<T: Real> PoseSolver<T> {
     /// Solve; `key` names the observations' beacons and coordinates (see
     /// [`Self::match_keyed`]). With magnitudes, a solve that fails or whose residual RMS
     /// exceeds [`MAGNITUDE_RMS_SIGMAS`] noise sigmas is done again from the spots alone
-    /// (from the same start), and that answer is reported.
+    /// (from the same start), and that answer is reported. A warm-started solve that diverges
+    /// is done again from the cold start.
     fn solve_keyed(&mut self, obs: &[Obs<T>], key: Option<u64>) -> PoseSolution<T> {
         let warm = self.warm;
-        let sol = self.solve_once(obs, key, true);
-        if sol.magnitudes == 0 {
-            return sol;
-        }
         let limit = T::lit(MAGNITUDE_RMS_SIGMAS as f64);
-        if sol.status == PoseStatus::Ok && sol.rms * sol.rms <= limit * limit * self.noise2 {
-            return sol;
+        let (mut key, mut magnitudes) = (key, true);
+        // One call site, one solution on the stack (on the chip this is inlined into the
+        // board's frame handler): each pass is the first solve, or its retry.
+        loop {
+            let sol = self.solve_once(obs, key, magnitudes);
+            // A warm start that diverged (the target turned or moved too far since the last
+            // frame for Gauss-Newton to follow; `fail` forgot it): the same frame from the
+            // cold start. A cold solve never diverges with `cold_start` false.
+            if !sol.cold_start && sol.status == PoseStatus::Diverged {
+                continue;
+            }
+            if sol.magnitudes == 0
+                || (sol.status == PoseStatus::Ok
+                    && sol.rms * sol.rms <= limit * limit * self.noise2)
+            {
+                return sol;
+            }
+            self.warm = warm;
+            self.carry = None;
+            // The spots' rows alone: the key without the magnitudes' bits.
+            key = key.map(|k| k & ((1u64 << (2 * MAX_BEACONS)) - 1));
+            magnitudes = false;
         }
-        self.warm = warm;
-        self.carry = None;
-        // The spots' rows alone: the key without the magnitudes' bits.
-        let spots_only = key.map(|k| k & ((1u64 << (2 * MAX_BEACONS)) - 1));
-        self.solve_once(obs, spots_only, false)
     }
 
-    /// One solve (see [`Self::solve_keyed`]), with the magnitudes when `magnitudes`. The
-    /// last solve's linearisation serves the first step when the warm start is in use and
-    /// the key is the same: no model evaluation when the warm start is that solve's answer,
-    /// else one pass without the Jacobian.
+    /// One solve (see [`Self::solve_keyed`]), with the magnitudes when `magnitudes`, from the
+    /// warm start or, without one, the cold start. The last solve's linearisation serves the
+    /// first step when the warm start is in use and the key is the same: no model evaluation
+    /// when the warm start is that solve's answer, else one pass without the Jacobian. Too
+    /// few beacons forget the warm start: the target was lost, and the next frame with
+    /// enough starts cold (at any attitude) rather than from where it was.
     // Never inlined: on the chip its frame (the solve's matrices) is its own, not added to
     // the caller's (the board's reply being built).
     #[inline(never)]
@@ -500,7 +519,7 @@ impl<T: Real> PoseSolver<T> {
         let n = obs.len() as u8;
         let rows: usize = obs.iter().map(|o| o.rows()).sum();
         if obs.len() < MIN_BEACONS || rows < 2 * MIN_BEACONS {
-            return failed(PoseStatus::TooFewBeacons, fallback, n, 0, false);
+            return self.fail(PoseStatus::TooFewBeacons, fallback, n, 0, false);
         }
         let (x0, cold) = match self.warm {
             Some(x) => (x, false),
