@@ -7,12 +7,11 @@
 //! and lines of sight centred and scaled first), and its columns give the rotation and the
 //! position: `[s r1, s r2, tau]` up to scale, `r1, r2` the plate's axes in O and `tau` its
 //! centroid. Any roll about the line of sight, any tilt and offset: no starting attitude is
-//! assumed. A plate far away or seen face-on is barely told from its mirror tilt about the
-//! line of sight (the perspective that separates them is small); both are ranked by their
-//! lines-of-sight residual and the better one starts the solve.
+//! assumed. (A plate far away or seen face-on is barely told from its mirror tilt about the
+//! line of sight; over the CTA envelope, tilts to 30 deg at 2-30 in, starting from that
+//! mirror pose when it fitted better changed no acquisition, so the chip does without it.)
 
 use super::problem::Obs;
-use crate::mrp;
 use crate::Real;
 use nalgebra::{Matrix3, Vector3};
 
@@ -29,47 +28,12 @@ pub(super) struct PlatePose<T: Real> {
 }
 
 impl<T: Real> PlatePose<T> {
-    /// Sum of squared lines-of-sight misfits (tangent units) of the used coordinates of
-    /// `obs`; `None` when a beacon would be behind the eye.
-    pub(super) fn residual(&self, obs: &[Obs<T>], h: T) -> Option<T> {
-        let mut sum = T::zero();
-        for o in obs {
-            let v = self.rot * (o.r - self.centroid) + self.pos;
-            if !(v.z > T::zero()) {
-                return None;
-            }
-            for a in 0..2 {
-                if o.used[a] {
-                    let e = v[a] / v.z - o.y[a] / h;
-                    sum += e * e;
-                }
-            }
-        }
-        Some(sum)
-    }
-
-    /// The mirror tilt: the plate's normal reflected about the line of sight `l` to its
-    /// centroid, `R' = (2 l l^T - I) R diag(-1, -1, 1)`, which projects every plate point
-    /// (`z = 0` about the centroid) along `l` where `R` does: the two poses a far or
-    /// face-on plate cannot tell apart.
-    #[inline(never)]
-    pub(super) fn twin(&self) -> Self {
-        let l = self.pos.normalize();
-        let mut rot = self.rot;
-        for k in 0..3 {
-            let r = rot.column(k).into_owned();
-            let f = r - l * (T::lit(2.0) * l.dot(&r));
-            rot.set_column(k, &if k == 2 { -f } else { f });
-        }
-        PlatePose { rot, ..*self }
-    }
-
     /// The solver's unknowns `[t, q]` for an eye at `d` (N) with DCM `c_p` (N -> O): a
     /// beacon is at `t + C(q)^T r_T` in N, so `C(q) = R^T C_p` and `t = d + C_p^T (p - R c)`.
     #[inline(never)]
     pub(super) fn unknowns(&self, d: &Vector3<T>, c_p: &Matrix3<T>) -> [T; 6] {
         let t = d + c_p.transpose() * (self.pos - self.rot * self.centroid);
-        let q = mrp::from_dcm(&(self.rot.transpose() * c_p));
+        let q = mrp_of(&(self.rot.transpose() * c_p));
         [t.x, t.y, t.z, q.x, q.y, q.z]
     }
 }
@@ -172,9 +136,56 @@ pub(super) fn plate_pose<T: Real>(obs: &[Obs<T>], h: T) -> Option<PlatePose<T>> 
     })
 }
 
+/// The MRP (`|p| <= 1`) of a proper orthogonal DCM `c`, as [`crate::mrp::from_dcm`] (Shepperd:
+/// the quaternion from the column of `4 q q^T` with the largest diagonal, robust at any
+/// angle) in a third of its code on the chip.
+pub(super) fn mrp_of<T: Real>(c: &Matrix3<T>) -> Vector3<T> {
+    let one = T::one();
+    let tr = c.trace();
+    // 4 q_k^2: k = 0 the scalar part, then the vector's.
+    let d = [
+        one + tr,
+        one + c[(0, 0)] * T::lit(2.0) - tr,
+        one + c[(1, 1)] * T::lit(2.0) - tr,
+        one + c[(2, 2)] * T::lit(2.0) - tr,
+    ];
+    // 4 q0 q_i, and 4 q_i q_j for the pairs (2, 3), (1, 3), (1, 2): index 5 - i - j.
+    let a = [
+        c[(1, 2)] - c[(2, 1)],
+        c[(2, 0)] - c[(0, 2)],
+        c[(0, 1)] - c[(1, 0)],
+    ];
+    let b = [
+        c[(1, 2)] + c[(2, 1)],
+        c[(2, 0)] + c[(0, 2)],
+        c[(0, 1)] + c[(1, 0)],
+    ];
+    let mut k = 0;
+    for i in 1..4 {
+        if d[i] > d[k] {
+            k = i;
+        }
+    }
+    // Column k of 4 q q^T.
+    let mut v = [T::zero(); 4];
+    for i in 0..4 {
+        v[i] = match (i, k) {
+            _ if i == k => d[k],
+            (0, _) => a[k - 1],
+            (_, 0) => a[i - 1],
+            _ => b[5 - i - k],
+        };
+    }
+    // q = v / s with s = 2 sqrt(d_k); p = q_vec / (1 + q0), q0 >= 0.
+    let s = d[k].sqrt() * T::lit(2.0);
+    let den = if v[0] < T::zero() { v[0] - s } else { v[0] + s };
+    Vector3::new(v[1] / den, v[2] / den, v[3] / den)
+}
+
 /// Add `row^T row` to the lower triangle of `m` and `row rhs` to `v` (its zeros skipped).
-// The loops' bound hidden from the optimiser (here and in `solve_spd`): unrolled, the 8 x 8
-// updates of soft-float calls would cost the chip over a kilobyte of flash.
+// The loops' bound hidden from the optimiser (here and in `solve_spd`), and the inner loops
+// in `dot` and `axpy`: unrolled, the 8 x 8 updates of soft-float calls would cost the chip
+// a kilobyte of flash.
 #[inline(never)]
 fn rank1<T: Real>(m: &mut [[T; N]; N], v: &mut [T; N], row: &[T; N], rhs: T) {
     let n = core::hint::black_box(N);
@@ -183,46 +194,49 @@ fn rank1<T: Real>(m: &mut [[T; N]; N], v: &mut [T; N], row: &[T; N], rhs: T) {
             continue;
         }
         v[i] += row[i] * rhs;
-        for j in 0..=i {
-            m[i][j] += row[i] * row[j];
-        }
+        axpy(&mut m[i][..=i], row[i], &row[..=i]);
+    }
+}
+
+/// `a . b` over the shorter of the two.
+#[inline(never)]
+fn dot<T: Real>(a: &[T], b: &[T]) -> T {
+    a.iter().zip(b).fold(T::zero(), |s, (x, y)| s + *x * *y)
+}
+
+/// `y += a x` over the shorter of the two.
+#[inline(never)]
+fn axpy<T: Real>(y: &mut [T], a: T, x: &[T]) {
+    for (y, x) in y.iter_mut().zip(x) {
+        *y += a * *x;
     }
 }
 
 /// Solve `M g = v` for symmetric positive definite `M` (lower triangle given) by Cholesky
-/// in place; `None` on a non-positive pivot.
+/// in place (`M = L L^T`, then `L y = v`, `L^T g = y`); `None` on a non-positive pivot.
 #[inline(never)]
 fn solve_spd<T: Real>(m: &mut [[T; N]; N], mut v: [T; N]) -> Option<[T; N]> {
     let n = core::hint::black_box(N);
     for j in 0..n {
-        let mut d = m[j][j];
-        for k in 0..j {
-            d -= m[j][k] * m[j][k];
-        }
+        let d = m[j][j] - dot(&m[j][..j], &m[j][..j]);
         if !(d > T::zero()) {
             return None;
         }
         let dj = d.sqrt();
         m[j][j] = dj;
         for i in j + 1..n {
-            let mut e = m[i][j];
-            for k in 0..j {
-                e -= m[i][k] * m[j][k];
-            }
+            let e = m[i][j] - dot(&m[i][..j], &m[j][..j]);
             m[i][j] = e / dj;
         }
     }
     for i in 0..n {
-        for k in 0..i {
-            v[i] = v[i] - m[i][k] * v[k];
-        }
-        v[i] /= m[i][i];
+        v[i] = (v[i] - dot(&m[i][..i], &v[..i])) / m[i][i];
     }
+    // L^T by columns: each solved unknown taken off the rows above it.
     for i in (0..n).rev() {
-        for k in i + 1..n {
-            v[i] = v[i] - m[k][i] * v[k];
-        }
         v[i] /= m[i][i];
+        let x = v[i];
+        axpy(&mut v[..i], -x, &m[i][..i]);
     }
     Some(v)
 }

@@ -220,3 +220,29 @@ pub fn cold_frames_of(
         (simulate_spots(&em, con, &t, &q, &mut noise), t, q)
     })
 }
+
+/// A wrong ID in a frame: spot `j` reported under spot `k`'s ID, and spot `k` removed (the
+/// NorthStar reports one spot per channel), so that beacon `k`'s ID marks beacon `j`'s
+/// position (a reflection or an ID mix-up). Returns the wrong ID; `None` (nothing changed)
+/// unless `j` and `k` are two spots of the frame.
+pub fn mislabel(spots: &mut Vec<Spot, MAX_BEACONS>, j: usize, k: usize) -> Option<u8> {
+    if j == k || j >= spots.len() || k >= spots.len() {
+        return None;
+    }
+    let id = spots[k].id;
+    spots[j].id = id;
+    spots.remove(k);
+    Some(id)
+}
+
+/// The MRP of a target turned by `deg[0]`, `deg[1]`, `deg[2]` degrees about the board
+/// frame's x, y and z axes, in that order (`cta sensor sim --attitude-deg`): the DCM
+/// `C(x) C(y) C(z)` of the three single-axis rotations (N -> T), the last turn taken first
+/// in the target's frame.
+pub fn attitude_xyz<T: Real>(deg: [T; 3]) -> Vector3<T> {
+    let q = |axis: Vector3<T>, a: T| mrp::from_axis_angle(&axis, rad(a));
+    mrp::compose(
+        &q(Vector3::x(), deg[0]),
+        &mrp::compose(&q(Vector3::y(), deg[1]), &q(Vector3::z(), deg[2])),
+    )
+}

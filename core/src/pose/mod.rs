@@ -44,13 +44,11 @@
 //! or, without one, from the *cold start*, which assumes no attitude: each whole spot gives a
 //! pinhole line of sight `(X/H, Y/H, 1)` in the eye frame (eq 65; for the pinhole model, its
 //! own eye's `d` and `C`), the plate's beacons (coplanar, `z` constant in T) map to those by a
-//! planar homography, solved by a direct linear transform (8 unknowns, 2 equations per
-//! spot), whose columns give the plate's axes and centroid, hence `t` and `q` at any roll
-//! about the line of sight, tilt or offset; of that pose and its mirror tilt about the line
-//! of sight (the ambiguity of a far or face-on plate) the one that fits the lines of sight
-//! better starts GLSDC. With fewer than four whole spots the cold start assumes the target
-//! faces the sensor (`q = 0`) and solves the linear least-squares problem
-//! `(t + r_T - d) x u_N = 0`, `u_N = C^T (X/H, Y/H, 1)`, for `t`. A warm-started solve that
+//! planar homography, solved by a direct linear transform (8 unknowns, an equation per used
+//! coordinate), whose columns give the plate's axes and centroid, hence `t` and `q` at any roll
+//! about the line of sight, tilt or offset, which starts GLSDC. A spot with one coordinate at
+//! the rails gives one equation; fewer than eight in all give no cold start (reported
+//! diverged). A warm-started solve that
 //! diverges (the target turned or moved too far since the last frame) is done again from the
 //! cold start in the same frame.
 //!
@@ -120,13 +118,16 @@ pub use config::{
     MAX_BRIGHTNESS, MIN_BRIGHTNESS,
 };
 pub use fixtures::{
-    benchmark_frames, benchmark_frames_of, cold_frames_of, cta_constellation, flat_constellation,
-    four_array_constellation, simulate_spots, simulate_spots_with, BenchmarkFrames,
-    SIM_MAGNITUDE_SCALE,
+    attitude_xyz, benchmark_frames, benchmark_frames_of, cold_frames_of, cta_constellation,
+    flat_constellation, four_array_constellation, mislabel, simulate_spots, simulate_spots_with,
+    BenchmarkFrames, SIM_MAGNITUDE_SCALE,
 };
 pub use magnitude::MAGNITUDE_RMS_SIGMAS;
 pub use problem::Obs;
-pub use solver::{ModelKind, PoseSolution, PoseSolver, PoseStatus, SolverSettings};
+pub use solver::{
+    ModelKind, PoseSolution, PoseSolver, PoseStatus, SolverSettings, WRONG_SPOT_GAIN,
+    WRONG_SPOT_SIGMAS,
+};
 
 use crate::Real;
 use nalgebra::Vector3;

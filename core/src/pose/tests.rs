@@ -770,5 +770,7 @@ fn implausible_solutions_are_never_ok() {
 }
 
 mod cold;
+mod envelope;
 mod magnitude;
 mod tracking;
+mod wrong_spots;
