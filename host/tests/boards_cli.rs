@@ -1145,13 +1145,80 @@ fn sensor_sim_attitude_and_wrong_ids() {
         let v: serde_json::Value = serde_json::from_str(l).expect("one JSON object per line");
         assert_eq!(v["status"], "Ok", "{l}");
         assert!(v["dropped"].as_u64().is_some(), "a beacon dropped: {l}");
-        assert_eq!(v["beacons"], 8, "ten spots, one ID moved onto another, one left out: {l}");
+        assert_eq!(
+            v["beacons"], 8,
+            "ten spots, one ID moved onto another, one left out: {l}"
+        );
         let q: Vec<f64> = (0..3).map(|i| v["mrp"][i].as_f64().unwrap()).collect();
         let q = nalgebra::Vector3::new(q[0], q[1], q[2]);
         let c = cta_core::mrp::dcm(&q) * cta_core::mrp::dcm(&want).transpose();
-        let angle = ((c.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees();
-        assert!(angle < 1.0, "attitude {angle} deg from the simulated one: {l}");
+        let angle = ((c.trace() - 1.0) / 2.0)
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees();
+        assert!(
+            angle < 1.0,
+            "attitude {angle} deg from the simulated one: {l}"
+        );
         let z = v["position"][2].as_f64().unwrap();
         assert!((z - 8.0).abs() < 0.1, "{l}");
     }
+}
+
+/// `cta sensor accuracy --envelope`: one row per range with the envelope's limits, the
+/// usable frames, both models' cold acquisition and errors (the near-field's far below the
+/// pinhole's at 3 in) and the failed frames by why; JSON carries the same rows; options it
+/// does not take are refused in one line.
+#[test]
+fn sensor_accuracy_envelope_table() {
+    let out = ok(&cta(&[
+        "sensor",
+        "accuracy",
+        "--envelope",
+        "--trials",
+        "50",
+        "--ranges",
+        "3,20",
+    ]));
+    assert!(
+        out.contains("Cold acquisition over a docking envelope"),
+        "{out}"
+    );
+    let rows: Vec<Vec<&str>> = out
+        .lines()
+        .map(|l| l.split_whitespace().collect::<Vec<_>>())
+        .filter(|f| f.len() == 21 && f[0].parse::<f64>().is_ok())
+        .collect();
+    assert_eq!(rows.len(), 2, "{out}");
+    for (r, range) in rows.iter().zip([3.0, 20.0]) {
+        assert_eq!(r[0].parse::<f64>().unwrap(), range, "{r:?}");
+        assert_eq!(r[3], "50", "{r:?}");
+        let usable: usize = r[4].parse().unwrap();
+        assert!(usable >= 30 && usable <= 50, "{r:?}");
+        let nf_acq: f64 = r[5].parse().unwrap();
+        assert!(nf_acq >= 95.0, "{r:?}");
+        assert!(r[13].starts_with('D') && r[17].starts_with('D'), "{r:?}");
+    }
+    let ratio: f64 = rows[0][11].parse().unwrap();
+    assert!(
+        ratio > 5.0,
+        "pinhole / near-field position error at 3 in: {ratio}"
+    );
+    let json = ok(&cta(&[
+        "sensor",
+        "accuracy",
+        "--envelope",
+        "--trials",
+        "5",
+        "--ranges",
+        "8",
+        "--json",
+    ]));
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let row = &v["rows"][0];
+    assert_eq!(row["frames"], 5);
+    assert!(row["near_field"]["failures"]["diverged"].is_u64(), "{json}");
+    assert!(row["max_tilt_deg"].as_f64().unwrap() > 20.0, "{json}");
+    let o = cta(&["sensor", "accuracy", "--envelope", "--check"]);
+    fails_with(&o, &["--check"]);
 }

@@ -171,6 +171,9 @@ pub struct PoseSolver<T: Real> {
     /// from it keeps them (a reading's weight moves with its rounding term from frame to
     /// frame, and the carried rows are the contrasts of those weights).
     pub(super) carry_mw: [T; MAX_BEACONS],
+    /// Solve with the pinhole model whatever the settings (the pinhole pass of a failed
+    /// near-field cold start, see [`Self::solve_keyed`]).
+    pinhole_pass: bool,
 }
 
 impl<T: Real> PoseSolver<T> {
@@ -212,6 +215,7 @@ impl<T: Real> PoseSolver<T> {
             carry: None,
             carry_key: 0,
             carry_mw: [T::zero(); MAX_BEACONS],
+            pinhole_pass: false,
         }
     }
 
@@ -586,7 +590,8 @@ impl<T: Real> PoseSolver<T> {
     /// [`Self::match_keyed`]). With magnitudes, a solve that fails or whose residual RMS
     /// exceeds [`MAGNITUDE_RMS_SIGMAS`] noise sigmas is done again from the spots alone
     /// (from the same start), and that answer is reported. A warm-started solve that diverges
-    /// is done again from the cold start.
+    /// is done again from the cold start; a near-field one that fails from the cold start is
+    /// done with the pinhole model first, then from its answer.
     // Never inlined: the frame handler calls it for the frame and for the wrong-spot trials,
     // one copy of its code on the chip.
     #[inline(never)]
@@ -594,14 +599,41 @@ impl<T: Real> PoseSolver<T> {
         let warm = self.warm;
         let limit = T::lit(MAGNITUDE_RMS_SIGMAS as f64);
         let (mut key, mut magnitudes) = (key, true);
+        // 0: not yet; 1: this pass; 2: done (see below).
+        let mut pinhole_pass = 0u8;
         // One call site, one solution on the stack (on the chip this is inlined into the
         // board's frame handler): each pass is the first solve, or its retry.
         loop {
-            let sol = self.solve_once(obs, key, magnitudes);
+            self.pinhole_pass = pinhole_pass == 1;
+            let sol = self.solve_once(obs, key.filter(|_| pinhole_pass != 1), magnitudes);
+            self.pinhole_pass = false;
+            if pinhole_pass == 1 {
+                pinhole_pass = 2;
+                // Its answer is the near-field solve's warm start; a failure is reported.
+                if sol.status == PoseStatus::Ok {
+                    continue;
+                }
+                return sol;
+            }
             // A warm start that diverged (the target turned or moved too far since the last
             // frame for Gauss-Newton to follow; `fail` forgot it): the same frame from the
             // cold start. A cold solve never diverges with `cold_start` false.
             if !sol.cold_start && sol.status == PoseStatus::Diverged {
+                continue;
+            }
+            // A near-field solve that fails from the cold start (steep tilts near the target,
+            // where the homography's pinhole pose puts beacons where the model has no
+            // gradient): the pinhole model (eq 65, smooth everywhere in front) from the same
+            // start first, then the near-field model from its answer.
+            if sol.cold_start
+                && pinhole_pass == 0
+                && matches!(
+                    sol.status,
+                    PoseStatus::Diverged | PoseStatus::IllConditioned
+                )
+                && self.emulator.is_some()
+            {
+                pinhole_pass = 1;
                 continue;
             }
             if sol.magnitudes == 0
@@ -676,7 +708,7 @@ impl<T: Real> PoseSolver<T> {
         };
         let problem = PoseProblem {
             lin: &self.lin,
-            emulator: self.emulator.as_ref(),
+            emulator: self.emulator.as_ref().filter(|_| !self.pinhole_pass),
             boresight: self.boresight,
             obs,
             magnitudes,

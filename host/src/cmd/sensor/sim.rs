@@ -22,13 +22,23 @@ pub struct SimArgs {
     /// Target attitude: rotations about the board frame's x, y and z, in that order,
     /// degrees (three numbers, comma-separated; any roll RZ, e.g. 10,-5,150). Replaces
     /// --yaw-deg.
-    #[arg(long, value_name = "RX,RY,RZ", allow_hyphen_values = true, conflicts_with = "yaw_deg")]
+    #[arg(
+        long,
+        value_name = "RX,RY,RZ",
+        allow_hyphen_values = true,
+        conflicts_with = "yaw_deg"
+    )]
     pub attitude_deg: Option<String>,
     /// Probability that a frame carries one spot under another beacon's ID (0 to 1): a
     /// random spot reported with a random other spot's ID, whose own spot is then missing
     /// (a reflection or an ID mix-up). The board leaves such a spot out by its residual and
     /// names the beacon (column `drop` of `cta sensor pose`).
-    #[arg(long, value_name = "P", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "P",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     pub wrong_id: f64,
     /// Spot noise, counts (1-sigma, 0 or more).
     #[arg(long, default_value_t = 32.768, allow_negative_numbers = true)]
