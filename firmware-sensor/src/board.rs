@@ -425,6 +425,7 @@ impl<F: FlashPages> Board<F> {
                     beacons: sol.beacons,
                     magnitudes: sol.magnitudes,
                     cold_start: sol.cold_start,
+                    dropped: sol.dropped,
                     solve_us,
                 })
             }

@@ -42,6 +42,10 @@ pub struct SimNorthStar {
     pub magnitude_noise: f64,
     /// Probability that a burst of random bytes precedes a frame (line noise).
     pub garbage: f64,
+    /// Probability that a frame carries one spot under another beacon's ID
+    /// ([`cta_core::pose::mislabel`]: a random spot takes a random other spot's ID, which
+    /// then marks no spot of its own). Drawn from a stream of its own.
+    pub wrong_id: f64,
     /// Report rate, Hz (set by the board's rate command).
     pub rate_hz: u8,
     /// Sensitivity setting (set by the board's command; echoed in the frames).
@@ -50,11 +54,15 @@ pub struct SimNorthStar {
     rng: StdRng,
     /// The magnitude noise's own stream.
     magnitude_rng: StdRng,
+    /// The wrong IDs' own stream.
+    wrong_rng: StdRng,
 }
 
 /// Mixed into the seed of the magnitude noise's stream (any constant: the two streams only
 /// need to differ).
 const MAGNITUDE_STREAM: u64 = 0x6d61_676e_6974_7564;
+/// Mixed into the seed of the wrong IDs' stream.
+const WRONG_ID_STREAM: u64 = 0x7772_6f6e_675f_6964;
 
 impl SimNorthStar {
     /// A NorthStar mounted with `cal`'s head pose and near-field parameters (true physics:
@@ -75,11 +83,13 @@ impl SimNorthStar {
             noise,
             magnitude_noise: 0.0,
             garbage: 0.0,
+            wrong_id: 0.0,
             rate_hz: 10,
             sensitivity: 4,
             seq: 0,
             rng: StdRng::seed_from_u64(seed),
             magnitude_rng: StdRng::seed_from_u64(seed ^ MAGNITUDE_STREAM),
+            wrong_rng: StdRng::seed_from_u64(seed ^ WRONG_ID_STREAM),
         }
     }
 
@@ -89,7 +99,7 @@ impl SimNorthStar {
         let mag_normal =
             Normal::new(0.0, self.magnitude_noise.max(0.0) / 100.0).expect("finite sigma");
         let (rng, mag_rng) = (&mut self.rng, &mut self.magnitude_rng);
-        let spots = simulate_spots_with(
+        let mut spots = simulate_spots_with(
             &self.physics,
             &self.constellation,
             &self.t,
@@ -97,6 +107,15 @@ impl SimNorthStar {
             |_| normal.sample(rng),
             |_| mag_normal.sample(mag_rng),
         );
+        if self.wrong_id > 0.0 && spots.len() >= 2 {
+            let w = &mut self.wrong_rng;
+            if w.random::<f64>() < self.wrong_id {
+                let n = spots.len();
+                let j = w.random_range(0..n);
+                let k = (j + w.random_range(1..n)) % n;
+                cta_core::pose::mislabel(&mut spots, j, k);
+            }
+        }
         let frame = SpotFrame {
             seq: self.seq,
             sensitivity: self.sensitivity,

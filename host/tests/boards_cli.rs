@@ -147,7 +147,8 @@ fn sensor_pose_prints_every_field_and_json() {
     let lines: Vec<&str> = out.lines().collect();
     assert_eq!(lines.len(), 4, "{out}");
     for col in [
-        "rx (deg)", "sx(in)", "srx(deg)", "rms", "it", "bcn", "mag", "solve us", "cold", "status",
+        "rx (deg)", "sx(in)", "srx(deg)", "rms", "it", "bcn", "mag", "solve us", "cold", "drop",
+        "status",
     ] {
         assert!(lines[0].contains(col), "header lacks {col}: {}", lines[0]);
     }
@@ -155,7 +156,7 @@ fn sensor_pose_prints_every_field_and_json() {
     // their 10 magnitudes (the simulated CTA's calibration holds its NorthStar's law).
     for (i, row) in lines[1..].iter().enumerate() {
         let f: Vec<&str> = row.split_whitespace().collect();
-        assert_eq!(f.len(), 21, "{row}");
+        assert_eq!(f.len(), 22, "{row}");
         assert_eq!(f[16], "10", "beacons used: {row}");
         assert_eq!(f[17], "10", "magnitudes fitted: {row}");
         assert!(f[18].parse::<u32>().is_ok(), "solve us: {row}");
@@ -164,7 +165,8 @@ fn sensor_pose_prints_every_field_and_json() {
             if i == 0 { "yes" } else { "no" },
             "cold start: {row}"
         );
-        assert_eq!(f[20], "Ok", "{row}");
+        assert_eq!(f[20], "-", "no beacon dropped: {row}");
+        assert_eq!(f[21], "Ok", "{row}");
         let sigma_att: f64 = f[11].parse().unwrap();
         assert!(sigma_att > 0.0 && sigma_att < 5.0, "{row}");
     }
@@ -190,6 +192,7 @@ fn sensor_pose_prints_every_field_and_json() {
             "beacons",
             "magnitudes",
             "cold_start",
+            "dropped",
             "solve_us",
             "attitude_deg",
         ] {
@@ -273,6 +276,12 @@ fn sensor_flags_are_checked_up_front() {
             "--magnitude-noise 101",
         ),
         (&["sim", "--garbage", "1.5"], "--garbage 1.5"),
+        (&["sim", "--wrong-id", "1.5"], "--wrong-id 1.5"),
+        (&["sim", "--wrong-id", "-0.1"], "--wrong-id -0.1"),
+        (&["sim", "--attitude-deg", "10,20"], "--attitude-deg"),
+        (&["sim", "--attitude-deg", "10,x,20"], "--attitude-deg"),
+        (&["sim", "--attitude-deg", "1,2,3,4"], "--attitude-deg"),
+        (&["sim", "--attitude-deg", "1,2,inf"], "--attitude-deg"),
         (&["sim", "--seconds", "0"], "--seconds 0"),
     ];
     for (args, needle) in cases {
@@ -790,8 +799,8 @@ fn a_port_lost_mid_command_is_named_with_its_board() {
     // machine). The board is the simulated board's code (as `cta beacon sim` runs it), played
     // here on a pty of the test's own so the test sees the requests.
     use cta_core::schedule::{Modulator, NORTHSTAR_TABLE_MHZ};
-    use cta_firmware_beacon::pins::BEACON_LINES;
     use cta_core::wire::{beacon::BeaconRequest, FrameDecoder, Request, ResetCause, MAX_FRAME};
+    use cta_firmware_beacon::pins::BEACON_LINES;
     use serialport::SerialPort;
     use std::io::{Read, Write};
     use std::os::fd::AsRawFd;
@@ -1110,4 +1119,106 @@ fn beacon_status_text_and_json() {
     uptime_agrees(&j, value("uptime"));
     frames_agree(&j["decoder"], value("frames"), &out);
     assert!(j["since_host_ms"].as_u64().unwrap() < 5_000, "{out}");
+}
+
+/// `cta sensor sim --attitude-deg` at a half turn about the line of sight (every frame
+/// diverged before the attitude-free cold start), tilted, with a wrong ID in every frame: the
+/// board solves each frame Ok at the simulated pose and names a dropped beacon in each.
+#[test]
+fn sensor_sim_attitude_and_wrong_ids() {
+    let sim = Sim::start(&[
+        "sensor",
+        "sim",
+        "--configured",
+        "--range",
+        "8",
+        "--attitude-deg",
+        "8,-5,180",
+        "--wrong-id",
+        "1",
+    ]);
+    let out = ok(&cta(&[
+        "sensor", "--port", &sim.path, "pose", "--count", "4", "--json",
+    ]));
+    let want = cta_core::pose::attitude_xyz([8.0, -5.0, 180.0]);
+    for l in out.lines() {
+        let v: serde_json::Value = serde_json::from_str(l).expect("one JSON object per line");
+        assert_eq!(v["status"], "Ok", "{l}");
+        assert!(v["dropped"].as_u64().is_some(), "a beacon dropped: {l}");
+        assert_eq!(
+            v["beacons"], 8,
+            "ten spots, one ID moved onto another, one left out: {l}"
+        );
+        let q: Vec<f64> = (0..3).map(|i| v["mrp"][i].as_f64().unwrap()).collect();
+        let q = nalgebra::Vector3::new(q[0], q[1], q[2]);
+        let c = cta_core::mrp::dcm(&q) * cta_core::mrp::dcm(&want).transpose();
+        let angle = ((c.trace() - 1.0) / 2.0)
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees();
+        assert!(
+            angle < 1.0,
+            "attitude {angle} deg from the simulated one: {l}"
+        );
+        let z = v["position"][2].as_f64().unwrap();
+        assert!((z - 8.0).abs() < 0.1, "{l}");
+    }
+}
+
+/// `cta sensor accuracy --envelope`: one row per range with the envelope's limits, the
+/// usable frames, both models' cold acquisition and errors (the near-field's far below the
+/// pinhole's at 3 in) and the failed frames by why; JSON carries the same rows; options it
+/// does not take are refused in one line.
+#[test]
+fn sensor_accuracy_envelope_table() {
+    let out = ok(&cta(&[
+        "sensor",
+        "accuracy",
+        "--envelope",
+        "--trials",
+        "50",
+        "--ranges",
+        "3,20",
+    ]));
+    assert!(
+        out.contains("Cold acquisition over a docking envelope"),
+        "{out}"
+    );
+    let rows: Vec<Vec<&str>> = out
+        .lines()
+        .map(|l| l.split_whitespace().collect::<Vec<_>>())
+        .filter(|f| f.len() == 21 && f[0].parse::<f64>().is_ok())
+        .collect();
+    assert_eq!(rows.len(), 2, "{out}");
+    for (r, range) in rows.iter().zip([3.0, 20.0]) {
+        assert_eq!(r[0].parse::<f64>().unwrap(), range, "{r:?}");
+        assert_eq!(r[3], "50", "{r:?}");
+        let usable: usize = r[4].parse().unwrap();
+        assert!(usable >= 30 && usable <= 50, "{r:?}");
+        let nf_acq: f64 = r[5].parse().unwrap();
+        assert!(nf_acq >= 95.0, "{r:?}");
+        assert!(r[13].starts_with('D') && r[17].starts_with('D'), "{r:?}");
+    }
+    let ratio: f64 = rows[0][11].parse().unwrap();
+    assert!(
+        ratio > 5.0,
+        "pinhole / near-field position error at 3 in: {ratio}"
+    );
+    let json = ok(&cta(&[
+        "sensor",
+        "accuracy",
+        "--envelope",
+        "--trials",
+        "5",
+        "--ranges",
+        "8",
+        "--json",
+    ]));
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let row = &v["rows"][0];
+    assert_eq!(row["frames"], 5);
+    assert!(row["near_field"]["failures"]["diverged"].is_u64(), "{json}");
+    assert!(row["max_tilt_deg"].as_f64().unwrap() > 20.0, "{json}");
+    let o = cta(&["sensor", "accuracy", "--envelope", "--check"]);
+    fails_with(&o, &["--check"]);
 }

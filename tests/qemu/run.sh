@@ -54,8 +54,9 @@ awk -v mark="$mark" -v done_="$done_" -v bin="$bin" '
   /^Trace/ {
     split($0, a, "["); split(a[2], f, "/"); pc = f[2]
     if (open) count++
-    if (pc == mark) { close_seg(); open = 1; count = 0 }
-    else if (pc == done_) { close_seg(); open = 0 }
+    # As strings: an address such as 0000e360 would compare as the number 0e360 = 0.
+    if (pc "" == mark "") { close_seg(); open = 1; count = 0 }
+    else if (pc "" == done_ "") { close_seg(); open = 0 }
     next
   }
   END {

@@ -188,3 +188,61 @@ pub fn benchmark_frames_of(con: &Constellation) -> BenchmarkFrames {
     let f2 = simulate_spots(&em, con, &t2, &q2, &mut noise);
     (f1, f2, t2, q2)
 }
+
+/// The cold-start benchmark: three frames of `con` (the Table 3 head, eq 63 physics), each
+/// to be solved from nothing, the target turned about the line of sight by 90, 180 and -150
+/// deg, tilted 20 deg about `(1, -0.6, 0)` and offset, at 8 in, with the noise and rounding of
+/// [`benchmark_frames_of`]. Returns each frame with its true position and MRP.
+pub fn cold_frames_of(
+    con: &Constellation,
+) -> [(Vec<Spot, MAX_BEACONS>, Vector3<f64>, Vector3<f64>); 3] {
+    let cal = Calibration::table3();
+    let em = Emulator::new(
+        Head::northstar(),
+        HeadPose {
+            d: v3(&cal.d),
+            p: v3(&cal.p),
+        },
+        Effects::default(),
+    );
+    let mut seed = 0x9e37_79b9_u32;
+    let sigma = 0.001 * crate::emulator::BETA;
+    let mut noise = move |_| {
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        ((seed as f64) / 4294967296.0 - 0.5) * 2.0 * 1.7320508075688772 * sigma
+    };
+    let tilt = mrp::from_axis_angle(&Vector3::new(1.0, -0.6, 0.0), rad(20.0));
+    [90.0, 180.0, -150.0].map(|roll| {
+        let q = mrp::compose(&tilt, &mrp::from_axis_angle(&Vector3::z(), rad(roll)));
+        let t = Vector3::new(0.8, -0.5, 8.0);
+        (simulate_spots(&em, con, &t, &q, &mut noise), t, q)
+    })
+}
+
+/// A wrong ID in a frame: spot `j` reported under spot `k`'s ID, and spot `k` removed (the
+/// NorthStar reports one spot per channel), so that beacon `k`'s ID marks beacon `j`'s
+/// position (a reflection or an ID mix-up). Returns the wrong ID; `None` (nothing changed)
+/// unless `j` and `k` are two spots of the frame.
+pub fn mislabel(spots: &mut Vec<Spot, MAX_BEACONS>, j: usize, k: usize) -> Option<u8> {
+    if j == k || j >= spots.len() || k >= spots.len() {
+        return None;
+    }
+    let id = spots[k].id;
+    spots[j].id = id;
+    spots.remove(k);
+    Some(id)
+}
+
+/// The MRP of a target turned by `deg[0]`, `deg[1]`, `deg[2]` degrees about the board
+/// frame's x, y and z axes, in that order (`cta sensor sim --attitude-deg`): the DCM
+/// `C(x) C(y) C(z)` of the three single-axis rotations (N -> T), the last turn taken first
+/// in the target's frame.
+pub fn attitude_xyz<T: Real>(deg: [T; 3]) -> Vector3<T> {
+    let q = |axis: Vector3<T>, a: T| mrp::from_axis_angle(&axis, rad(a));
+    mrp::compose(
+        &q(Vector3::x(), deg[0]),
+        &mrp::compose(&q(Vector3::y(), deg[1]), &q(Vector3::z(), deg[2])),
+    )
+}

@@ -39,14 +39,21 @@
 //! not used; the spot's other coordinate still is (near the edge of the field of view, at 2 in,
 //! that keeps about four of the CTA constellation's ten beacons). With fewer than
 //! [`MIN_BEACONS`] matched beacons, or fewer usable coordinates than [`MIN_BEACONS`] whole
-//! spots give, the status is [`PoseStatus::TooFewBeacons`]. Otherwise GLSDC starts from the
-//! previous good solution (warm start) or, without one, from the *cold start*: assume the
-//! target faces the sensor (`q = 0`), turn each whole spot into a pinhole line of sight
-//! `u_N = C^T (x/H, y/H, 1)` from the head at `d` (for the pinhole model, its own eye's `d`
-//! and `C`), and solve the linear least-squares
-//! problem `(t + r_T - d) x u_N = 0` (3 unknowns, 2 independent equations per beacon) for
-//! `t`. Every residual has the same weight (unit: one multiplication less per Jacobian
-//! element on the chip); the stopping tolerances are in units of `noise^2` (noise from the
+//! spots give, the status is [`PoseStatus::TooFewBeacons`] (and the warm start is forgotten:
+//! the target was lost). Otherwise GLSDC starts from the previous good solution (warm start)
+//! or, without one, from the *cold start*, which assumes no attitude: each whole spot gives a
+//! pinhole line of sight `(X/H, Y/H, 1)` in the eye frame (eq 65; for the pinhole model, its
+//! own eye's `d` and `C`), the plate's beacons (coplanar, `z` constant in T) map to those by a
+//! planar homography, solved by a direct linear transform (8 unknowns, an equation per used
+//! coordinate), whose columns give the plate's axes and centroid, hence `t` and `q` at any roll
+//! about the line of sight, tilt or offset, which starts GLSDC. A spot with one coordinate at
+//! the rails gives one equation; fewer than eight in all give no cold start (reported
+//! diverged). A warm-started solve that
+//! diverges (the target turned or moved too far since the last frame) is done again from the
+//! cold start in the same frame.
+//!
+//! Every residual has the same weight (unit: one multiplication less per Jacobian element
+//! on the chip); the stopping tolerances are in units of `noise^2` (noise from the
 //! calibration), so that `sum r^2 / noise^2` is chi-square; the covariance is scaled by the
 //! residual variance, so model misfit shows in the 1-sigma.
 //!
@@ -88,7 +95,7 @@
 //! # Layout
 //!
 //! `config`: the constellation and the calibration, and their validation; `solver`:
-//! [`PoseSolver`]; `problem`: the least-squares rows GLSDC solves; `magnitude`: the spot
+//! [`PoseSolver`]; `cold`: the cold start's homography; `problem`: the least-squares rows GLSDC solves; `magnitude`: the spot
 //! magnitudes' readings and contrasts; `fixtures`: simulated spots, the built-in
 //! constellations and the benchmark frames. Everything public is re-exported here.
 //!
@@ -97,6 +104,7 @@
 //! [`Emulator::output_gradient`]: crate::emulator::Emulator::output_gradient
 //! [`glsdc::solve_with`]: crate::glsdc::solve_with
 
+mod cold;
 mod config;
 mod fixtures;
 mod magnitude;
@@ -110,13 +118,16 @@ pub use config::{
     MAX_BRIGHTNESS, MIN_BRIGHTNESS,
 };
 pub use fixtures::{
-    benchmark_frames, benchmark_frames_of, cta_constellation, flat_constellation,
-    four_array_constellation, simulate_spots, simulate_spots_with, BenchmarkFrames,
-    SIM_MAGNITUDE_SCALE,
+    attitude_xyz, benchmark_frames, benchmark_frames_of, cold_frames_of, cta_constellation,
+    flat_constellation, four_array_constellation, mislabel, simulate_spots, simulate_spots_with,
+    BenchmarkFrames, SIM_MAGNITUDE_SCALE,
 };
 pub use magnitude::MAGNITUDE_RMS_SIGMAS;
 pub use problem::Obs;
-pub use solver::{ModelKind, PoseSolution, PoseSolver, PoseStatus, SolverSettings};
+pub use solver::{
+    ModelKind, PoseSolution, PoseSolver, PoseStatus, SolverSettings, WRONG_SPOT_GAIN,
+    WRONG_SPOT_SIGMAS,
+};
 
 use crate::Real;
 use nalgebra::Vector3;

@@ -2,6 +2,7 @@
 //! near-field (eqs 60-63) model; spot matching, the cold and warm starts, the carried
 //! linearisation, the fallback from the magnitudes to the spots alone, and the status gates.
 
+use super::cold;
 use super::magnitude::{MagSolve, MAGNITUDE_RMS_SIGMAS};
 use super::problem::{Obs, PoseProblem};
 use super::{
@@ -10,7 +11,7 @@ use super::{
 };
 use crate::collinearity::{Linearisation, Params, ParamsExt};
 use crate::emulator::{Effects, Emulator, Head, Pose as HeadPose};
-use crate::glsdc::{self, Settings};
+use crate::glsdc::{self, Problem, Settings};
 use crate::mrp;
 use crate::pattern::Pattern;
 use crate::real::{deg, rad};
@@ -109,7 +110,22 @@ pub struct PoseSolution<T: Real> {
     pub condition: T,
     /// Whether this solve started from the cold start.
     pub cold_start: bool,
+    /// The ID of a beacon of the constellation left out of this solve: its spot's residual
+    /// disagreed with all the others' (a spot under another beacon's ID: see
+    /// [`WRONG_SPOT_SIGMAS`]), or the frame reported its ID twice (neither spot used).
+    pub dropped: Option<u8>,
 }
+
+/// A solve whose residual RMS exceeds this many noise sigmas (or that diverged) is screened
+/// for a wrong spot: solved again without each of its two worst-fitting spots in turn, from
+/// the cold start, and a spot is left out when the RMS without it is [`WRONG_SPOT_GAIN`]
+/// times smaller. Clean near-field frames sit near 1 sigma at 2-30 in; the pinhole model's
+/// misfit passes it within about 6 in, where the gain test keeps its answer unless one spot
+/// alone makes it.
+pub const WRONG_SPOT_SIGMAS: f32 = 4.0;
+/// How much smaller the residual RMS must be without a spot for it to be left out (see
+/// [`WRONG_SPOT_SIGMAS`]).
+pub const WRONG_SPOT_GAIN: f32 = 3.0;
 
 /// The pose solver: calibration and constellation converted to `T`, and the warm start.
 #[derive(Debug, Clone)]
@@ -155,6 +171,9 @@ pub struct PoseSolver<T: Real> {
     /// from it keeps them (a reading's weight moves with its rounding term from frame to
     /// frame, and the carried rows are the contrasts of those weights).
     pub(super) carry_mw: [T; MAX_BEACONS],
+    /// Solve with the pinhole model whatever the settings (the pinhole pass of a failed
+    /// near-field cold start, see [`Self::solve_keyed`]).
+    pinhole_pass: bool,
 }
 
 impl<T: Real> PoseSolver<T> {
@@ -196,6 +215,7 @@ impl<T: Real> PoseSolver<T> {
             carry: None,
             carry_key: 0,
             carry_mw: [T::zero(); MAX_BEACONS],
+            pinhole_pass: false,
         }
     }
 
@@ -334,25 +354,34 @@ impl<T: Real> PoseSolver<T> {
     /// ([`Obs::m`], [`Obs::mw`]); a saturated or too weak one is not used.
     pub fn match_spots(&self, spots: &[Spot]) -> Vec<Obs<T>, MAX_BEACONS> {
         let mut obs = Vec::new();
-        self.match_keyed(spots, &mut obs, true);
+        self.match_keyed(spots, &mut obs, true, &mut None);
         obs
     }
 
     /// [`Self::match_spots`] into `obs` (cleared first; filled in place, no copy of 480
     /// bytes on the chip's stack), the magnitudes only when `magnitudes`, returning which
     /// coordinates of which beacons were used: bits `2i` (X) and `2i + 1` (Y) for beacon `i`
-    /// of the constellation, and bit `2 MAX_BEACONS + i` for its magnitude.
+    /// of the constellation, and bit `2 MAX_BEACONS + i` for its magnitude. An ID of the
+    /// constellation that came twice leaves its beacon out, and is set in `twice`.
     fn match_keyed(
         &self,
         spots: &[Spot],
         obs: &mut Vec<Obs<T>, MAX_BEACONS>,
         magnitudes: bool,
+        twice: &mut Option<u8>,
     ) -> u64 {
         obs.clear();
+        *twice = None;
         let mut key = 0u64;
         let mag = self.mag.as_ref().filter(|_| magnitudes);
         for (i, (id, r)) in self.beacons.iter().enumerate() {
-            let spot = spots.iter().find(|s| s.id == *id);
+            let mut same = spots.iter().filter(|s| s.id == *id);
+            let spot = same.next();
+            // An ID reported twice: which spot is the beacon's is unknown, neither is used.
+            if same.next().is_some() {
+                *twice = Some(*id);
+                continue;
+            }
             if let Some(s) = spot {
                 let rail = |v: i16| i32::from(v).abs() >= self.rail;
                 let used = [!rail(s.x), !rail(s.y)];
@@ -382,28 +411,17 @@ impl<T: Real> PoseSolver<T> {
         key
     }
 
-    /// The documented cold start: `q = 0` and `t` from the linear pinhole lines of sight.
+    /// The cold start, whatever the attitude: the plate pose of the homography of the spots'
+    /// pinhole lines of sight ([`cold::plate_pose`]; for the pinhole model, its own eye's
+    /// `d, C`), when every beacon is then in front; `None` otherwise (or a singular fit).
+    // Never inlined: its matrices stay off the solve's frame, which the whole GLSDC run
+    // keeps on the chip's stack.
+    #[inline(never)]
     pub fn cold_start(&self, obs: &[Obs<T>]) -> Option<SVector<T, 6>> {
         let d = Vector3::new(self.cal[0], self.cal[1], self.cal[2]);
-        let ct = mrp::dcm(&Vector3::new(self.cal[3], self.cal[4], self.cal[5])).transpose();
-        let h = self.cal.h();
-        let mut a = Matrix3::<T>::zeros();
-        let mut b = Vector3::<T>::zeros();
-        // Whole spots only: a railed coordinate gives no line of sight.
-        for o in obs.iter().filter(|o| o.rows() == 2) {
-            let u = (ct * Vector3::new(o.y[0] / h, o.y[1] / h, T::one())).normalize();
-            // (t + r - d) x u = 0  <=>  [u x] t = (r - d) x u.
-            let s = mrp::skew(&u);
-            let st = s.transpose();
-            a += st * s;
-            b += st * (o.r - d).cross(&u);
-        }
-        let t = a.cholesky()?.solve(&b);
-        let x = SVector::<T, 6>::new(t.x, t.y, t.z, T::zero(), T::zero(), T::zero());
-        if !(t.iter().all(|v| v.is_finite()) && self.in_front(&x, obs)) {
-            return None;
-        }
-        Some(x)
+        let c_p = mrp::dcm(&Vector3::new(self.cal[3], self.cal[4], self.cal[5]));
+        let x = SVector::<T, 6>::from(cold::plate_pose(obs, self.cal.h())?.unknowns(&d, &c_p));
+        (x.iter().all(|v| v.is_finite()) && self.in_front(&x, obs)).then_some(x)
     }
 
     /// Solve for the pose from one frame of spots (with their magnitudes when the
@@ -411,8 +429,9 @@ impl<T: Real> PoseSolver<T> {
     /// [`Self::solve_frame`]).
     pub fn solve(&mut self, spots: &[Spot]) -> PoseSolution<T> {
         let mut obs = Vec::new();
-        let key = self.match_keyed(spots, &mut obs, true);
-        self.solve_carried(&mut obs, key)
+        let mut twice = None;
+        let key = self.match_keyed(spots, &mut obs, true, &mut twice);
+        self.solve_carried(&mut obs, key, twice)
     }
 
     /// [`Self::solve`] for a frame the NorthStar reported at light-sensitivity setting
@@ -426,8 +445,9 @@ impl<T: Real> PoseSolver<T> {
             .mag
             .as_ref()
             .is_some_and(|m| m.sensitivity == sensitivity);
-        let key = self.match_keyed(spots, &mut obs, same);
-        self.solve_carried(&mut obs, key)
+        let mut twice = None;
+        let key = self.match_keyed(spots, &mut obs, same, &mut twice);
+        self.solve_carried(&mut obs, key, twice)
     }
 
     /// [`Self::solve_keyed`] for matched spots: where the last linearisation will be carried
@@ -436,7 +456,16 @@ impl<T: Real> PoseSolver<T> {
     /// follow each reading's rounding term, which moves a little from frame to frame: a step
     /// from rows of other weights misses, and costs another Jacobian pass). The weights
     /// used are kept for the next frame.
-    fn solve_carried(&mut self, obs: &mut [Obs<T>], key: u64) -> PoseSolution<T> {
+    ///
+    /// Then the wrong-spot screen (see [`WRONG_SPOT_SIGMAS`]); `twice` (an ID the frame
+    /// reported twice, see [`Self::match_keyed`]) is reported as dropped unless the screen
+    /// drops a spot.
+    fn solve_carried(
+        &mut self,
+        obs: &mut [Obs<T>],
+        key: u64,
+        twice: Option<u8>,
+    ) -> PoseSolution<T> {
         if self.warm.is_some() && self.carry.is_some() && key == self.carry_key {
             for (o, w) in obs.iter_mut().zip(&self.carry_mw) {
                 if o.magnitude_used() {
@@ -444,11 +473,111 @@ impl<T: Real> PoseSolver<T> {
                 }
             }
         }
-        let sol = self.solve_keyed(obs, Some(key));
+        let mut sol = self.solve_keyed(obs, Some(key));
         for (w, o) in self.carry_mw.iter_mut().zip(obs.iter()) {
             *w = o.mw;
         }
+        sol.dropped = twice;
+        // A wrong spot: the two worst-fitting spots left out in turn (see WRONG_SPOT_SIGMAS).
+        let k = T::lit(WRONG_SPOT_SIGMAS as f64);
+        let suspect = match sol.status {
+            PoseStatus::Ok => sol.rms * sol.rms > k * k * self.noise2,
+            PoseStatus::Diverged => true,
+            _ => false,
+        };
+        if !(suspect && obs.len() > MIN_BEACONS) {
+            return sol;
+        }
+        let rms = if sol.rms > T::zero() {
+            sol.rms
+        } else {
+            T::max_value().unwrap_or_else(T::one)
+        };
+        let gain = T::lit(WRONG_SPOT_GAIN as f64);
+        for i in self.worst_fits(obs, &sol) {
+            let Some(o) = obs.get_mut(i) else { continue };
+            let keep = *o;
+            o.used = [false; 2];
+            o.mw = T::zero();
+            self.warm = None;
+            self.carry = None;
+            let mut s = self.solve_keyed(obs, None);
+            obs[i] = keep;
+            if s.status == PoseStatus::Ok && s.rms * gain <= rms {
+                s.beacons -= 1;
+                // Observation i is the i-th beacon of the constellation with a spot in use.
+                s.dropped = (0..self.beacons.len())
+                    .filter(|b| (key >> (2 * b)) & 3 != 0)
+                    .nth(i)
+                    .map(|b| self.beacons[b].0);
+                return s;
+            }
+        }
+        // No single spot explains the misfit: the first answer stands, and the next frame
+        // starts from it when it was good.
+        self.warm = if sol.status == PoseStatus::Ok {
+            Some(SVector::<T, 6>::new(
+                sol.position.x,
+                sol.position.y,
+                sol.position.z,
+                sol.mrp.x,
+                sol.mrp.y,
+                sol.mrp.z,
+            ))
+        } else {
+            None
+        };
         sol
+    }
+
+    /// The indices of the two observations that fit the solution `sol` worst (largest sum of
+    /// squared residuals over their used coordinates, from the problem's own rows without the
+    /// magnitudes). `usize::MAX` where there is none, or when the model cannot place a beacon.
+    #[inline(never)]
+    fn worst_fits(&self, obs: &[Obs<T>], sol: &PoseSolution<T>) -> [usize; 2] {
+        let x = SVector::<T, 6>::new(
+            sol.position.x,
+            sol.position.y,
+            sol.position.z,
+            sol.mrp.x,
+            sol.mrp.y,
+            sol.mrp.z,
+        );
+        let problem = PoseProblem {
+            lin: &self.lin,
+            emulator: self.emulator.as_ref(),
+            boresight: self.boresight,
+            obs,
+            magnitudes: false,
+        };
+        let mut e = [T::zero(); MAX_BEACONS];
+        let mut row = 0;
+        // One row per used coordinate, in the observations' order.
+        let placed = problem.rows(&x, false, &mut |r, _, _| {
+            let (mut k, mut i) = (row, 0);
+            while i < obs.len() && k >= obs[i].rows() {
+                k -= obs[i].rows();
+                i += 1;
+            }
+            if let Some(e) = e.get_mut(i) {
+                *e += r * r;
+            }
+            row += 1;
+        });
+        let mut best = [usize::MAX; 2];
+        if placed.is_err() {
+            return best;
+        }
+        let mut top = [-T::one(); 2];
+        for (i, &r) in e.iter().enumerate().take(obs.len()) {
+            if r > top[0] {
+                (best[1], top[1]) = (best[0], top[0]);
+                (best[0], top[0]) = (i, r);
+            } else if r > top[1] {
+                (best[1], top[1]) = (i, r);
+            }
+        }
+        best
     }
 
     /// Solve for the pose from matched observations (without the linearisation carried
@@ -460,28 +589,73 @@ impl<T: Real> PoseSolver<T> {
     /// Solve; `key` names the observations' beacons and coordinates (see
     /// [`Self::match_keyed`]). With magnitudes, a solve that fails or whose residual RMS
     /// exceeds [`MAGNITUDE_RMS_SIGMAS`] noise sigmas is done again from the spots alone
-    /// (from the same start), and that answer is reported.
+    /// (from the same start), and that answer is reported. A warm-started solve that diverges
+    /// is done again from the cold start; a near-field one that fails from the cold start is
+    /// done with the pinhole model first, then from its answer.
+    // Never inlined: the frame handler calls it for the frame and for the wrong-spot trials,
+    // one copy of its code on the chip.
+    #[inline(never)]
     fn solve_keyed(&mut self, obs: &[Obs<T>], key: Option<u64>) -> PoseSolution<T> {
         let warm = self.warm;
-        let sol = self.solve_once(obs, key, true);
-        if sol.magnitudes == 0 {
-            return sol;
-        }
         let limit = T::lit(MAGNITUDE_RMS_SIGMAS as f64);
-        if sol.status == PoseStatus::Ok && sol.rms * sol.rms <= limit * limit * self.noise2 {
-            return sol;
+        let (mut key, mut magnitudes) = (key, true);
+        // 0: not yet; 1: this pass; 2: done (see below).
+        let mut pinhole_pass = 0u8;
+        // One call site, one solution on the stack (on the chip this is inlined into the
+        // board's frame handler): each pass is the first solve, or its retry.
+        loop {
+            self.pinhole_pass = pinhole_pass == 1;
+            let sol = self.solve_once(obs, key.filter(|_| pinhole_pass != 1), magnitudes);
+            self.pinhole_pass = false;
+            if pinhole_pass == 1 {
+                pinhole_pass = 2;
+                // Its answer is the near-field solve's warm start; a failure is reported.
+                if sol.status == PoseStatus::Ok {
+                    continue;
+                }
+                return sol;
+            }
+            // A warm start that diverged (the target turned or moved too far since the last
+            // frame for Gauss-Newton to follow; `fail` forgot it): the same frame from the
+            // cold start. A cold solve never diverges with `cold_start` false.
+            if !sol.cold_start && sol.status == PoseStatus::Diverged {
+                continue;
+            }
+            // A near-field solve that fails from the cold start (steep tilts near the target,
+            // where the homography's pinhole pose puts beacons where the model has no
+            // gradient): the pinhole model (eq 65, smooth everywhere in front) from the same
+            // start first, then the near-field model from its answer.
+            if sol.cold_start
+                && pinhole_pass == 0
+                && matches!(
+                    sol.status,
+                    PoseStatus::Diverged | PoseStatus::IllConditioned
+                )
+                && self.emulator.is_some()
+            {
+                pinhole_pass = 1;
+                continue;
+            }
+            if sol.magnitudes == 0
+                || (sol.status == PoseStatus::Ok
+                    && sol.rms * sol.rms <= limit * limit * self.noise2)
+            {
+                return sol;
+            }
+            self.warm = warm;
+            self.carry = None;
+            // The spots' rows alone: the key without the magnitudes' bits.
+            key = key.map(|k| k & ((1u64 << (2 * MAX_BEACONS)) - 1));
+            magnitudes = false;
         }
-        self.warm = warm;
-        self.carry = None;
-        // The spots' rows alone: the key without the magnitudes' bits.
-        let spots_only = key.map(|k| k & ((1u64 << (2 * MAX_BEACONS)) - 1));
-        self.solve_once(obs, spots_only, false)
     }
 
-    /// One solve (see [`Self::solve_keyed`]), with the magnitudes when `magnitudes`. The
-    /// last solve's linearisation serves the first step when the warm start is in use and
-    /// the key is the same: no model evaluation when the warm start is that solve's answer,
-    /// else one pass without the Jacobian.
+    /// One solve (see [`Self::solve_keyed`]), with the magnitudes when `magnitudes`, from the
+    /// warm start or, without one, the cold start. The last solve's linearisation serves the
+    /// first step when the warm start is in use and the key is the same: no model evaluation
+    /// when the warm start is that solve's answer, else one pass without the Jacobian. Too
+    /// few beacons forget the warm start: the target was lost, and the next frame with
+    /// enough starts cold (at any attitude) rather than from where it was.
     // Never inlined: on the chip its frame (the solve's matrices) is its own, not added to
     // the caller's (the board's reply being built).
     #[inline(never)]
@@ -500,7 +674,7 @@ impl<T: Real> PoseSolver<T> {
         let n = obs.len() as u8;
         let rows: usize = obs.iter().map(|o| o.rows()).sum();
         if obs.len() < MIN_BEACONS || rows < 2 * MIN_BEACONS {
-            return failed(PoseStatus::TooFewBeacons, fallback, n, 0, false);
+            return self.fail(PoseStatus::TooFewBeacons, fallback, n, 0, false);
         }
         let (x0, cold) = match self.warm {
             Some(x) => (x, false),
@@ -534,7 +708,7 @@ impl<T: Real> PoseSolver<T> {
         };
         let problem = PoseProblem {
             lin: &self.lin,
-            emulator: self.emulator.as_ref(),
+            emulator: self.emulator.as_ref().filter(|_| !self.pinhole_pass),
             boresight: self.boresight,
             obs,
             magnitudes,
@@ -588,6 +762,7 @@ impl<T: Real> PoseSolver<T> {
                     magnitudes: problem.magnitudes_fitted(),
                     condition: sol.condition,
                     cold_start: cold,
+                    dropped: None,
                 }
             }
             Err(glsdc::Error::RankDeficient { x, .. }) => {
@@ -678,5 +853,6 @@ fn failed<T: Real>(
         magnitudes: 0,
         condition: T::zero(),
         cold_start: cold,
+        dropped: None,
     }
 }

@@ -737,8 +737,9 @@ fn implausible_solutions_are_never_ok() {
         assert_ne!(sol.status, PoseStatus::Ok, "{sol:?}");
         solved += usize::from(sol.position.norm() > 908.0);
     }
-    // Converged far beyond the far limit (the gate, not the solver, rejected them).
-    assert!(solved >= 5, "{solved}");
+    // Some converged far beyond the far limit (the gate, not the solver, rejected them; the
+    // attitude-free cold start lands fewer of these frames there than `q = 0` did).
+    assert!(solved >= 1, "{solved}");
 
     // The far limit: 908 in for this constellation; noise-free frames on axis.
     let q0 = Vector3::zeros();
@@ -768,4 +769,8 @@ fn implausible_solutions_are_never_ok() {
     assert_eq!(at(8.0, SolverSettings::default()).status, PoseStatus::Ok);
 }
 
+mod cold;
+mod envelope;
 mod magnitude;
+mod tracking;
+mod wrong_spots;

@@ -64,8 +64,9 @@ pub mod sensor;
 /// (the beacon board's had a watchdog flag, the sensor board's nothing). 7: the sensor
 /// board's calibration carries the spot magnitude law ([`crate::pose::Magnitude`]), its
 /// constellation each beacon's brightness, and its pose report the magnitudes fitted
-/// ([`sensor::PoseReport::magnitudes`]).
-pub const PROTOCOL_VERSION: u16 = 7;
+/// ([`sensor::PoseReport::magnitudes`]). 8: the pose report names the beacon a solve left
+/// out ([`sensor::PoseReport::dropped`]: a wrong spot, or an ID reported twice).
+pub const PROTOCOL_VERSION: u16 = 8;
 
 /// Sequence number meaning "unknown": used in replies to frames whose header could not be
 /// read. Hosts never use it for a request.
@@ -693,14 +694,14 @@ mod tests {
     /// frame = [0] + cobs(payload + crc32c(payload).to_bytes(4, 'little')) + [0]
     /// ```
     ///
-    /// Frame 1: header (version 7, seq 7) = 07 07, `Request::Board` = variant 2 = 02,
-    /// 0xdeadbeef = varint ef fd b6 f5 0d; CRC-32C 0x65dcffbb = bb ff dc 65 (LE); no zero,
+    /// Frame 1: header (version 8, seq 7) = 08 07, `Request::Board` = variant 2 = 02,
+    /// 0xdeadbeef = varint ef fd b6 f5 0d; CRC-32C 0xddbefe65 = 65 fe be dd (LE); no zero,
     /// so COBS is one run of 12: 0d then the 12 bytes.
-    /// Frame 2: header (7, seq 300 = varint ac 02), `Request::Board` 02,
-    /// `SensorRequest::Status` = variant 0 = 00; CRC 0x8dcd9533 = 33 95 cd 8d; COBS splits at
-    /// the zero: 05 | 07 ac 02 02, 05 | 33 95 cd 8d. (Protocols 5 and 6 had the same frames
-    /// with 05 and 06 for the version and the CRCs 0xf7a405f5, 0xfdef4a6b and 0x2ce0829c,
-    /// 0xb5dcfa9f: the script reproduces them too.)
+    /// Frame 2: header (8, seq 300 = varint ac 02), `Request::Board` 02,
+    /// `SensorRequest::Status` = variant 0 = 00; CRC 0xe0dc90e6 = e6 90 dc e0; COBS splits at
+    /// the zero: 05 | 08 ac 02 02, 05 | e6 90 dc e0. (Protocols 5, 6 and 7 had the same frames
+    /// with 05, 06 and 07 for the version and the CRCs 0xf7a405f5, 0xfdef4a6b, 0x65dcffbb and
+    /// 0x2ce0829c, 0xb5dcfa9f, 0x8dcd9533: the script reproduces them too.)
     /// RCC_CSR values as the STM32F1 leaves them (RM0008 7.3.10; bits 0-1 are LSION and
     /// LSIRDY, bit 24 RMVF): each cause on its own, with the NRST flag an internal reset may
     /// set along, and the power-on value.
@@ -733,7 +734,7 @@ mod tests {
     #[test]
     fn golden_frames() {
         assert_eq!(
-            PROTOCOL_VERSION, 7,
+            PROTOCOL_VERSION, 8,
             "a protocol version bump changes the golden frames: recompute them (see above)"
         );
         let mut buf = [0u8; 64];
@@ -746,7 +747,7 @@ mod tests {
         assert_eq!(
             f,
             [
-                0x00, 0x0d, 0x07, 0x07, 0x02, 0xef, 0xfd, 0xb6, 0xf5, 0x0d, 0xbb, 0xff, 0xdc, 0x65,
+                0x00, 0x0d, 0x08, 0x07, 0x02, 0xef, 0xfd, 0xb6, 0xf5, 0x0d, 0x65, 0xfe, 0xbe, 0xdd,
                 0x00
             ]
         );
@@ -760,7 +761,7 @@ mod tests {
         let f = encode_frame(Header::new(300), &status, &mut buf).unwrap();
         assert_eq!(
             f,
-            [0x00, 0x05, 0x07, 0xac, 0x02, 0x02, 0x05, 0x33, 0x95, 0xcd, 0x8d, 0x00]
+            [0x00, 0x05, 0x08, 0xac, 0x02, 0x02, 0x05, 0xe6, 0x90, 0xdc, 0xe0, 0x00]
         );
         let mut d = FrameDecoder::<64>::new();
         let got = f

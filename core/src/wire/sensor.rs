@@ -112,6 +112,10 @@ pub struct PoseReport {
     pub magnitudes: u8,
     /// Whether the solve started cold (no previous good pose).
     pub cold_start: bool,
+    /// The ID of a beacon the solve left out ([`crate::pose::PoseSolution::dropped`]): its
+    /// spot disagreed with all the others' (a spot under another beacon's ID), or the frame
+    /// reported its ID twice.
+    pub dropped: Option<u8>,
     /// Time spent solving on the board, microseconds.
     pub solve_us: u32,
 }

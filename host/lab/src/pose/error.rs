@@ -119,7 +119,7 @@ pub enum Error {
     #[error(
         "--effect {effect}: `{name}` describes the CTA's beacon plate, not the sensor head (the \
          simulated target's LEDs face along its constellation's boresight, turned by \
-         --yaw-deg); the head takes proximity, intensity, beacon_pattern, cell_gain, \
+         --attitude-deg or --yaw-deg); the head takes proximity, intensity, beacon_pattern, cell_gain, \
          cell_bias, face_angle, saturation and crosstalk"
     )]
     PlateEffect {

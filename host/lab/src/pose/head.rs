@@ -5,9 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use cta_core::emulator::Emulator;
-use cta_core::mrp;
 use cta_core::pose::{cta_constellation, Calibration};
-use cta_core::real::rad;
 use cta_firmware_sensor::sim::SimNorthStar;
 use nalgebra::Vector3;
 
@@ -23,14 +21,17 @@ pub struct SimScene {
     pub range: f64,
     /// Target lateral offset x, y, inches.
     pub offset: [f64; 2],
-    /// Target rotation about z, degrees.
-    pub yaw_deg: f64,
+    /// Target attitude: rotations about the board frame's x, y, z, in that order, degrees
+    /// ([`cta_core::pose::attitude_xyz`]).
+    pub attitude_deg: [f64; 3],
     /// Spot noise, counts (1-sigma, 0 to 32768).
     pub noise: f64,
     /// Spot magnitude noise, percent of the magnitude (1-sigma, 0 to 100).
     pub magnitude_noise: f64,
     /// Probability of line noise before a NorthStar frame (0 to 1).
     pub garbage: f64,
+    /// Probability that a frame carries one spot under another beacon's ID (0 to 1).
+    pub wrong_id: f64,
     /// A simulation's truth sidecar whose head to simulate.
     pub truth: Option<PathBuf>,
     /// Effects of the vocabulary to give the Table 3 head, `NAME=VALUE`.
@@ -42,10 +43,11 @@ impl Default for SimScene {
         SimScene {
             range: 12.0,
             offset: [0.2, -0.1],
-            yaw_deg: 2.0,
+            attitude_deg: [0.0, 0.0, 2.0],
             noise: 32.768,
             magnitude_noise: 0.07,
             garbage: 0.0,
+            wrong_id: 0.0,
             truth: None,
             effects: Vec::new(),
         }
@@ -58,10 +60,10 @@ impl SimScene {
     pub fn check_values(&self) -> Result<(), Error> {
         check_ranges("--range", &[self.range])?;
         let bad = |m: String| Err(Error::Option(m));
-        if !self.yaw_deg.is_finite() {
+        if !self.attitude_deg.iter().all(|a| a.is_finite()) {
+            let [x, y, z] = self.attitude_deg;
             return bad(format!(
-                "--yaw-deg {}: expected a finite angle, degrees",
-                self.yaw_deg
+                "--attitude-deg {x},{y},{z}: expected three finite angles RX,RY,RZ, degrees"
             ));
         }
         if !(self.noise >= 0.0 && self.noise <= 32768.0) {
@@ -74,6 +76,12 @@ impl SimScene {
             return bad(format!(
                 "--magnitude-noise {}: expected 0 to 100 percent of the magnitude",
                 self.magnitude_noise
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.wrong_id) {
+            return bad(format!(
+                "--wrong-id {}: expected a probability, 0 to 1",
+                self.wrong_id
             ));
         }
         if !(0.0..=1.0).contains(&self.garbage) {
@@ -144,7 +152,7 @@ impl SimScene {
     /// one `truth` or `effects` give), or the error of a bad `truth` or `effects`.
     pub fn try_northstar(&self) -> Result<SimNorthStar, Error> {
         let t = Vector3::new(self.offset[0], self.offset[1], self.range);
-        let q = mrp::from_axis_angle(&Vector3::z(), rad(self.yaw_deg));
+        let q = cta_core::pose::attitude_xyz(self.attitude_deg);
         let mut ns = SimNorthStar::new(
             &Calibration::table3(),
             cta_constellation(),
@@ -158,6 +166,7 @@ impl SimScene {
         }
         ns.magnitude_noise = self.magnitude_noise;
         ns.garbage = self.garbage;
+        ns.wrong_id = self.wrong_id;
         Ok(ns)
     }
 

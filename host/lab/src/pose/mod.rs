@@ -1,8 +1,10 @@
 //! The pose analyses: the CTA's beacon plate and constellations, the calibrations a pose is
-//! solved with, the simulated sensor head, the accuracy table and the pose noise floor.
+//! solved with, the simulated sensor head, the accuracy table, the docking envelope and the
+//! pose noise floor.
 
 pub mod accuracy;
 pub mod calibrations;
+pub mod envelope;
 pub mod error;
 pub mod floor;
 pub mod head;

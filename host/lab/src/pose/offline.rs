@@ -173,6 +173,7 @@ pub fn solve_frames(
                 beacons: sol.beacons,
                 magnitudes: sol.magnitudes,
                 cold_start: sol.cold_start,
+                dropped: sol.dropped,
                 solve_us: t0.elapsed().as_micros().min(u32::MAX as u128) as u32,
             }
         })

@@ -192,15 +192,16 @@ fn back_to_idle(
 /// The header of `cta sensor pose`'s table (the columns of [`pose_line`]).
 pub fn pose_header() -> String {
     format!(
-        "{:>6} {:>10} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7} {:>8} {:>7} {:>7} {:>7} {:>3} {:>3} {:>3} {:>8} {:>4} {}",
+        "{:>6} {:>10} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7} {:>8} {:>7} {:>7} {:>7} {:>3} {:>3} {:>3} {:>8} {:>4} {:>4} {}",
         "seq", "t (ms)", "x (in)", "y (in)", "z (in)", "rx (deg)", "ry", "rz", "sx(in)", "sy", "sz",
-        "srx(deg)", "sry", "srz", "rms", "it", "bcn", "mag", "solve us", "cold", "status"
+        "srx(deg)", "sry", "srz", "rms", "it", "bcn", "mag", "solve us", "cold", "drop", "status"
     )
 }
 
 /// One row of `cta sensor pose`'s table: position, attitude (rotation vector, deg), their
 /// 1-sigma ("-" where the board has none), residual RMS, iterations, beacons used, spot
-/// magnitudes fitted, solve time on the board, cold start, status.
+/// magnitudes fitted, solve time on the board, cold start, the beacon left out (its ID: a
+/// spot that disagreed with the rest, or an ID reported twice; "-" for none), status.
 pub fn pose_line(p: &PoseReport) -> String {
     let e = attitude_deg(p);
     // Sigma fields are -1 when not available.
@@ -212,7 +213,7 @@ pub fn pose_line(p: &PoseReport) -> String {
         }
     };
     format!(
-        "{:>6} {:>10.1} {:>9.4} {:>9.4} {:>9.4} {:>8.3} {:>8.3} {:>8.3} {} {} {}  {} {} {} {:>7.1} {:>3} {:>3} {:>3} {:>8} {:>4} {:?}",
+        "{:>6} {:>10.1} {:>9.4} {:>9.4} {:>9.4} {:>8.3} {:>8.3} {:>8.3} {} {} {}  {} {} {} {:>7.1} {:>3} {:>3} {:>3} {:>8} {:>4} {:>4} {:?}",
         p.seq,
         p.t_us as f64 / 1000.0,
         p.position[0],
@@ -233,6 +234,7 @@ pub fn pose_line(p: &PoseReport) -> String {
         p.magnitudes,
         p.solve_us,
         if p.cold_start { "yes" } else { "no" },
+        p.dropped.map_or("-".to_string(), |id| id.to_string()),
         p.status
     )
 }

@@ -1,7 +1,8 @@
-//! The pose tables as text: `cta sensor accuracy` and `cta sensor floor`.
+//! The pose tables as text: `cta sensor accuracy` (and its `--envelope`) and `cta sensor floor`.
 
 use cta_core::pose::NearField;
 use cta_lab::pose::accuracy::AccuracyTable;
+use cta_lab::pose::envelope::EnvelopeTable;
 use cta_lab::pose::floor::{FloorTable, CLAIM_RANGE};
 
 /// The accuracy table as text: its setup, the errors per frame, the systematic errors and
@@ -330,4 +331,72 @@ mod tests {
         assert!(text.contains("no pose with 4 usable beacons"), "{text}");
         assert!(text.contains("0.3 in: 0 of 2"), "{text}");
     }
+}
+
+/// `cta sensor accuracy --envelope` as text: one row per range.
+pub fn envelope(t: &EnvelopeTable) -> String {
+    let mut s = format!(
+        "Cold acquisition over a docking envelope: eq 63 physics, Table 3 head, noise {:.1} counts (1-sigma),\n\
+         {}, {} solver, every frame solved from the cold start (no previous pose).\n\
+         Poses: roll about the line of sight anywhere in +/-180 deg, tilt up to `tilt` (the largest at which every\n\
+         roll and direction keeps {} whole spots on axis), lateral offset up to `offset` (the same, untilted: the field\n\
+         of view's edge). Frames with fewer whole spots are counted (`usable`), not solved. Acquired: Ok within {} of\n\
+         its 1-sigma of the truth (near-field, with the true head) or of the pinhole's own solve from the truth\n\
+         (eq 65 fitted at 25-30 in: biased near the target). Errors: RMS over the acquired frames, against the truth.\n\
+         failed: D diverged, I ill-conditioned, F too few beacons, W Ok at a wrong minimum.\n\n",
+        t.noise,
+        t.label,
+        if t.f64 { "f64" } else { "f32 (as on the chip)" },
+        cta_lab::pose::envelope::USABLE_SPOTS,
+        cta_lab::pose::envelope::ACQUIRED_SIGMAS,
+    );
+    s += &format!(
+        "{:>6} {:>5} {:>7} {:>6} {:>6} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>6} {:>6}  {:<13} {:<13}\n",
+        "range", "tilt", "offset", "frames", "usable", "nf acq", "ph acq", "nf pos", "ph pos", "nf att",
+        "ph att", "x pos", "x att", "nf failed", "ph failed"
+    );
+    s += &format!(
+        "{:>6} {:>5} {:>7} {:>6} {:>6} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>6} {:>6}\n",
+        "(in)",
+        "(deg)",
+        "(in)",
+        "",
+        "",
+        "(%)",
+        "(%)",
+        "(in)",
+        "(in)",
+        "(deg)",
+        "(deg)",
+        "ph/nf",
+        "ph/nf"
+    );
+    let pct = |a: usize, n: usize| 100.0 * a as f64 / n.max(1) as f64;
+    let failed = |f: &cta_lab::pose::envelope::Failures| {
+        format!(
+            "D{} I{} F{} W{}",
+            f.diverged, f.ill_conditioned, f.too_few, f.wrong_minimum
+        )
+    };
+    for r in &t.rows {
+        s += &format!(
+            "{:>6.1} {:>5.0} {:>7.2} {:>6} {:>6} {:>8.2} {:>8.2} {:>9.5} {:>9.5} {:>8.4} {:>8.4} {:>6.1} {:>6.1}  {:<13} {:<13}\n",
+            r.range,
+            r.max_tilt_deg,
+            r.max_offset,
+            r.frames,
+            r.usable,
+            pct(r.near_field.acquired, r.usable),
+            pct(r.pinhole.acquired, r.usable),
+            r.near_field.pos,
+            r.pinhole.pos,
+            r.near_field.att,
+            r.pinhole.att,
+            r.ratio_pos(),
+            r.ratio_att(),
+            failed(&r.near_field.failures),
+            failed(&r.pinhole.failures),
+        );
+    }
+    s
 }

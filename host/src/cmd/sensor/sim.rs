@@ -16,9 +16,30 @@ pub struct SimArgs {
     /// Target lateral offset x,y, inches (two numbers, comma-separated).
     #[arg(long, value_name = "X,Y", default_value = "0.2,-0.1", value_parser = crate::args::parse_xy, allow_hyphen_values = true)]
     pub offset: [f64; 2],
-    /// Target rotation about z, degrees.
+    /// Target rotation about z, degrees (shorthand for --attitude-deg 0,0,RZ).
     #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     pub yaw_deg: f64,
+    /// Target attitude: rotations about the board frame's x, y and z, in that order,
+    /// degrees (three numbers, comma-separated; any roll RZ, e.g. 10,-5,150). Replaces
+    /// --yaw-deg.
+    #[arg(
+        long,
+        value_name = "RX,RY,RZ",
+        allow_hyphen_values = true,
+        conflicts_with = "yaw_deg"
+    )]
+    pub attitude_deg: Option<String>,
+    /// Probability that a frame carries one spot under another beacon's ID (0 to 1): a
+    /// random spot reported with a random other spot's ID, whose own spot is then missing
+    /// (a reflection or an ID mix-up). The board leaves such a spot out by its residual and
+    /// names the beacon (column `drop` of `cta sensor pose`).
+    #[arg(
+        long,
+        value_name = "P",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub wrong_id: f64,
     /// Spot noise, counts (1-sigma, 0 or more).
     #[arg(long, default_value_t = 32.768, allow_negative_numbers = true)]
     pub noise: f64,
@@ -69,23 +90,27 @@ pub struct SimArgs {
 }
 
 impl SimArgs {
-    /// The scene of the simulated board.
-    pub fn scene(&self) -> SimScene {
-        SimScene {
+    /// The scene of the simulated board (an error names a bad --attitude-deg).
+    pub fn scene(&self) -> Result<SimScene> {
+        Ok(SimScene {
             range: self.range,
             offset: self.offset,
-            yaw_deg: self.yaw_deg,
+            attitude_deg: match &self.attitude_deg {
+                Some(a) => parse_attitude(a).map_err(|e| anyhow::anyhow!("--attitude-deg {e}"))?,
+                None => [0.0, 0.0, self.yaw_deg],
+            },
+            wrong_id: self.wrong_id,
             noise: self.noise,
             magnitude_noise: self.magnitude_noise,
             garbage: self.garbage,
             truth: self.truth.clone(),
             effects: self.effects.clone(),
-        }
+        })
     }
 
     /// Check every option (with an error naming the option and its allowed range).
     pub fn check(&self) -> Result<()> {
-        let scene = self.scene();
+        let scene = self.scene()?;
         scene.check_values()?;
         if let Some(t) = self.seconds {
             if !(t > 0.0 && t.is_finite()) {
@@ -97,11 +122,16 @@ impl SimArgs {
     }
 }
 
+/// `--attitude-deg RX,RY,RZ`.
+fn parse_attitude(s: &str) -> std::result::Result<[f64; 3], String> {
+    crate::args::parse_floats(s, "RX,RY,RZ (degrees)", "10,-5,150")
+}
+
 /// Run `cta sensor sim`: start the board, say where it is and what it simulates, and serve
 /// until `--seconds` have passed or the process is stopped.
 pub(super) fn run(args: &SimArgs) -> Result<()> {
     args.check()?;
-    let scene = args.scene();
+    let scene = args.scene()?;
     let head = scene.head()?;
     let sim = cta_lab::boards::sensor::start_sim(&scene, args.configured)?;
     println!("simulated sensor board on {}", sim.path());

@@ -118,6 +118,15 @@ pub struct AccuracyArgs {
     /// noise floor at 30 in).
     #[arg(long)]
     pub check: bool,
+    /// Draw poses over a docking envelope instead, each frame solved from the cold start:
+    /// any roll about the line of sight (+/-180 deg), tilts up to the angle at which 4
+    /// beacons stay in view, lateral offsets to the field of view's edge (both found per
+    /// range). Per range: the cold acquisition rate, the near-field and pinhole errors and
+    /// their ratio, and the failed frames with why. Uses --trials (frames per range; 1000
+    /// for a per-mille rate), --ranges, --noise-fraction, --seed, --f64, the target options
+    /// and --json; the near-field solver has the true head.
+    #[arg(long, conflicts_with_all = ["plot", "check", "no_magnitudes", "true_calibration"])]
+    pub envelope: bool,
 }
 
 impl AccuracyArgs {
@@ -233,8 +242,26 @@ fn print_table(
     Ok(())
 }
 
+/// Run `cta sensor accuracy --envelope`.
+fn envelope(a: &AccuracyArgs) -> Result<()> {
+    let options = cta_lab::pose::envelope::EnvelopeOptions {
+        trials: a.trials,
+        ranges: a.ranges.clone(),
+        noise_fraction: a.noise_fraction,
+        seed: a.seed,
+        f64: a.f64,
+    };
+    let scene = a.scene.scene();
+    let target = target(options.check(), &scene)?;
+    let table = cta_lab::pose::envelope::envelope_table_on(&options, target)?;
+    print_table(&table, render::envelope(&table), a.json, None, |_| Ok(()))
+}
+
 /// Run `cta sensor accuracy`.
 pub(super) fn accuracy(a: &AccuracyArgs) -> Result<()> {
+    if a.envelope {
+        return envelope(a);
+    }
     if let Some(p) = &a.plot {
         cta_lab::plot::check_plot_path(p)?;
     }

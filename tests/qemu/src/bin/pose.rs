@@ -14,15 +14,23 @@
 //! [`cta_core::pose::four_array_constellation`] instead of the 10-beacon
 //! [`cta_core::pose::cta_constellation`] (same poses and noise). Every solve is the board's,
 //! [`PoseSolver::solve_frame`] at the frames' sensitivity (4, the law's).
+//!
+//! `POSE_COLD=1` measures cold frames instead: each segment solves one of the three frames
+//! of [`cta_core::pose::cold_frames_of`] (the target turned 90, 180 and -150 deg about the
+//! line of sight and tilted 20 deg) from nothing, as the board's first frame or the first
+//! after losing the target: the attitude-independent cold start and GLSDC from it. It
+//! prints `COLD f32 ...` with the largest position and attitude differences from GLSDC
+//! started at the true pose, and fails unless every frame is solved Ok at that minimum.
 #![no_std]
 #![no_main]
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use cta_core::pose::{
-    benchmark_frames_of, cta_constellation, four_array_constellation, Calibration, Magnitude,
-    ModelKind, PoseSolver, PoseStatus, SolverSettings,
+    benchmark_frames_of, cold_frames_of, cta_constellation, four_array_constellation,
+    Calibration, Magnitude, ModelKind, PoseSolver, PoseStatus, SolverSettings,
 };
+use cta_core::mrp;
 use cta_qemu::{done, end, fail, mark, paint_stack, stack_used};
 
 /// Measured solves (each from the same warm start).
@@ -63,6 +71,9 @@ fn main() -> ! {
     let Ok(mut solver) = PoseSolver::<f32>::new(&cal, &con, settings) else {
         fail("solver rejected the configuration")
     };
+    if option_env!("POSE_COLD") == Some("1") {
+        cold(solver, name, &con)
+    }
     let (lo, sp) = paint_stack(PAINT);
     let first = solver.solve_frame(&f1, SENSITIVITY);
     if first.status != PoseStatus::Ok {
@@ -115,6 +126,61 @@ fn main() -> ! {
         sol.mrp.x,
         sol.mrp.y,
         sol.mrp.z
+    );
+    done("pose: ok")
+}
+
+/// The cold frames (see the module documentation): each solved by a fresh copy of the
+/// configured `solver` (copied outside the segment).
+fn cold(solver: PoseSolver<f32>, name: &str, con: &cta_core::pose::Constellation) -> ! {
+    let frames = cold_frames_of(con);
+    let (lo, sp) = paint_stack(PAINT);
+    for _ in 0..4 {
+        mark();
+    }
+    let mut sols = [None; 3];
+    for (k, (spots, _, _)) in frames.iter().enumerate() {
+        let mut s = solver.clone();
+        mark();
+        sols[k] = Some(s.solve_frame(spots, SENSITIVITY));
+    }
+    end();
+    // Each answer against the model's own minimum at that frame: GLSDC started at the true
+    // pose (the pinhole model's is biased in the near field, so the truth itself is not it).
+    let (mut dt, mut dq, mut iters) = (0.0f32, 0.0f32, 0u8);
+    for (sol, (spots, t, q)) in sols.iter().zip(&frames) {
+        let Some(sol) = sol else { fail("a cold frame was not solved") };
+        if sol.status != PoseStatus::Ok || !sol.cold_start {
+            fail("a cold frame was not solved Ok from the cold start");
+        }
+        let mut s = solver.clone();
+        s.set_warm_start(t.map(|v| v as f32), q.map(|v| v as f32));
+        let best = s.solve_frame(spots, SENSITIVITY);
+        if best.status != PoseStatus::Ok {
+            fail("the solve from the true pose failed");
+        }
+        dt = dt.max((sol.position - best.position).norm());
+        let c = mrp::dcm(&sol.mrp) * mrp::dcm(&best.mrp).transpose();
+        let cos = ((c.trace() - 1.0) * 0.5).clamp(-1.0, 1.0);
+        dq = dq.max(libm::acosf(cos).to_degrees());
+        iters = iters.max(sol.iterations);
+    }
+    // The same minimum, to the f32 solve's tolerances; a wrong roll or the mirror tilt is
+    // off by degrees.
+    if !(dt < 1e-2 && dq < 0.1) {
+        fail("a cold frame converged away from the model's minimum");
+    }
+    hprintln!(
+        "STACK solve_peak_bytes={} (cold solves, below the caller's frame)",
+        stack_used(lo, sp)
+    );
+    hprintln!(
+        "COLD f32 model={} beacons={} frames=3 max_iterations={} max_dt_vs_true_start_in={:.5} max_dq_deg={:.4}",
+        name,
+        sols[0].map_or(0, |s| s.beacons),
+        iters,
+        dt,
+        dq
     );
     done("pose: ok")
 }
