@@ -1128,7 +1128,7 @@ fn fault_error(path: &str, f: Fault) -> Error {
         Fault::Lost(b, w) => Error::Board(format!("{b} board on {path}: {w}")),
         Fault::Stalled(w) => Error::Board(format!("sensor board on {path}: {w}")),
         Fault::Fatal(e) => e,
-        Fault::Interrupted => Error::Board(format!("interrupted")),
+        Fault::Interrupted => Error::Board("interrupted".into()),
     }
 }
 

@@ -192,7 +192,7 @@ mod tests {
     /// The chain reads as the command line prints it: the context first, then each cause.
     #[test]
     fn the_chain_reads_outside_in() {
-        let io = std::io::Error::new(std::io::ErrorKind::Other, "disk full");
+        let io = std::io::Error::other("disk full");
         let e = Err::<(), _>(io)
             .context("run/data.csv: cannot write")
             .context("sweep stopped")

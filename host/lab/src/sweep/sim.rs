@@ -404,7 +404,7 @@ impl Endpoint {
         let (master, slave) = TTYPort::pair().context("cannot create a pseudo-terminal")?;
         let name = slave
             .name()
-            .ok_or_else(|| Error::Refused(format!("pseudo-terminal without a name")))?;
+            .ok_or_else(|| Error::Refused("pseudo-terminal without a name".into()))?;
         let _ = std::fs::remove_file(&self.link);
         std::os::unix::fs::symlink(&name, &self.link)
             .with_context(|| format!("cannot link {}", self.link.display()))?;
