@@ -81,10 +81,12 @@ fn ladder(name: &str) -> Vec<(Effect, Vec<f64>)> {
                 Effect::CellBias(1e-5 * f, -1e-5 * f),
                 vec![1e-5 * f, -1e-5 * f],
             ),
+            "ambient" => (Effect::Ambient(1e-5 * f), vec![1e-5 * f]),
             "face_angle" => (Effect::FaceAngle(f, -0.5 * f), vec![f, -0.5 * f]),
             "plate_offset" => (Effect::PlateOffset(0.05 * f), vec![0.05 * f]),
             "separation_error" => (Effect::SeparationError(0.05 * f), vec![0.05 * f]),
             "plate_tilt" => (Effect::PlateTilt(0.2 * f), vec![0.2 * f]),
+            "led_position" => (Effect::LedPosition(0.004 * f), vec![0.004 * f]),
             other => unreachable!("{other}"),
         }
     };
@@ -203,6 +205,7 @@ fn detection_limits() {
             "beacon_tilt" => vec!["tx_deg", "ty_deg"],
             "cell_gain" => vec!["GX", "GY"],
             "cell_bias" => vec!["BX", "BY"],
+            "ambient" => vec!["B"],
             "face_angle" => vec!["DX", "DY"],
             "plate_offset" => vec!["x"],
             "separation_error" => vec!["z"],

@@ -280,6 +280,7 @@ fn analyze_args(data: &Path, report: &Path) -> AnalyzeArgs {
         max_effects: 5,
         drop_glitches: false,
         ignore_corners: false,
+        budget: None,
         report: Some(report.to_path_buf()),
         json: false,
         quiet: false,

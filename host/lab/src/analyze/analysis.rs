@@ -34,6 +34,11 @@ pub fn board_note(effect: &str) -> String {
     match effect {
         "cell_gain" => "the board's calibration holds it (gx, gy): `cta calibrate` fits it",
         "cell_bias" => "the board's calibration holds it (bx, by): `cta calibrate` fits it",
+        "ambient" => {
+            "outside the board's calibration (its biases bx, by are on cells 1 and 3 alone): \
+             light common to all four cells compresses the outputs where the spot is weak; \
+             shade the CTA from room light, or measure the cells' dark signal and subtract it"
+        }
         "face_angle" => {
             "the board's calibration holds it (the pairs' face angles a, ay): `cta calibrate` \
              fits it"
@@ -54,6 +59,10 @@ pub fn board_note(effect: &str) -> String {
         "saturation" => {
             "outside the board's model: its poses use saturated spots as they are; keep the \
              beacons outside the range where the cells clip"
+        }
+        "led_position" => {
+            "the board holds each LED's place in its constellation (`cta sensor template \
+             constellation`): give it the measured places, not the nominal grid"
         }
         "plate_offset" | "separation_error" | "plate_tilt" => {
             "an error of the apparatus, not of the sensor: nothing for the board to hold; the \
@@ -232,6 +241,8 @@ pub fn analyze(
     // Per-separation corrections need enough points at every separation: with fewer they are
     // neither fitted nor named (listed as untested below).
     let few_points = min_pts < MIN_POINTS_PER_SEPARATION;
+    // Per-LED candidates need each LED identified and seen at enough separations.
+    let no_led = per_led_untestable(&data);
     let sel_opts = select::Options {
         base: opts.from,
         folds: opts.folds,
@@ -239,6 +250,7 @@ pub fn analyze(
             .candidates
             .iter()
             .filter(|c| !few_points || c.local_names().is_empty())
+            .filter(|c| no_led.is_none() || c.led_names().is_empty())
             .cloned()
             .collect(),
         max_effects: opts.max_effects,
@@ -270,6 +282,14 @@ pub fn analyze(
             }
         }
     }
+    if let Some(why) = &no_led {
+        for c in opts.candidates.iter().filter(|c| !c.led_names().is_empty()) {
+            untested.push(Untested {
+                effect: c.name().into(),
+                reason: why.clone(),
+            });
+        }
+    }
     let n_constraints = |m: &Model| m.n_constraints();
     let dof_chi2 = |m: &Model, f: &FitResult| f.chi2 / f.dof(n_constraints(m));
     let base_chi2 = dof_chi2(&sel.base_model, &sel.base_fit);
@@ -294,6 +314,12 @@ pub fn analyze(
     let (fm, ff, fcv) = sel.last();
     let final_chi2 = dof_chi2(fm, ff);
     let unexplained = final_chi2 > UNEXPLAINED_CHI2_DOF;
+    // The plate's farthest beacon from its centre: where a plate tilt moves a beacon most.
+    let r_max = data
+        .points
+        .iter()
+        .map(|p| p.r.x.hypot(p.r.y))
+        .fold(0.0, f64::max);
     let mut causes = Vec::new();
     for st in &sel.steps {
         // The parameters as the final model (every named cause together) has them: the step
@@ -312,6 +338,7 @@ pub fn analyze(
             Cand::Proximity => params.get("S").and_then(|&s| wiring::s_unit_note(s, "S")),
             _ => None,
         };
+        let budget = super::plausible::check(st.cand, &params, &opts.budget, r_max);
         causes.push(Cause {
             effect: st.cand.name().into(),
             params,
@@ -330,6 +357,7 @@ pub fn analyze(
             rivals,
             board: board_note(st.cand.name()),
             caution,
+            budget,
         });
     }
     let effects: Vec<Cand> = sel.steps.iter().map(|st| st.cand).collect();
@@ -428,18 +456,28 @@ pub fn analyze(
             ),
         }
     } else {
-        format!(
-            "named: {} (chi2/dof {:.2} -> {:.2}, held-out RMS {:.1} -> {:.1} counts)",
+        let list = |beyond: bool| {
             causes
                 .iter()
+                .filter(|c| c.beyond_budget() == beyond)
                 .map(|c| c.effect.as_str())
                 .collect::<Vec<_>>()
-                .join(", "),
-            base_chi2,
-            final_chi2,
-            sel.base_cv.rms,
-            fcv.rms
-        )
+                .join(", ")
+        };
+        let (found, beyond) = (list(false), list(true));
+        let figures = format!(
+            "chi2/dof {:.2} -> {:.2}, held-out RMS {:.1} -> {:.1} counts",
+            base_chi2, final_chi2, sel.base_cv.rms, fcv.rms
+        );
+        let far = format!(
+            "fitted far beyond the apparatus budget, so not named as found (see its warning): \
+             {beyond}"
+        );
+        match (found.is_empty(), beyond.is_empty()) {
+            (_, true) => format!("named: {found} ({figures})"),
+            (true, false) => format!("no cause named as found ({figures}); {far}"),
+            (false, false) => format!("named: {found} ({figures}); {far}"),
+        }
     };
     let trials: Vec<TrialOut> = sel
         .trials
@@ -537,6 +575,38 @@ pub fn analyze(
             angle_before: ab,
             angle_after: aa,
         })),
+    })
+}
+
+/// Fewest separations the median LED must be seen at for per-LED candidates to be tried: an
+/// LED's offset is then fitted on some separations and predicts the others.
+pub const MIN_SEPARATIONS_PER_LED: usize = 3;
+
+/// Why per-LED candidates (`led_position`) cannot be tried on `data`, or None: a point
+/// without a beacon id (no `beacon` column: the LEDs are not identified, so nothing ties a
+/// point to its LED across separations), or LEDs seen at too few separations.
+pub(super) fn per_led_untestable(data: &Data) -> Option<String> {
+    if let Some(p) = data.points.iter().find(|p| p.beacon.is_none()) {
+        return Some(format!(
+            "the LEDs are not identified (line {}: no beacon id; the file needs a `beacon` \
+             column): a per-LED effect ties each LED's points across separations",
+            p.line
+        ));
+    }
+    let mut seen: std::collections::BTreeMap<u32, std::collections::BTreeSet<usize>> =
+        Default::default();
+    for p in &data.points {
+        seen.entry(p.beacon.unwrap_or(0)).or_default().insert(p.sep);
+    }
+    let mut counts: Vec<usize> = seen.values().map(|s| s.len()).collect();
+    counts.sort_unstable();
+    let median = counts.get(counts.len() / 2).copied().unwrap_or(0);
+    (median < MIN_SEPARATIONS_PER_LED).then(|| {
+        format!(
+            "the median LED is seen at {median} separation(s): at least \
+             {MIN_SEPARATIONS_PER_LED} are needed to fit each LED's place on some and test it \
+             on others"
+        )
     })
 }
 

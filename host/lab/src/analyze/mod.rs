@@ -28,6 +28,8 @@ mod error;
 pub mod model;
 mod options;
 mod params;
+pub mod plausible;
+pub mod scatter;
 pub mod report;
 mod result;
 pub mod select;
@@ -44,6 +46,7 @@ pub use digits::{pm, pm_parts};
 pub use error::Error;
 pub use options::Options;
 pub use params::spreads;
+pub use plausible::{BudgetCheck, BEYOND_BUDGET};
 pub use result::{
     Analysis, Cause, Correlation, Detail, DroppedOut, Param, ParamMap, Rival, RuledOut,
     SepSpread, TrialOut, Untested, BASE_CORRELATION_MIN, CORRELATION_MIN, RIVAL_DBIC,

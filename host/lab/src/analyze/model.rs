@@ -73,6 +73,9 @@ pub enum Cand {
     CellGain,
     /// `cell_bias`: BX added to cell 1's signal, BY to cell 3's (1/in^2). Parameters `BX`, `BY`.
     CellBias,
+    /// `ambient`: B added to all four cells' signals (1/in^2), compressing both outputs by
+    /// `S/(S + 2B)` (eq 63). Parameter `B`.
+    Ambient,
     /// `face_angle`: the X pair's face angle is 30+DX deg, the Y pair's 30+DY deg
     /// (`thesis`). From `pinhole`, where H already sets a common face angle, only the Y
     /// pair's difference `DY` is added.
@@ -95,21 +98,32 @@ pub enum Cand {
     /// offsets, so its mean is free; with `plate_offset`, whose offsets absorb them, its mean
     /// is held at zero ([`Model::zero_mean`]).
     PlateTilt,
+    /// `led_position`: one in-plane offset (dx, dy) per LED, in, the same at every
+    /// separation (each LED off its pads). Needs each LED identified (the `beacon` column).
+    /// Gauge ([`Model::led_gauge`]): a common shift of every LED is the head offset d1, d2,
+    /// and a common turn about the plate's centre (the N z axis) is the head's p3 (plus a
+    /// shift), so the offsets' mean and their mean turn are held at zero; with
+    /// `separation_error` in the model their mean radial stretch is held too (a plate that
+    /// looks larger is a plate closer, which the per-separation corrections absorb). Reported
+    /// as their RMS `rms_in` and each LED's `dx@bID`, `dy@bID`.
+    LedPosition,
 }
 
 /// Every candidate, in the order they are tried.
-pub const ALL: [Cand; 11] = [
+pub const ALL: [Cand; 13] = [
     Cand::Proximity,
     Cand::Intensity,
     Cand::BeaconPattern,
     Cand::BeaconTilt,
     Cand::CellGain,
     Cand::CellBias,
+    Cand::Ambient,
     Cand::FaceAngle,
     Cand::Saturation,
     Cand::PlateOffset,
     Cand::SeparationError,
     Cand::PlateTilt,
+    Cand::LedPosition,
 ];
 
 /// A name in a candidate list that is no analysis candidate.
@@ -160,11 +174,13 @@ impl Cand {
             Cand::BeaconTilt => "beacon_tilt",
             Cand::CellGain => "cell_gain",
             Cand::CellBias => "cell_bias",
+            Cand::Ambient => "ambient",
             Cand::FaceAngle => "face_angle",
             Cand::Saturation => "saturation",
             Cand::PlateOffset => "plate_offset",
             Cand::SeparationError => "separation_error",
             Cand::PlateTilt => "plate_tilt",
+            Cand::LedPosition => "led_position",
         }
     }
 
@@ -187,10 +203,22 @@ impl Cand {
             Cand::BeaconTilt => &["tx_deg", "ty_deg"],
             Cand::CellGain => &["GX", "GY"],
             Cand::CellBias => &["BX", "BY"],
+            Cand::Ambient => &["B"],
             Cand::FaceAngle if base == Base::Pinhole => &["DY"],
             Cand::FaceAngle => &["DX", "DY"],
             Cand::Saturation => &["lnS"],
-            Cand::PlateOffset | Cand::SeparationError | Cand::PlateTilt => &[],
+            Cand::PlateOffset | Cand::SeparationError | Cand::PlateTilt | Cand::LedPosition => {
+                &[]
+            }
+        }
+    }
+
+    /// Names of the per-LED parameters (one block per LED, among the global parameters: an
+    /// LED is the same at every separation).
+    pub fn led_names(self) -> &'static [&'static str] {
+        match self {
+            Cand::LedPosition => &["dx", "dy"],
+            _ => &[],
         }
     }
 
@@ -250,7 +278,7 @@ impl Cand {
             Cand::BeaconPattern => 1e-6,
             Cand::BeaconTilt => 1e-5,
             Cand::CellGain => 1e-7,
-            Cand::CellBias => 1e-10,
+            Cand::CellBias | Cand::Ambient => 1e-10,
             Cand::FaceAngle => 1e-5,
             Cand::Saturation => 1e-6,
             _ => 1e-6,
@@ -277,6 +305,7 @@ impl Cand {
                 ("AZ_deg", deg(v[1].atan2(v[0]))),
             ],
             Cand::Saturation => vec![("S", v[0].exp())],
+            Cand::LedPosition => vec![("rms_in", rms(v))],
             _ => self
                 .global_names(base)
                 .iter()
@@ -301,6 +330,9 @@ impl Cand {
                 vec![("H_deg", h, Some(60.0))]
             }
             (Cand::Saturation, _) => vec![("S", v[0].exp(), None)],
+            // Only the per-LED values (their weighted RMS against noise alone, as for the
+            // per-separation ones): the RMS of noise-only estimates is no estimate near 0.
+            (Cand::LedPosition, _) => Vec::new(),
             _ => self
                 .global_names(base)
                 .iter()
@@ -310,6 +342,20 @@ impl Cand {
                 .collect(),
         }
     }
+}
+
+/// Root mean square of `v` (0 when empty).
+fn rms(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
+/// An LED of the data: its beacon id and nominal place on the plate (x, y), in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Led {
+    /// Beacon id.
+    pub id: u32,
+    /// Nominal (recorded) x, y, in.
+    pub xy: [f64; 2],
 }
 
 /// A starting model plus effects, for a dataset with `nsep` separations.
@@ -325,6 +371,9 @@ pub struct Model {
     /// ([`Data::measured_tilts_deg`]): where the plate is placed before any `plate_tilt`
     /// (which is then the tilt beyond the corners'). Empty: level plates.
     pub measured_tilts_deg: Vec<[f64; 2]>,
+    /// The LEDs of the data, by beacon id ascending ([`Model::leds_of`]); empty when a point
+    /// has no beacon id (per-LED candidates cannot be tried).
+    pub leds: Vec<Led>,
 }
 
 /// Where a model's parameters sit in its vector.
@@ -342,6 +391,7 @@ impl Model {
             effects: Vec::new(),
             nsep,
             measured_tilts_deg: Vec::new(),
+            leds: Vec::new(),
         }
     }
 
@@ -350,6 +400,7 @@ impl Model {
     pub fn for_data(base: Base, data: &Data) -> Self {
         Model {
             measured_tilts_deg: data.measured_tilts_deg.clone(),
+            leds: Model::leds_of(data),
             ..Model::new(base, data.seps.len())
         }
     }
@@ -373,10 +424,37 @@ impl Model {
         self.base.names().len()
     }
 
+    /// The LEDs of `data` by beacon id: empty unless every point names its beacon. An LED's
+    /// nominal place is its first point's recorded (x, y).
+    pub fn leds_of(data: &Data) -> Vec<Led> {
+        if data.points.iter().any(|p| p.beacon.is_none()) {
+            return Vec::new();
+        }
+        let mut leds: Vec<Led> = Vec::new();
+        for p in &data.points {
+            let id = p.beacon.unwrap_or(0);
+            if let Err(k) = leds.binary_search_by_key(&id, |l| l.id) {
+                leds.insert(
+                    k,
+                    Led {
+                        id,
+                        xy: [p.r.x, p.r.y],
+                    },
+                );
+            }
+        }
+        leds
+    }
+
+    /// Number of global parameters of effect `c`: its own plus its per-LED blocks.
+    fn global_len(&self, c: Cand) -> usize {
+        c.global_names(self.base).len() + c.led_names().len() * self.leds.len()
+    }
+
     fn global_slot(&self, c: Cand) -> Option<Slot> {
         let mut at = self.n_base();
         for &e in &self.effects {
-            let len = e.global_names(self.base).len();
+            let len = self.global_len(e);
             if e == c {
                 return Some(Slot { start: at, len });
             }
@@ -386,12 +464,77 @@ impl Model {
     }
 
     fn n_global(&self) -> usize {
-        self.n_base()
-            + self
-                .effects
+        self.n_base() + self.effects.iter().map(|&e| self.global_len(e)).sum::<usize>()
+    }
+
+    /// The LED (index into [`Model::leds`]) and coordinate (0: dx, 1: dy) parameter `i` is
+    /// the per-LED value of, if it is one.
+    pub fn led_param(&self, i: usize) -> Option<(usize, usize)> {
+        let mut at = self.n_base();
+        for &e in &self.effects {
+            let own = e.global_names(self.base).len();
+            let w = e.led_names().len();
+            let len = own + w * self.leds.len();
+            if i >= at + own && i < at + len && w > 0 {
+                let j = i - at - own;
+                return Some((j / w, j % w));
+            }
+            at += len;
+        }
+        None
+    }
+
+    /// The index into [`Model::leds`] of beacon `id`.
+    pub fn led_index(&self, id: Option<u32>) -> Option<usize> {
+        self.leds.binary_search_by_key(&id?, |l| l.id).ok()
+    }
+
+    /// The gauge of `led_position` (see [`Cand::LedPosition`]): the coefficient lists whose
+    /// weighted sums of the per-LED offsets are held at zero: the mean dx, the mean dy, the
+    /// mean turn `(x dy - y dx) / rho` about the plate's centre and, with `separation_error`
+    /// in the model, the mean stretch `(x dx + y dy) / rho` (`rho` the LEDs' RMS distance from
+    /// the centre, so every row is a mean in inches). Empty without `led_position`.
+    pub fn led_gauge(&self) -> Vec<Vec<(usize, f64)>> {
+        let Some(s) = self.global_slot(Cand::LedPosition) else {
+            return Vec::new();
+        };
+        let n = self.leds.len();
+        if n == 0 {
+            return Vec::new();
+        }
+        let nf = n as f64;
+        let rho = (self
+            .leds
+            .iter()
+            .map(|l| l.xy[0] * l.xy[0] + l.xy[1] * l.xy[1])
+            .sum::<f64>()
+            / nf)
+            .sqrt()
+            .max(1e-9);
+        let (dx, dy) = (|k: usize| s.start + 2 * k, |k: usize| s.start + 2 * k + 1);
+        let mut rows = vec![
+            (0..n).map(|k| (dx(k), 1.0 / nf)).collect::<Vec<_>>(),
+            (0..n).map(|k| (dy(k), 1.0 / nf)).collect(),
+            self.leds
                 .iter()
-                .map(|e| e.global_names(self.base).len())
-                .sum::<usize>()
+                .enumerate()
+                .flat_map(|(k, l)| {
+                    [(dx(k), -l.xy[1] / (nf * rho)), (dy(k), l.xy[0] / (nf * rho))]
+                })
+                .collect(),
+        ];
+        if self.effects.contains(&Cand::SeparationError) {
+            rows.push(
+                self.leds
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(k, l)| {
+                        [(dx(k), l.xy[0] / (nf * rho)), (dy(k), l.xy[1] / (nf * rho))]
+                    })
+                    .collect(),
+            );
+        }
+        rows
     }
 
     /// Per-separation block of effect `c`: start of separation 0's parameters and the block
@@ -430,7 +573,8 @@ impl Model {
             .iter()
             .filter(|&&e| self.zero_mean(e))
             .map(|e| e.local_names().len())
-            .sum()
+            .sum::<usize>()
+            + self.led_gauge().len()
     }
 
     /// Total number of parameters.
@@ -454,6 +598,11 @@ impl Model {
         for &e in &self.effects {
             for n in e.global_names(self.base) {
                 v.push(format!("{}.{n}", e.name()));
+            }
+            for l in self.leds.iter().filter(|_| !e.led_names().is_empty()) {
+                for n in e.led_names() {
+                    v.push(format!("{}.{n}@b{}", e.name(), l.id));
+                }
             }
         }
         for &e in &self.effects {
@@ -509,6 +658,10 @@ impl Model {
         }
         for &e in &self.effects {
             v.extend(e.steps(self.base));
+            v.extend(std::iter::repeat_n(
+                1e-6,
+                e.led_names().len() * self.leds.len(),
+            ));
         }
         // The per-separation blocks, in their layout order (see `local_slot`).
         for &e in &self.effects {
@@ -531,7 +684,7 @@ impl Model {
             if prev_model.effects.contains(&e) {
                 x.as_mut_slice()[dst].copy_from_slice(&prev[src]);
             } else {
-                x.as_mut_slice()[dst].copy_from_slice(&e.start(self.base));
+                x.as_mut_slice()[dst].copy_from_slice(&self.start_values(e));
             }
             for k in 0..self.nsep {
                 let dst = self.local_indices(e, k);
@@ -542,6 +695,22 @@ impl Model {
             }
         }
         x
+    }
+
+    /// Starting values of effect `c`'s global parameters: [`Cand::start`], each LED on its
+    /// place.
+    fn start_values(&self, c: Cand) -> Vec<f64> {
+        let mut v = c.start(self.base);
+        v.resize(self.global_len(c), 0.0);
+        v
+    }
+
+    /// Values of effect `c`'s global parameters at which it is absent: [`Cand::absent`],
+    /// each LED on its place.
+    pub fn absent_values(&self, c: Cand) -> Vec<f64> {
+        let mut v = c.absent(self.base);
+        v.resize(self.global_len(c), 0.0);
+        v
     }
 
     /// The emulator of the global parameters in `x`.
@@ -575,9 +744,10 @@ impl Model {
                     fx.gain[2] = 1.0 + v[1];
                 }
                 Cand::CellBias => {
-                    fx.bias[0] = v[0];
-                    fx.bias[2] = v[1];
+                    fx.bias[0] += v[0];
+                    fx.bias[2] += v[1];
                 }
+                Cand::Ambient => fx.bias.iter_mut().for_each(|b| *b += v[0]),
                 Cand::FaceAngle => match self.base {
                     Base::Thesis => {
                         head.alpha_x = rad(30.0 + v[0]);
@@ -586,7 +756,10 @@ impl Model {
                     Base::Pinhole => head.alpha_y = head.alpha_x + rad(v[0]),
                 },
                 Cand::Saturation => fx.saturation = Some(v[0].exp()),
-                Cand::PlateOffset | Cand::SeparationError | Cand::PlateTilt => {}
+                Cand::PlateOffset
+                | Cand::SeparationError
+                | Cand::PlateTilt
+                | Cand::LedPosition => {}
             }
         }
         let pose = cta_core::emulator::Pose {
@@ -624,7 +797,25 @@ impl Model {
         let em = self.emulator(x);
         let places: Vec<Placement> = (0..self.nsep).map(|k| self.placement(x, k)).collect();
         let ems = places.iter().map(|pl| pl.emulator(&em)).collect();
-        View { ems, places }
+        View {
+            ems,
+            places,
+            leds: self.led_offsets(x),
+        }
+    }
+
+    /// Each LED's in-plane offset (beacon id, (dx, dy)) by `x`, by id ascending; empty
+    /// without `led_position`.
+    pub fn led_offsets(&self, x: &[f64]) -> Vec<(u32, [f64; 2])> {
+        let v = self.global_values(Cand::LedPosition, x);
+        if v.is_empty() {
+            return Vec::new();
+        }
+        self.leds
+            .iter()
+            .enumerate()
+            .map(|(k, l)| (l.id, [v[2 * k], v[2 * k + 1]]))
+            .collect()
     }
 
     /// Predicted (X, Y) of every point in `subset`.
@@ -650,12 +841,23 @@ impl Model {
 pub struct View {
     ems: Vec<Emulator<f64>>,
     places: Vec<Placement>,
+    leds: Vec<(u32, [f64; 2])>,
 }
 
 impl View {
-    /// The true beacon position (N, in) of point `p` by the model.
+    /// The true beacon position (N, in) of point `p` by the model: its recorded place moved
+    /// by its LED's offset on the plate (`led_position`), then placed with the plate.
     pub fn beacon(&self, p: &PointMean) -> Vector3<f64> {
-        self.places[p.sep].beacon(&p.r)
+        self.places[p.sep].beacon(&(p.r + self.led_offset(p)))
+    }
+
+    /// The in-plane offset of point `p`'s LED on the plate (zero without `led_position`).
+    pub fn led_offset(&self, p: &PointMean) -> Vector3<f64> {
+        p.beacon
+            .and_then(|id| self.leds.binary_search_by_key(&id, |l| l.0).ok())
+            .map_or_else(Vector3::zeros, |k| {
+                Vector3::new(self.leds[k].1[0], self.leds[k].1[1], 0.0)
+            })
     }
 
     /// The emulator of separation `k`.
@@ -681,9 +883,9 @@ pub struct FitProblem<'a> {
     pub fixed: &'a [f64],
     /// Indices of the free parameters.
     pub free: &'a [usize],
-    /// Zero-mean constraints (pseudo-observations): each a list of parameter indices whose
-    /// mean is held at zero.
-    pub constraints: &'a [Vec<usize>],
+    /// Constraints (pseudo-observations): each a list of (parameter index, coefficient)
+    /// whose weighted sum is held at zero (a zero mean: every coefficient 1/n).
+    pub constraints: &'a [Vec<(usize, f64)>],
     /// Parameter names (for rank-deficiency messages).
     pub names: &'a [String],
 }
@@ -732,11 +934,31 @@ impl Problem<f64> for FitProblem<'_> {
             // Jacobian, row-major: point j, axis a, parameter f.
             let mut jm = vec![0.0; self.subset.len() * 2 * nf];
             let n_global = m.n_global_params();
+            // The model at x: the LEDs' offsets, and what a per-LED step moves.
+            let v0 = m.view(&x);
             for (f, &i) in self.free.iter().enumerate() {
                 let h = steps[i];
                 let mut xp = x.clone();
                 xp[i] += h;
-                if i < n_global {
+                if let Some((k, c)) = m.led_param(i) {
+                    // A per-LED parameter: only its LED's points move, and nothing else.
+                    let id = m.leds[k].id;
+                    let mut step = Vector3::zeros();
+                    step[c] = h;
+                    for (j, &pi) in self.subset.iter().enumerate() {
+                        let p = &data.points[pi];
+                        if p.beacon != Some(id) {
+                            continue;
+                        }
+                        let r = p.r + v0.led_offset(p) + step;
+                        let yp = v0.ems[p.sep]
+                            .output(&v0.places[p.sep].beacon(&r))
+                            .ok_or(ModelError::NonFinite)?;
+                        for a in 0..2 {
+                            jm[(j * 2 + a) * nf + f] = (yp[a] - y0[j][a]) / h;
+                        }
+                    }
+                } else if i < n_global {
                     let yp = m.predict(&xp, data, self.subset)?;
                     for j in 0..self.subset.len() {
                         for a in 0..2 {
@@ -756,7 +978,7 @@ impl Problem<f64> for FitProblem<'_> {
                             continue;
                         }
                         let yp = em
-                            .output(&place.beacon(&p.r))
+                            .output(&place.beacon(&(p.r + v0.led_offset(p))))
                             .ok_or(ModelError::NonFinite)?;
                         for a in 0..2 {
                             jm[(j * 2 + a) * nf + f] = (yp[a] - y0[j][a]) / h;
@@ -777,17 +999,16 @@ impl Problem<f64> for FitProblem<'_> {
         }
         let mut row = vec![0.0; if jac { nf } else { 0 }];
         for c in self.constraints {
-            let n = c.len() as f64;
-            let mean: f64 = c.iter().map(|&i| x[i]).sum::<f64>() / n;
+            let sum: f64 = c.iter().map(|&(i, w)| w * x[i]).sum();
             if jac {
                 row.iter_mut().for_each(|v| *v = 0.0);
-                for (f, i) in self.free.iter().enumerate() {
-                    if c.contains(i) {
-                        row[f] = 1.0 / n;
+                for &(i, w) in c {
+                    if let Some(f) = self.free.iter().position(|&j| j == i) {
+                        row[f] = w;
                     }
                 }
             }
-            sink(-mean, CONSTRAINT_WEIGHT, &row);
+            sink(-sum, CONSTRAINT_WEIGHT, &row);
         }
         Ok(())
     }
@@ -866,8 +1087,16 @@ pub fn fit(
                     .filter(|i| free.contains(i))
                     .collect();
                 if !idx.is_empty() {
-                    constraints.push(idx);
+                    let w = 1.0 / idx.len() as f64;
+                    constraints.push(idx.into_iter().map(|i| (i, w)).collect());
                 }
+            }
+        }
+        // The per-LED gauge, over the LED parameters this fit frees.
+        for row in model.led_gauge() {
+            let row: Vec<(usize, f64)> = row.into_iter().filter(|(i, _)| free.contains(i)).collect();
+            if !row.is_empty() {
+                constraints.push(row);
             }
         }
     }

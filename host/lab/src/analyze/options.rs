@@ -2,6 +2,7 @@
 
 use super::data::Weights;
 use super::model::{self, Base, Cand};
+use crate::budget::Budget;
 use crate::sweep::corners::RunCorners;
 
 /// What `cta analyze` does: the starting model, the cross-validation, the noise model and the
@@ -27,6 +28,9 @@ pub struct Options {
     /// The run's corner readings: each separation's plate is placed with the tilt they
     /// measured ([`crate::sweep::corners`]); `None`: level plates.
     pub corners: Option<RunCorners>,
+    /// The apparatus uncertainty budget apparatus causes are compared with (Ch IV; default
+    /// thesis Table 2): [`super::plausible`].
+    pub budget: Budget,
 }
 
 impl Default for Options {
@@ -41,6 +45,7 @@ impl Default for Options {
             max_effects: 5,
             drop_glitches: false,
             corners: None,
+            budget: Budget::table2(),
         }
     }
 }

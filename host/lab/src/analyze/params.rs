@@ -269,7 +269,30 @@ pub(super) fn cause_params(model: &Model, c: Cand, f: &FitResult, seps: &[f64]) 
             s.insert(name, sg);
         }
     }
+    for (name, i) in led_values(model, c) {
+        p.insert(name.clone(), f.x[i]);
+        s.insert(name, f.sigma[i]);
+    }
     (p, s, prop.correlations(), prop.base_correlations())
+}
+
+/// Each per-LED parameter of `c` in `model` as (`dx@bID`, index), LED by LED.
+fn led_values(model: &Model, c: Cand) -> Vec<(String, usize)> {
+    let own = c.global_names(model.base).len();
+    let start = model.global_indices(c).start + own;
+    let w = c.led_names().len();
+    model
+        .leds
+        .iter()
+        .enumerate()
+        .filter(|_| w > 0)
+        .flat_map(|(k, l)| {
+            c.led_names()
+                .iter()
+                .enumerate()
+                .map(move |(j, n)| (format!("{n}@b{}", l.id), start + k * w + j))
+        })
+        .collect()
 }
 
 /// The parameters of candidate `c` in its trial fit `f` of `model` (the round's model plus
@@ -313,6 +336,14 @@ pub(super) fn trial_params(
                 no_effect: Some(0.0),
             });
         }
+    }
+    for (name, i) in led_values(model, c) {
+        out.push(Param {
+            name,
+            value: f.x[i],
+            sigma: f.sigma[i],
+            no_effect: Some(0.0),
+        });
     }
     (out, prop.correlations(), prop.base_correlations())
 }

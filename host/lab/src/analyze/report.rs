@@ -105,6 +105,23 @@ fn cause_rows(s: &mut String, causes: &[Cause]) {
                 html_escape(c)
             );
         }
+        if let Some(b) = &c.budget {
+            let _ = write!(
+                s,
+                "<tr><td></td><td colspan=6>Against the apparatus budget: {:.1} mils fitted, \
+                 {:.1} times the {}</td></tr>",
+                b.fitted_mils,
+                b.ratio,
+                html_escape(&b.line)
+            );
+            if let Some(w) = &b.warning {
+                let _ = write!(
+                    s,
+                    "<tr><td></td><td colspan=6><b>Warning:</b> {}</td></tr>",
+                    html_escape(w)
+                );
+            }
+        }
         let _ = write!(
             s,
             "<tr><td></td><td colspan=6>On the sensor board: {}</td></tr>",

@@ -60,6 +60,19 @@ pub struct Cause {
     /// NorthStar's: lengths in centimetres, [`crate::fit::wiring::s_unit_note`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub caution: Option<String>,
+    /// For an apparatus cause (`plate_offset`, `separation_error`, `plate_tilt`): its fitted
+    /// size against the budget line it is compared with, and a warning when far beyond it
+    /// ([`super::plausible`]). Such a cause is not named as found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub budget: Option<super::plausible::BudgetCheck>,
+}
+
+impl Cause {
+    /// Whether the cause is fitted far beyond the apparatus budget (named with a warning,
+    /// not as found).
+    pub fn beyond_budget(&self) -> bool {
+        self.budget.as_ref().is_some_and(|b| b.warning.is_some())
+    }
 }
 
 /// Named values in the order they were inserted: a cause's parameters in the model's order

@@ -264,6 +264,12 @@ fn unconstrained(model: &Model, data: &Data, subset: &[usize], x: &[f64]) -> Vec
         .iter()
         .flat_map(|&e| model.global_indices(e))
         .filter(|&i| {
+            // A per-LED parameter: unconstrained exactly when none of its LED's points is in
+            // `subset` (no need to predict them all).
+            if let Some((k, _)) = model.led_param(i) {
+                let id = model.leds[k].id;
+                return !subset.iter().any(|&j| data.points[j].beacon == Some(id));
+            }
             let mut xp = x.to_vec();
             xp[i] += steps[i];
             model.predict(&xp, data, subset).is_ok_and(|y| y == y0)
@@ -287,7 +293,7 @@ fn train_fit(
     let absent = |held: &[usize]| {
         let mut xa = x.to_vec();
         for &e in &model.effects {
-            for (i, v) in model.global_indices(e).zip(e.absent(model.base)) {
+            for (i, v) in model.global_indices(e).zip(model.absent_values(e)) {
                 if held.contains(&i) {
                     xa[i] = v;
                 }
@@ -426,6 +432,23 @@ pub fn cross_validate(
             })
             .collect(),
     })
+}
+
+/// The BIC gain of effect `c` whose fit `f` of `with` (a model holding it) improves
+/// chi-square by `dchi2` with `k` added parameters: `dchi2 - k ln m`; for a per-LED effect
+/// its random-effects view instead, the likelihood ratio of one scatter parameter over the
+/// per-LED values less one parameter's `ln m` ([`super::scatter`]).
+fn dbic(with: &Model, c: Cand, f: &FitResult, dchi2: f64, k: usize, ln_m: f64) -> f64 {
+    if c.led_names().is_empty() {
+        return dchi2 - k as f64 * ln_m;
+    }
+    let idx: Vec<usize> = with
+        .global_indices(c)
+        .filter(|&i| with.led_param(i).is_some())
+        .collect();
+    let d: Vec<f64> = idx.iter().map(|&i| f.x[i]).collect();
+    let s: Vec<f64> = idx.iter().map(|&i| f.sigma[i]).collect();
+    super::scatter::scatter(&d, &s).1 - ln_m
 }
 
 /// Added parameters of `cand`: the free parameters (minus zero-mean constraints) of the
@@ -607,7 +630,7 @@ fn forward(
             match r {
                 Ok(Some(f)) => {
                     t.dchi2 = cur.chi2 - f.chi2;
-                    t.dbic = t.dchi2 - k as f64 * ln_m;
+                    t.dbic = dbic(&model.with(c), c, &f, t.dchi2, k, ln_m);
                     t.fit = Some(Box::new((model.with(c), f.clone())));
                     scored.push((sel.trials.len(), f));
                 }
@@ -698,7 +721,7 @@ fn redundant(
             progress(&format!("is {} still needed?", c.name()));
             let k = added_params(&without, c);
             let dchi2_keep = f.chi2 - full.chi2;
-            let dbic_keep = dchi2_keep - k as f64 * ln_m;
+            let dbic_keep = dbic(model, c, full, dchi2_keep, k, ln_m);
             let cv_rms_without = if dbic_keep <= BIC_MIN {
                 None
             } else {
@@ -759,7 +782,7 @@ fn on_top(
             Some(Err(e)) => t.failure = Some(e.0),
             Some(Ok(f)) => {
                 t.dchi2 = cur.chi2 - f.chi2;
-                t.dbic = t.dchi2 - k as f64 * ln_m;
+                t.dbic = dbic(&m2, c, &f, t.dchi2, k, ln_m);
                 if t.dbic > BIC_MIN {
                     if let Ok(cv) = cross_validate(&m2, data, &f.x, fold_seps) {
                         t.cv_rms = Some(cv.rms);

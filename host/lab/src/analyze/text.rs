@@ -122,8 +122,8 @@ impl DroppedOut {
 /// names that carry their unit).
 pub fn unit(effect: &str, param: &str) -> &'static str {
     match (effect, param) {
-        ("proximity", "S") => " in",
-        ("cell_bias", _) | ("saturation", "S") => " /in^2",
+        ("proximity", "S") | ("led_position", "rms_in") => " in",
+        ("cell_bias", _) | ("ambient", _) | ("saturation", "S") => " /in^2",
         ("face_angle", _) => " deg",
         _ => "",
     }
@@ -167,11 +167,12 @@ fn estimates_text(
                 )
             })
             .collect();
-        parts.push(format!(
-            "per separation ({}): {}",
-            sp.separations,
-            each.join(", ")
-        ));
+        let per = if effect == "led_position" {
+            "per LED"
+        } else {
+            "per separation"
+        };
+        parts.push(format!("{per} ({}): {}", sp.separations, each.join(", ")));
     }
     if parts.is_empty() && fitted {
         parts.push("a switch, no parameter".into());

@@ -78,6 +78,12 @@ pub enum Effect {
     /// `cell_bias=BX[,BY]`: BX added to cell 1's signal and BY to cell 3's (1/in^2): ambient
     /// light or dark current.
     CellBias(f64, f64),
+    /// `ambient=B`: B added to the signal of all four cells (1/in^2): room light or a dark
+    /// current common to the cells. In eq 63 the difference of a pair is unchanged and its sum
+    /// grows by 2B, so the outputs are compressed by `S/(S + 2B)` (S the pair's signal sum):
+    /// most where the spot is weak, at far separations and off boresight. Unlike `cell_bias`
+    /// (cells 1 and 3 alone), it moves no output at zero signal difference.
+    Ambient(f64),
     /// `face_angle=DX[,DY]`: the pyramid face angle of the X pair is 30+DX deg, of the Y pair
     /// 30+DY deg.
     FaceAngle(f64, f64),
@@ -102,6 +108,11 @@ pub enum Effect {
     /// Unlike `beacon_tilt` (the LEDs' boresights alone, the same at every separation) it
     /// moves the beacons. Analysis estimates one tilt per separation.
     PlateTilt(f64),
+    /// `led_position=SIGMA`: each LED sits off its nominal place on the plate by an in-plane
+    /// (dx, dy) drawn once with standard deviation SIGMA in per axis (seeded), the same at
+    /// every separation: a hand-soldered LED off its pads (Ch IV Table 2, "LED placement on
+    /// solder pads"). Analysis estimates one (dx, dy) per LED.
+    LedPosition(f64),
     /// `crosstalk=K`: each cell picks up K times the signal of the matching cell of the other
     /// pair. NOT in the analysis vocabulary: simulation only, to test that `analyze` reports
     /// unexplained structure instead of a false name.
@@ -109,18 +120,20 @@ pub enum Effect {
 }
 
 /// The names `cta analyze` can report (every effect but `crosstalk`).
-pub const VOCABULARY: [&str; 11] = [
+pub const VOCABULARY: [&str; 13] = [
     "proximity",
     "intensity",
     "beacon_pattern",
     "beacon_tilt",
     "cell_gain",
     "cell_bias",
+    "ambient",
     "face_angle",
     "saturation",
     "plate_offset",
     "separation_error",
     "plate_tilt",
+    "led_position",
 ];
 
 impl Effect {
@@ -133,11 +146,13 @@ impl Effect {
             Effect::BeaconTilt(..) => "beacon_tilt",
             Effect::CellGain(..) => "cell_gain",
             Effect::CellBias(..) => "cell_bias",
+            Effect::Ambient(_) => "ambient",
             Effect::FaceAngle(..) => "face_angle",
             Effect::Saturation(_) => "saturation",
             Effect::PlateOffset(_) => "plate_offset",
             Effect::SeparationError(_) => "separation_error",
             Effect::PlateTilt(_) => "plate_tilt",
+            Effect::LedPosition(_) => "led_position",
             Effect::Crosstalk(_) => "crosstalk",
         }
     }
@@ -212,6 +227,7 @@ impl Effect {
                 let v = nums(1, 2)?;
                 Effect::CellBias(v[0], v.get(1).copied().unwrap_or(0.0))
             }
+            "ambient" => Effect::Ambient(nums(1, 1)?[0]),
             "face_angle" => {
                 let v = nums(1, 2)?;
                 if let Some(d) = v.iter().find(|d| !(**d > -30.0 && **d < 60.0)) {
@@ -249,6 +265,7 @@ impl Effect {
                 }
                 Effect::PlateTilt(v)
             }
+            "led_position" => Effect::LedPosition(nonneg("led_position", nums(1, 1)?[0])?),
             "crosstalk" => {
                 let k = nums(1, 1)?[0];
                 if !(0.0..1.0).contains(&k) {
@@ -267,8 +284,9 @@ impl Effect {
         Ok(e)
     }
 
-    /// Apply a physics effect to the emulator's head/effects. Plate offsets and separation
-    /// errors act on the geometry instead (see `simulate`), so they are no-ops here.
+    /// Apply a physics effect to the emulator's head/effects. Plate offsets, separation
+    /// errors, plate tilts and LED positions act on the geometry instead (see `simulate`), so
+    /// they are no-ops here.
     pub fn apply(&self, head: &mut cta_core::emulator::Head<f64>, fx: &mut Effects<f64>) {
         match *self {
             Effect::Proximity(s) => {
@@ -285,17 +303,22 @@ impl Effect {
                 fx.gain[0] = 1.0 + gx;
                 fx.gain[2] = 1.0 + gy;
             }
+            // Added, not set: `ambient` adds to every cell, in whichever order they come.
             Effect::CellBias(bx, by) => {
-                fx.bias[0] = bx;
-                fx.bias[2] = by;
+                fx.bias[0] += bx;
+                fx.bias[2] += by;
             }
+            Effect::Ambient(b) => fx.bias.iter_mut().for_each(|v| *v += b),
             Effect::FaceAngle(dx, dy) => {
                 head.alpha_x = rad(30.0 + dx);
                 head.alpha_y = rad(30.0 + dy);
             }
             Effect::Saturation(s) => fx.saturation = Some(s),
             Effect::Crosstalk(k) => fx.crosstalk = k,
-            Effect::PlateOffset(_) | Effect::SeparationError(_) | Effect::PlateTilt(_) => {}
+            Effect::PlateOffset(_)
+            | Effect::SeparationError(_)
+            | Effect::PlateTilt(_)
+            | Effect::LedPosition(_) => {}
         }
     }
 }
@@ -344,11 +367,13 @@ fn usage(name: &str) -> &'static str {
         "beacon_tilt" => "beacon_tilt=T[,AZ] (deg)",
         "cell_gain" => "cell_gain=GX[,GY] (fractions)",
         "cell_bias" => "cell_bias=BX[,BY] (1/in^2)",
+        "ambient" => "ambient=B (1/in^2, on all four cells)",
         "face_angle" => "face_angle=DX[,DY] (deg)",
         "saturation" => "saturation=S (1/in^2)",
         "plate_offset" => "plate_offset=SIGMA (in)",
         "separation_error" => "separation_error=SIGMA (in)",
         "plate_tilt" => "plate_tilt=SIGMA (deg)",
+        "led_position" => "led_position=SIGMA (in, per LED and axis)",
         "crosstalk" => "crosstalk=K (fraction)",
         _ => "NAME=VALUE",
     }
@@ -357,12 +382,16 @@ fn usage(name: &str) -> &'static str {
 impl fmt::Display for Effect {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
-            Effect::Proximity(v) | Effect::BeaconPattern(v) | Effect::Saturation(v) => {
+            Effect::Proximity(v)
+            | Effect::BeaconPattern(v)
+            | Effect::Saturation(v)
+            | Effect::Ambient(v) => {
                 write!(f, "{}={v}", self.name())
             }
             Effect::PlateOffset(v)
             | Effect::SeparationError(v)
             | Effect::PlateTilt(v)
+            | Effect::LedPosition(v)
             | Effect::Crosstalk(v) => {
                 write!(f, "{}={v}", self.name())
             }
@@ -383,6 +412,11 @@ mod tests {
 
     #[test]
     fn parses_every_effect_and_round_trips() {
+        // Every vocabulary name parses (with a value where it needs one).
+        for n in VOCABULARY {
+            let e = Effect::parse(n).or_else(|_| Effect::parse(&format!("{n}=0.1")));
+            assert_eq!(e.map(|e| e.name()), Ok(n), "{n}");
+        }
         for s in [
             "proximity=0.2",
             "intensity=1",
@@ -390,11 +424,13 @@ mod tests {
             "beacon_tilt=3,45",
             "cell_gain=0.02,-0.01",
             "cell_bias=0.0001,0",
+            "ambient=2e-5",
             "face_angle=1,0.5",
             "saturation=0.1",
             "plate_offset=0.05",
             "separation_error=0.05",
             "plate_tilt=0.5",
+            "led_position=0.004",
             "crosstalk=0.02",
         ] {
             let e = Effect::parse(s).unwrap();
@@ -405,6 +441,36 @@ mod tests {
             Effect::BeaconTilt(3.0, 0.0)
         );
         assert_eq!(Effect::parse("intensity").unwrap(), Effect::Intensity(true));
+    }
+
+    /// `ambient=B` leaves each pair's difference and adds 2B to its sum (eq 63): both outputs
+    /// shrink by `S/(S + 2B)`; together with `cell_bias` the two add.
+    #[test]
+    fn ambient_compresses_both_outputs_by_the_pairs_sum() {
+        use cta_core::emulator::{Emulator, Head, Pose};
+        let r = nalgebra::Vector3::new(1.0, -2.0, 20.0);
+        let em = |effects: &[Effect]| {
+            let (mut head, mut fx) = (Head::northstar(), Effects::default());
+            for e in effects {
+                e.apply(&mut head, &mut fx);
+            }
+            Emulator::new(head, Pose::table3(), fx)
+        };
+        let clean = em(&[]);
+        let s = clean.signals(&r);
+        let o0 = clean.output(&r).unwrap();
+        let b = 1e-4;
+        let o = em(&[Effect::Ambient(b)]).output(&r).unwrap();
+        let k = [
+            (s[0] + s[1]) / (s[0] + s[1] + 2.0 * b),
+            (s[2] + s[3]) / (s[2] + s[3] + 2.0 * b),
+        ];
+        for a in 0..2 {
+            assert!(k[a] < 0.98, "{k:?}: a visible compression");
+            assert!((o[a] - o0[a] * k[a]).abs() < 1e-9 * o0[a].abs(), "{o:?} {o0:?} {k:?}");
+        }
+        let both = em(&[Effect::CellBias(2e-5, 0.0), Effect::Ambient(b)]).signals(&r);
+        assert!((both[0] - s[0] - b - 2e-5).abs() < 1e-15 && (both[1] - s[1] - b).abs() < 1e-15);
     }
 
     #[test]

@@ -161,6 +161,9 @@ pub fn led_brightness(seed: u64, percent: f64, n: usize) -> Vec<f64> {
 /// Seed of the plate tilts' stream ("plattilt"), XORed with the seed.
 const TILT_STREAM: u64 = 0x706c_6174_7469_6c74;
 
+/// Seed of the LED placement draws' stream ("ledplace"), XORed with the seed.
+const LED_STREAM: u64 = 0x6c65_6470_6c61_6365;
+
 /// What to simulate.
 #[derive(Debug, Clone)]
 pub struct SimConfig {
@@ -269,7 +272,31 @@ impl SimConfig {
                 }
             })
             .collect();
-        Physics { emulator, geometry }
+        // One (dx, dy) per LED of the grid, from a stream of its own (the seed's other draws
+        // stay as they were).
+        let led_sigma = self
+            .effects
+            .iter()
+            .find_map(|e| match *e {
+                Effect::LedPosition(s) => Some(s),
+                _ => None,
+            })
+            .unwrap_or(0.0);
+        let mut led_rng = StdRng::seed_from_u64(self.seed ^ LED_STREAM);
+        let led_offsets = (0..self.grid.0 * self.grid.1)
+            .map(|_| {
+                if led_sigma > 0.0 {
+                    [rng_n(&mut led_rng) * led_sigma, rng_n(&mut led_rng) * led_sigma]
+                } else {
+                    [0.0; 2]
+                }
+            })
+            .collect();
+        Physics {
+            emulator,
+            geometry,
+            led_offsets,
+        }
     }
 
     /// Check a configuration before running it: separations, grid, samples, noise, the
@@ -367,7 +394,7 @@ impl SimConfig {
             let em = place.emulator(em);
             for (i, brightness) in bright.iter().enumerate() {
                 let nominal = grid_position_xy(self.grid, self.pitch, sep, i);
-                let truth = place.beacon(&nominal);
+                let truth = phys.beacon(k, i, &nominal);
                 let Some(out) = em.output(&truth) else {
                     skipped += 1;
                     continue;
@@ -420,6 +447,11 @@ impl SimConfig {
             plate_offsets: phys.geometry.iter().map(|g| g.offset).collect(),
             separation_errors: phys.geometry.iter().map(|g| g.sep_error).collect(),
             plate_tilts_deg: phys.geometry.iter().map(|g| g.tilt_deg).collect(),
+            led_offsets: if phys.led_offsets.iter().any(|d| d != &[0.0, 0.0]) {
+                phys.led_offsets.clone()
+            } else {
+                Vec::new()
+            },
             separations: self.separations.clone(),
             noise_counts: self.noise,
             noise_law: None,
@@ -442,6 +474,11 @@ impl SimConfig {
             truth,
         )
     }
+}
+
+/// A standard normal draw.
+fn rng_n(rng: &mut StdRng) -> f64 {
+    rng.sample(StandardNormal)
 }
 
 /// The separations for a message: the list when short, else its span; numbers far from

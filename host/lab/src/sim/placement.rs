@@ -11,6 +11,18 @@ pub struct Physics {
     pub emulator: Emulator<f64>,
     /// Per separation (in `separations` order): where the plate truly is.
     pub geometry: Vec<Placement>,
+    /// Per LED (beacon id, in grid order): its true in-plane offset (dx, dy) from its
+    /// nominal place on the plate, in (`led_position`; all zero without it). A beacon's true
+    /// position is [`Placement::beacon`] of its nominal position plus this offset.
+    pub led_offsets: Vec<[f64; 2]>,
+}
+
+impl Physics {
+    /// The true position (N, in) of LED `id`, recorded at `nominal`, at separation `k`.
+    pub fn beacon(&self, k: usize, id: usize, nominal: &Vector3<f64>) -> Vector3<f64> {
+        let d = self.led_offsets.get(id).copied().unwrap_or_default();
+        self.geometry[k].beacon(&(nominal + Vector3::new(d[0], d[1], 0.0)))
+    }
 }
 
 /// Where the beacon plate truly is at one separation, against where it was recorded: the

@@ -45,6 +45,10 @@ pub struct Truth {
     /// [`Placement::tilt_deg`]). Empty in files written before it existed.
     #[serde(default)]
     pub plate_tilts_deg: Vec<[f64; 2]>,
+    /// Per LED (by beacon id): its true in-plane offset (dx, dy) from its nominal place, in
+    /// (`led_position`); absent when every LED sits on its place.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub led_offsets: Vec<[f64; 2]>,
     /// Recorded separations, in.
     pub separations: Vec<f64>,
     /// Noise 1-sigma, counts.

@@ -149,6 +149,11 @@ pub struct AnalyzeArgs {
     /// rods is 0.007 deg), and `plate_tilt` is the tilt beyond them.
     #[arg(long)]
     pub ignore_corners: bool,
+    /// The apparatus uncertainty budget (TOML, the file `cta uncertainty --budget` reads;
+    /// default thesis Table 2): a plate offset, separation error or plate tilt fitted far
+    /// beyond its root-sum-square is not named as found.
+    #[arg(long, value_name = "FILE")]
+    pub budget: Option<PathBuf>,
     /// Write a self-contained HTML report (index.html, inline SVG plots) into this folder.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
@@ -192,6 +197,7 @@ impl AnalyzeArgs {
             max_effects: self.max_effects,
             drop_glitches: self.drop_glitches,
             corners: None,
+            budget: crate::cmd::uncertainty::load_budget(self.budget.as_deref())?,
         })
     }
 }

@@ -55,6 +55,16 @@ pub fn render_text(a: &Analysis) -> String {
         if let Some(c) = &c.caution {
             let _ = writeln!(s, "     caution: {c}");
         }
+        if let Some(b) = &c.budget {
+            let _ = writeln!(
+                s,
+                "     against the apparatus budget: {:.1} mils fitted, {:.1} times the {}",
+                b.fitted_mils, b.ratio, b.line
+            );
+            if let Some(w) = &b.warning {
+                let _ = writeln!(s, "     warning: {w}");
+            }
+        }
         let _ = writeln!(s, "     on the sensor board: {}", c.board);
     }
     if let Some(line) = cross_correlation_line(&a.cross_correlations) {
