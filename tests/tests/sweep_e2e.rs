@@ -235,3 +235,61 @@ settle_ms = 0
         m.brightness_rms_percent
     );
 }
+
+/// `--sim-effect led_position`: each LED read where its truth sidecar says it sits. Without
+/// noise, the sweep's mean output of every beacon moves from the clean sweep's by as much as
+/// the offset the truth records for it predicts (eq 65's collinearity: X moves by about
+/// H dx / z at the plate's distance), and a beacon the truth leaves in place does not move.
+#[test]
+fn led_positions_are_simulated_as_recorded() {
+    let d = TestDir::new("sweep-ledpos");
+    let plan = write_plan(
+        &d,
+        r#"
+name = "led positions"
+separations_in = [20]
+beacons = [0, 11, 44, 55, 88, 99]
+frequencies_hz = [4050]
+samples = 2
+settle_ms = 0
+"#,
+    );
+    let run = |out: &str, effect: Option<&str>| {
+        let a = SweepOptions {
+            sim_noise: Some(0.0),
+            sim_seed: Some(3),
+            sim_effect: effect.map(|e| vec![e.to_string()]).unwrap_or_default(),
+            no_sync: true,
+            ..sweep_args(&plan, &d.join(out))
+        };
+        assert_eq!(sweep::sweep(&a).unwrap().ending, Ending::Complete);
+        Dataset::read(&sweep::data_path(&d.join(out))).unwrap()
+    };
+    let clean = run("clean", None);
+    let moved = run("moved", Some("led_position=0.05"));
+    let truth = cta_lab::sim::Truth::load_for(&sweep::data_path(&d.join("moved")))
+        .expect("a truth sidecar")
+        .unwrap();
+    let offsets = &truth.led_offsets;
+    assert_eq!(offsets.len(), 100, "led_offsets recorded");
+    let mean_x = |ds: &Dataset, id: u32| {
+        let xs: Vec<f64> = ds
+            .samples
+            .iter()
+            .filter(|s| s.beacon == Some(id))
+            .map(|s| s.x)
+            .collect();
+        xs.iter().sum::<f64>() / xs.len() as f64
+    };
+    // Counts per inch of beacon x at 20 in: H / z, H = beta tan a = 18918.6.
+    let per_in = 18918.6 / 20.0;
+    for id in [0u32, 11, 44, 55, 88, 99] {
+        let dx = offsets[id as usize][0];
+        let moved_by = mean_x(&moved, id) - mean_x(&clean, id);
+        let want = dx * per_in;
+        assert!(
+            (moved_by - want).abs() < 0.25 * want.abs() + 3.0,
+            "beacon {id}: dx {dx} in predicts {want:.0} counts, moved {moved_by:.0}"
+        );
+    }
+}

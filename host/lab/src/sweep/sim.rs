@@ -269,6 +269,8 @@ struct World {
     /// Each LED's brightness factor (its magnitude is multiplied by it).
     brightness: Vec<f64>,
     geometry: Vec<Placement>,
+    /// Each LED's true in-plane offset from its nominal place (`led_position`), in.
+    led_offsets: Vec<[f64; 2]>,
     separations: Vec<f64>,
     layout: Layout,
     settings: SimSettings,
@@ -321,7 +323,14 @@ impl World {
                 continue;
             };
             let g = grid_position(10, 1.0, sep, led);
-            let r = place.beacon(&nalgebra::Vector3::new(g.x + c[0], g.y + c[1], g.z));
+            // The LED where it truly sits on its array (`led_position`), the array where it
+            // is mounted, the plate where it truly is.
+            let d = self.led_offsets.get(led).copied().unwrap_or_default();
+            let r = place.beacon(&nalgebra::Vector3::new(
+                g.x + c[0] + d[0],
+                g.y + c[1] + d[1],
+                g.z,
+            ));
             let Some(out) = em.output(&r) else {
                 continue;
             };
@@ -831,6 +840,7 @@ impl SimCta {
                 LED_COUNT,
             ),
             geometry: phys.geometry,
+            led_offsets: phys.led_offsets,
             separations: plan.separations.clone(),
             layout: plan.layout,
             settings: settings.clone(),
