@@ -46,9 +46,9 @@ pub use digits::{pm, pm_parts};
 pub use error::Error;
 pub use options::Options;
 pub use params::spreads;
-pub use plausible::{BudgetCheck, BEYOND_BUDGET};
+pub use plausible::BEYOND_BUDGET;
 pub use result::{
-    Analysis, Cause, Correlation, Detail, DroppedOut, Param, ParamMap, Rival, RuledOut,
+    Analysis, BudgetCheck, Cause, Correlation, Detail, DroppedOut, Param, ParamMap, Rival, RuledOut,
     SepSpread, TrialOut, Untested, BASE_CORRELATION_MIN, CORRELATION_MIN, RIVAL_DBIC,
 };
 pub use text::{correlation_lines, correlations_text, cross_correlation_line, g, unit};

@@ -6,10 +6,9 @@
 //! sideways). Such a cause keeps its fit but carries a warning that says so and names the
 //! alternatives the data point to.
 
-use serde::Serialize;
 
 use super::model::Cand;
-use super::result::ParamMap;
+use super::result::{BudgetCheck, ParamMap};
 use crate::budget::Budget;
 
 /// A fitted apparatus error this many times the budget line it is compared with is "far
@@ -22,25 +21,6 @@ pub const BEYOND_BUDGET: f64 = 3.0;
 /// at least this share of its variance is said to trend (under no trend the share is about
 /// 1/(n-1): 0.08 for 13 separations).
 pub const TREND_R2: f64 = 0.5;
-
-/// How a fitted apparatus cause compares with the budget.
-#[derive(Debug, Clone, Serialize)]
-pub struct BudgetCheck {
-    /// The budget line compared with, in words (`X root-sum-square of thesis Table 2 (eq 26):
-    /// 31.5 mils`).
-    pub line: String,
-    /// That line's value, mils.
-    pub budget_mils: f64,
-    /// The fitted size compared with it, mils (the RMS over the separations; for
-    /// `plate_tilt` the height change the RMS tilt makes at the farthest beacon).
-    pub fitted_mils: f64,
-    /// `fitted_mils / budget_mils`.
-    pub ratio: f64,
-    /// When `ratio` exceeds [`BEYOND_BUDGET`]: why the cause is not named as found, and the
-    /// alternatives the data point to.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub warning: Option<String>,
-}
 
 /// Share of the variance of `v` (in the run's order) that a straight line against its index
 /// explains (0 for fewer than 4 values or no variance).

@@ -64,7 +64,7 @@ pub struct Cause {
     /// size against the budget line it is compared with, and a warning when far beyond it
     /// ([`super::plausible`]). Such a cause is not named as found.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub budget: Option<super::plausible::BudgetCheck>,
+    pub budget: Option<BudgetCheck>,
 }
 
 impl Cause {
@@ -409,4 +409,23 @@ pub struct Detail {
     pub angle_before: Vec<f64>,
     /// After.
     pub angle_after: Vec<f64>,
+}
+
+/// How a fitted apparatus cause compares with the budget.
+#[derive(Debug, Clone, Serialize)]
+pub struct BudgetCheck {
+    /// The budget line compared with, in words (`X root-sum-square of thesis Table 2 (eq 26):
+    /// 31.5 mils`).
+    pub line: String,
+    /// That line's value, mils.
+    pub budget_mils: f64,
+    /// The fitted size compared with it, mils (the RMS over the separations; for
+    /// `plate_tilt` the height change the RMS tilt makes at the farthest beacon).
+    pub fitted_mils: f64,
+    /// `fitted_mils / budget_mils`.
+    pub ratio: f64,
+    /// When `ratio` exceeds [`super::plausible::BEYOND_BUDGET`]: why the cause is not named as found, and the
+    /// alternatives the data point to.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub warning: Option<String>,
 }

@@ -16,7 +16,8 @@ use std::path::{Path, PathBuf};
 
 use super::error::{bail, Context, Result};
 
-use super::store::{Event, DATA, DATA_TAIL, JOURNAL, JOURNAL_TAIL, MANIFEST};
+use super::event::Event;
+use super::layout::{DATA, DATA_TAIL, JOURNAL, JOURNAL_TAIL, MANIFEST};
 
 /// The chain before a journal's first line.
 pub(crate) const START: u64 = 0xcbf2_9ce4_8422_2325;
@@ -256,7 +257,7 @@ pub(crate) fn contradiction(
         return Ok(None);
     }
     let (mp, jp) = (dir.join(MANIFEST), dir.join(JOURNAL));
-    let folder = super::store::recovery_folder(dir);
+    let folder = super::layout::recovery_folder(dir);
     let checked = match data_as_recorded(&m, &dir.join(DATA)) {
         Some((bytes, true)) => format!(
             "; {DATA}'s first {bytes} bytes are as the manifest recorded them (checked against \
