@@ -123,7 +123,7 @@ pub fn accuracy(t: &AccuracyTable) -> String {
     s += " (in) |  near-field   pinhole     ratio   |  near-field  pinhole     ratio   | nf  ph\n";
     for r in &t.rows {
         s += &format!(
-            "{:5.1} |  {:10.6} {:9.5} {:9} |  {:10.5} {:8.4} {:9} | {:2} {:3}\n",
+            "{:5.1} |  {:10.6} {:9.5} {:>9} |  {:10.5} {:8.4} {:>9} | {:2} {:3}\n",
             r.range,
             r.nf_pos_sys,
             r.ph_pos_sys,
