@@ -7,7 +7,7 @@ use cta_core::pose::{
     Calibration, Constellation, ModelKind, PoseSolver, PoseStatus, SolverSettings,
 };
 use cta_core::wire::sensor::{
-    Mode, NorthStarStats, PoseReport, SensorConfig, SensorError, SensorRequest, SensorResponse,
+    Mode, NorthStarStats, PoseHeader, PoseReport, SensorConfig, SensorError, SensorRequest, SensorResponse,
     SensorStatus, SpotReport, RATE_RANGE, SENSITIVITY_RANGE,
 };
 use cta_core::wire::{
@@ -408,26 +408,14 @@ impl<F: FlashPages> Board<F> {
                 let sol = self.solver.solve_frame(&frame.spots, frame.sensitivity);
                 let solve_us = io.now_us().saturating_sub(t_us).min(u32::MAX as u64) as u32;
                 self.last_pose = Some(sol.status);
-                let a = |v: nalgebra::Vector3<f32>| [v.x, v.y, v.z];
-                SensorResponse::Pose(PoseReport {
+                let header = PoseHeader {
                     seq,
                     t_us,
                     ns_seq: frame.seq,
                     model,
-                    status: sol.status,
-                    position: a(sol.position),
-                    mrp: a(sol.mrp),
-                    sigma_position: a(sol.sigma_position),
-                    sigma_attitude_deg: a(sol.sigma_attitude_deg),
-                    rms: sol.rms,
-                    condition: sol.condition,
-                    iterations: sol.iterations,
-                    beacons: sol.beacons,
-                    magnitudes: sol.magnitudes,
-                    cold_start: sol.cold_start,
-                    dropped: sol.dropped,
                     solve_us,
-                })
+                };
+                SensorResponse::Pose(PoseReport::new(header, &sol))
             }
         };
         self.reports = self.reports.wrapping_add(1);

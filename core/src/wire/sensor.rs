@@ -18,7 +18,8 @@ use serde::{Deserialize, Serialize};
 
 use super::{BoardKind, DecoderStats, Protocol, ResetCause};
 use crate::pose::{
-    Calibration, ConfigError, Constellation, ModelKind, PoseStatus, Spot, MAX_BEACONS,
+    Calibration, ConfigError, Constellation, ModelKind, PoseSolution, PoseStatus, Spot,
+    MAX_BEACONS,
 };
 
 /// Lowest and highest NorthStar light-sensitivity setting.
@@ -118,6 +119,49 @@ pub struct PoseReport {
     pub dropped: Option<u8>,
     /// Time spent solving on the board, microseconds.
     pub solve_us: u32,
+}
+
+/// Where a [`PoseReport`] comes from: the report counter, the frame's decoding time and
+/// NorthStar counter, the model and the solve's time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseHeader {
+    /// Board report counter.
+    pub seq: u32,
+    /// Board time the frame was decoded, microseconds.
+    pub t_us: u64,
+    /// The NorthStar's frame counter.
+    pub ns_seq: u8,
+    /// Model used.
+    pub model: ModelKind,
+    /// Time spent solving, microseconds.
+    pub solve_us: u32,
+}
+
+impl PoseReport {
+    /// The report of the solution `sol`: the board and the host's off-line solve
+    /// (`cta pose`) send the same fields the same way.
+    pub fn new(h: PoseHeader, sol: &PoseSolution<f32>) -> PoseReport {
+        let a = |v: nalgebra::Vector3<f32>| [v.x, v.y, v.z];
+        PoseReport {
+            seq: h.seq,
+            t_us: h.t_us,
+            ns_seq: h.ns_seq,
+            model: h.model,
+            status: sol.status,
+            position: a(sol.position),
+            mrp: a(sol.mrp),
+            sigma_position: a(sol.sigma_position),
+            sigma_attitude_deg: a(sol.sigma_attitude_deg),
+            rms: sol.rms,
+            condition: sol.condition,
+            iterations: sol.iterations,
+            beacons: sol.beacons,
+            magnitudes: sol.magnitudes,
+            cold_start: sol.cold_start,
+            dropped: sol.dropped,
+            solve_us: h.solve_us,
+        }
+    }
 }
 
 /// NorthStar link counters.

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use cta_core::pose::{Calibration, Constellation, ModelKind, PoseSolver, SolverSettings};
-use cta_core::wire::sensor::{PoseReport, SpotReport};
+use cta_core::wire::sensor::{PoseHeader, PoseReport, SpotReport};
 
 use super::plate::built_in_constellation;
 use crate::boards::sensor::{constellation_file, with_brightness, ConstellationFile};
@@ -148,7 +148,6 @@ pub fn solve_frames(
     };
     let mut solver =
         PoseSolver::<f32>::new(cal, con, settings).map_err(OfflineError::Config)?;
-    let a = |v: nalgebra::Vector3<f32>| [v.x, v.y, v.z];
     Ok(frames
         .iter()
         .map(|f| {
@@ -157,25 +156,14 @@ pub fn solve_frames(
             }
             let t0 = Instant::now();
             let sol = solver.solve_frame(&f.spots, f.sensitivity);
-            PoseReport {
+            let header = PoseHeader {
                 seq: f.seq,
                 t_us: f.t_us,
                 ns_seq: f.ns_seq,
                 model: options.model,
-                status: sol.status,
-                position: a(sol.position),
-                mrp: a(sol.mrp),
-                sigma_position: a(sol.sigma_position),
-                sigma_attitude_deg: a(sol.sigma_attitude_deg),
-                rms: sol.rms,
-                condition: sol.condition,
-                iterations: sol.iterations,
-                beacons: sol.beacons,
-                magnitudes: sol.magnitudes,
-                cold_start: sol.cold_start,
-                dropped: sol.dropped,
                 solve_us: t0.elapsed().as_micros().min(u32::MAX as u128) as u32,
-            }
+            };
+            PoseReport::new(header, &sol)
         })
         .collect())
 }
