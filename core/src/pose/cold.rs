@@ -11,7 +11,7 @@
 //! line of sight; over the CTA envelope, tilts to 30 deg at 2-30 in, starting from that
 //! mirror pose when it fitted better changed no acquisition, so the chip does without it.)
 
-use super::problem::Obs;
+use super::obs::Obs;
 use crate::Real;
 use nalgebra::{Matrix3, Vector3};
 

@@ -3,7 +3,7 @@
 //! Helmert contrasts that eliminate the frame's common scale (the `A` of
 //! [`super::Magnitude`]) exactly.
 
-use super::problem::Obs;
+use super::obs::Obs;
 use super::Magnitude;
 use crate::Real;
 

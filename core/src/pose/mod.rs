@@ -108,6 +108,7 @@ mod cold;
 mod config;
 mod fixtures;
 mod magnitude;
+mod obs;
 mod problem;
 mod solver;
 #[cfg(test)]
@@ -123,7 +124,7 @@ pub use fixtures::{
     BenchmarkFrames, SIM_MAGNITUDE_SCALE,
 };
 pub use magnitude::MAGNITUDE_RMS_SIGMAS;
-pub use problem::Obs;
+pub use obs::Obs;
 pub use solver::{
     ModelKind, PoseSolution, PoseSolver, PoseStatus, SolverSettings, WRONG_SPOT_GAIN,
     WRONG_SPOT_SIGMAS,

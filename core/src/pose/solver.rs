@@ -4,7 +4,8 @@
 
 use super::cold;
 use super::magnitude::{MagSolve, MAGNITUDE_RMS_SIGMAS};
-use super::problem::{Obs, PoseProblem};
+use super::obs::Obs;
+use super::problem::PoseProblem;
 use super::{
     v3, Calibration, ConfigError, Constellation, NearField, Spot, FAR_SIGMAS, MAX_BEACONS,
     MIN_BEACONS, RAIL, RAIL_SIGMAS,
