@@ -7,8 +7,8 @@ use cta_core::pose::{
     Calibration, Constellation, ModelKind, PoseSolver, PoseStatus, SolverSettings,
 };
 use cta_core::wire::sensor::{
-    Mode, NorthStarStats, PoseHeader, PoseReport, SensorConfig, SensorError, SensorRequest, SensorResponse,
-    SensorStatus, SpotReport, RATE_RANGE, SENSITIVITY_RANGE,
+    Mode, NorthStarStats, PoseHeader, PoseReport, SensorConfig, SensorError, SensorRequest,
+    SensorResponse, SensorStatus, SpotReport, RATE_RANGE, SENSITIVITY_RANGE,
 };
 use cta_core::wire::{
     encode_frame, BoardKind, ErrorReply, FrameDecoder, Header, Identity, Reply, Request,

@@ -160,7 +160,13 @@ pub fn main() {
 /// the command line and each input's SHA-256.
 pub fn provenance(inputs: &[&std::path::Path]) -> cta_lab::provenance::Provenance {
     cta_lab::provenance::Provenance::now(
-        concat!("cta ", env!("CARGO_PKG_VERSION"), " (", env!("CTA_COMMIT"), ")"),
+        concat!(
+            "cta ",
+            env!("CARGO_PKG_VERSION"),
+            " (",
+            env!("CTA_COMMIT"),
+            ")"
+        ),
         std::env::args().collect(),
         inputs,
     )

@@ -405,8 +405,16 @@ fn demo_runs_end_to_end() {
     }
     // The index shows every plot the demo made.
     let index = std::fs::read_to_string(out.join("index.html")).unwrap();
-    for svg in ["nearfield.svg", "uncertainty.svg", "figure57.svg", "calibration.svg"] {
-        assert!(index.contains(&format!("<img src=\"{svg}\"")), "{svg} not shown");
+    for svg in [
+        "nearfield.svg",
+        "uncertainty.svg",
+        "figure57.svg",
+        "calibration.svg",
+    ] {
+        assert!(
+            index.contains(&format!("<img src=\"{svg}\"")),
+            "{svg} not shown"
+        );
     }
     // Never overwritten without --force.
     let again = cta(&["demo", "--out", s(&out)]);
@@ -1342,7 +1350,14 @@ fn evaluate_takes_a_sensor_calibration() {
     common::simulate_at(&csv, "3,10,20,30", "2", "4", &[]);
     let o = cta(&["calibrate", s(&csv), "--out", s(&cal)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v = json(&cta(&["evaluate", s(&cal), s(&csv), "--json", "--plot", s(&plot)]));
+    let v = json(&cta(&[
+        "evaluate",
+        s(&cal),
+        s(&csv),
+        "--json",
+        "--plot",
+        s(&plot),
+    ]));
     let evs = v["models"].as_array().expect("one evaluation a model");
     assert_eq!(evs.len(), 2, "{v}");
     assert_eq!(evs[0]["model"], "near-field (eqs 60-63)");
@@ -1368,8 +1383,14 @@ fn outputs_carry_their_provenance() {
         .map(|b| format!("{b:02x}"))
         .collect();
     let check = |p: &serde_json::Value, what: &str| {
-        assert!(p["software"].as_str().unwrap().starts_with("cta "), "{what}: {p}");
-        assert!(p["date_utc"].as_str().unwrap().ends_with('Z'), "{what}: {p}");
+        assert!(
+            p["software"].as_str().unwrap().starts_with("cta "),
+            "{what}: {p}"
+        );
+        assert!(
+            p["date_utc"].as_str().unwrap().ends_with('Z'),
+            "{what}: {p}"
+        );
         assert!(p["command"].as_array().unwrap().len() > 2, "{what}: {p}");
         let hashes: Vec<&str> = p["inputs"]
             .as_array()
@@ -1380,7 +1401,15 @@ fn outputs_carry_their_provenance() {
         assert!(hashes.contains(&want.as_str()), "{what}: {p}");
     };
     let fit = d.join("fit.json");
-    let v = json(&cta(&["fit", s(&csv), "--separations", "25,30", "--save", s(&fit), "--json"]));
+    let v = json(&cta(&[
+        "fit",
+        s(&csv),
+        "--separations",
+        "25,30",
+        "--save",
+        s(&fit),
+        "--json",
+    ]));
     check(&v["provenance"], "fit --json");
     let saved: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&fit).unwrap()).unwrap();
@@ -1398,7 +1427,10 @@ fn outputs_carry_their_provenance() {
     let o = cta(&["analyze", s(&csv), "--report", s(&report), "--quiet"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let html = std::fs::read_to_string(report.join("index.html")).unwrap();
-    assert!(html.contains("<h2>Provenance</h2>") && html.contains(&want), "no provenance");
+    assert!(
+        html.contains("<h2>Provenance</h2>") && html.contains(&want),
+        "no provenance"
+    );
     assert!(html.contains("name=viewport") && !html.contains("host/ANALYZE.md"));
 }
 
@@ -1423,14 +1455,21 @@ fn quiet_silences_warnings_not_errors() {
     };
     let loud = eval(&[]);
     let said = String::from_utf8_lossy(&loud.stderr);
-    assert!(said.contains("warning:") && said.contains("no truth sidecar"), "{said}");
+    assert!(
+        said.contains("warning:") && said.contains("no truth sidecar"),
+        "{said}"
+    );
     for quiet in [eval(&["--quiet"]), eval(&["-q"])] {
         assert!(quiet.status.success());
         assert_eq!(String::from_utf8_lossy(&quiet.stderr), "");
         assert_eq!(quiet.stdout, loud.stdout);
     }
     let o = cta(&["--quiet", "nearfield", "--plot", s(&plot)]);
-    assert!(o.status.success() && o.stderr.is_empty(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success() && o.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     assert!(plot.exists());
     let o = cta(&["--quiet", "fit", s(&d.join("missing.csv"))]);
     assert!(!o.status.success());

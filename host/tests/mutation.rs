@@ -235,9 +235,9 @@ fn run(name: &str, n: usize) {
             cta_lab::boards::files::read_json::<cta_core::pose::Calibration>(&file)
         }) {
             Err(_) => faults.push(format!("reading a calibration panicked: {}", mc.display())),
-            Ok(Err(e)) if !e.to_string().contains("m-cal.json") => {
-                faults.push(format!("a calibration error that does not name its file: {e}"))
-            }
+            Ok(Err(e)) if !e.to_string().contains("m-cal.json") => faults.push(format!(
+                "a calibration error that does not name its file: {e}"
+            )),
             Ok(_) => {}
         }
     }

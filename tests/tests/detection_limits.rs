@@ -57,8 +57,7 @@ fn analyze_sim(effects: Vec<Effect>, seed: u64) -> Analysis {
         ..Default::default()
     };
     let (ds, _) = cfg.run();
-    analyze(&ds, &Options::default(), &Silent)
-        .unwrap_or_else(|e| panic!("analyze failed: {e}"))
+    analyze(&ds, &Options::default(), &Silent).unwrap_or_else(|e| panic!("analyze failed: {e}"))
 }
 
 /// The ladder of one effect: (effect at each rung, the rung's size in the effect's fitted

@@ -428,7 +428,10 @@ fn a_cause_that_stood_in_for_others_is_dropped() {
     let mut d: Vec<&str> = a.dropped.iter().map(|d| d.effect.as_str()).collect();
     d.sort_unstable();
     assert_eq!(d, ["led_position", "plate_offset"]);
-    assert!(a.dropped.iter().all(|d| d.round <= 2 && d.dbic_keep <= 10.0));
+    assert!(a
+        .dropped
+        .iter()
+        .all(|d| d.round <= 2 && d.dbic_keep <= 10.0));
     let text = render_text(&a);
     assert!(
         text.contains("dropped: plate_offset: named in round 2")
@@ -525,7 +528,11 @@ fn clean_data_rules_every_candidate_out() {
             // Mean square of 13 estimates against its noise-only expectation: a chi-square
             // of ~12 degrees of freedom over 12; 4 is far in its tail.
             // `led_position`'s values are per LED (100), the others per separation.
-            let n = if r.effect == "led_position" { 100 } else { SEPS.len() };
+            let n = if r.effect == "led_position" {
+                100
+            } else {
+                SEPS.len()
+            };
             assert!(
                 sp.separations == n && sp.rms <= 2.0 * sp.noise_rms,
                 "{}: {sp:?}",

@@ -5,8 +5,8 @@
 //! `plate_tilt`.
 
 use cta_lab::analyze::{analyze, Options};
-use cta_lab::progress::Silent;
 use cta_lab::data::Dataset;
+use cta_lab::progress::Silent;
 use cta_lab::sim::Truth;
 use cta_lab::sweep::corners::{RunCorners, ROD_XY_IN};
 use cta_lab::sweep::{self, engine::Ending, SweepOptions};

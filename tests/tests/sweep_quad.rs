@@ -2,8 +2,8 @@
 //! the detector must see it there (it once kept seeing quadrant 0 at every quadrant's
 //! recorded positions, which the fit turned into H = 4,173 instead of 18,919).
 
-use cta_lab::data::Dataset;
 use cta_lab::data::weights::Weights;
+use cta_lab::data::Dataset;
 use cta_lab::fit;
 use cta_lab::sweep::{self, engine::Ending, SweepOptions};
 use cta_tests::{sweep_args, write_plan, TestDir};

@@ -17,12 +17,12 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use cta_cli::cmd::sweep::{self as cli, SweepArgs};
 use cta_core::wire::beacon::{Beacon, BeaconRequest, BeaconResponse};
 use cta_core::wire::sensor::{SensorProtocol, SensorRequest, SensorResponse};
 use cta_lab::boards::link::{open_serial, Link, LinkConfig};
 use cta_lab::sweep::plan::Plan;
 use cta_lab::sweep::sim::{SimCta, SimSettings};
-use cta_cli::cmd::sweep::{self as cli, SweepArgs};
 use cta_tests::{
     child, child_paths, journal, journal_points, older_journal, write_plan, TestDir, SLOW_PLAN,
 };

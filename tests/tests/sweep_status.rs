@@ -10,9 +10,9 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use cta_lab::sweep::status::{self, Holder};
 use cta_cli::cmd::sweep::{self as cli, SweepArgs};
 use cta_lab::sweep::engine::Ending;
+use cta_lab::sweep::status::{self, Holder};
 use cta_tests::{
     child, child_paths, crash_after, journal_points, snapshot, sweep_cli_args, write_plan, TestDir,
     SLOW_PLAN,

@@ -17,12 +17,12 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cta_cli::cmd::beacon::{self, BeaconArgs, BeaconCommand, BeaconConn};
+use cta_cli::cmd::sweep::{self as cli, SweepArgs};
 use cta_core::schedule::NORTHSTAR_TABLE_MHZ;
 use cta_firmware_beacon::sim::SimBoard;
+use cta_lab::sweep::engine::Ending;
 use cta_lab::sweep::plan::Plan;
 use cta_lab::sweep::sim::{Faults, SimCta, SimSettings};
-use cta_cli::cmd::sweep::{self as cli, SweepArgs};
-use cta_lab::sweep::engine::Ending;
 use cta_tests::{
     child, child_paths, data_rows, journal, journal_points, write_plan, TestDir, SLOW_PLAN,
 };

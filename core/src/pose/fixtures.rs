@@ -159,31 +159,41 @@ pub type BenchmarkFrames = (
     Vector3<f64>,
 );
 
-/// [`benchmark_frames`] for another constellation `con` (same poses, noise and rounding).
-pub fn benchmark_frames_of(con: &Constellation) -> BenchmarkFrames {
+/// The eq 63 emulator of the Table 3 head, the benchmarks' sensor.
+fn table3_emulator() -> Emulator<f64> {
     let cal = Calibration::table3();
-    let em = Emulator::new(
+    Emulator::new(
         Head::northstar(),
         HeadPose {
             d: v3(&cal.d),
             p: v3(&cal.p),
         },
         Effects::default(),
-    );
+    )
+}
+
+/// The benchmarks' spot noise: 0.1 % of beta, uniform on [-sqrt(3), sqrt(3)] sigma (unit
+/// variance times sigma), from a xorshift generator started at `seed`, so that the host and
+/// the target draw the same frames.
+fn benchmark_noise(mut seed: u32) -> impl FnMut(usize) -> f64 {
+    let sigma = 0.001 * crate::emulator::BETA;
+    move |_| {
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        ((seed as f64) / 4294967296.0 - 0.5) * 2.0 * 1.7320508075688772 * sigma
+    }
+}
+
+/// [`benchmark_frames`] for another constellation `con` (same poses, noise and rounding).
+pub fn benchmark_frames_of(con: &Constellation) -> BenchmarkFrames {
+    let em = table3_emulator();
     let axis = Vector3::new(0.3, -0.5, 1.0);
     let t1 = Vector3::new(0.3, -0.2, 8.0);
     let q1 = mrp::from_axis_angle(&axis, rad(3.0));
     let t2 = t1 + Vector3::new(0.02, -0.01, 0.05);
     let q2 = mrp::from_axis_angle(&axis, rad(3.1));
-    let mut seed = 0x2545_f491_u32;
-    let sigma = 0.001 * crate::emulator::BETA;
-    let mut noise = move |_| {
-        seed ^= seed << 13;
-        seed ^= seed >> 17;
-        seed ^= seed << 5;
-        // Uniform on [-sqrt(3), sqrt(3)] sigma: unit variance times sigma.
-        ((seed as f64) / 4294967296.0 - 0.5) * 2.0 * 1.7320508075688772 * sigma
-    };
+    let mut noise = benchmark_noise(0x2545_f491);
     let f1 = simulate_spots(&em, con, &t1, &q1, &mut noise);
     let f2 = simulate_spots(&em, con, &t2, &q2, &mut noise);
     (f1, f2, t2, q2)
@@ -196,23 +206,8 @@ pub fn benchmark_frames_of(con: &Constellation) -> BenchmarkFrames {
 pub fn cold_frames_of(
     con: &Constellation,
 ) -> [(Vec<Spot, MAX_BEACONS>, Vector3<f64>, Vector3<f64>); 3] {
-    let cal = Calibration::table3();
-    let em = Emulator::new(
-        Head::northstar(),
-        HeadPose {
-            d: v3(&cal.d),
-            p: v3(&cal.p),
-        },
-        Effects::default(),
-    );
-    let mut seed = 0x9e37_79b9_u32;
-    let sigma = 0.001 * crate::emulator::BETA;
-    let mut noise = move |_| {
-        seed ^= seed << 13;
-        seed ^= seed >> 17;
-        seed ^= seed << 5;
-        ((seed as f64) / 4294967296.0 - 0.5) * 2.0 * 1.7320508075688772 * sigma
-    };
+    let em = table3_emulator();
+    let mut noise = benchmark_noise(0x9e37_79b9);
     let tilt = mrp::from_axis_angle(&Vector3::new(1.0, -0.6, 0.0), rad(20.0));
     [90.0, 180.0, -150.0].map(|roll| {
         let q = mrp::compose(&tilt, &mrp::from_axis_angle(&Vector3::z(), rad(roll)));

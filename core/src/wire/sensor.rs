@@ -18,8 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{BoardKind, DecoderStats, Protocol, ResetCause};
 use crate::pose::{
-    Calibration, ConfigError, Constellation, ModelKind, PoseSolution, PoseStatus, Spot,
-    MAX_BEACONS,
+    Calibration, ConfigError, Constellation, ModelKind, PoseSolution, PoseStatus, Spot, MAX_BEACONS,
 };
 
 /// Lowest and highest NorthStar light-sensitivity setting.

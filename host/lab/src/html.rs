@@ -10,7 +10,12 @@ pub fn escape(s: &str) -> String {
 /// A page of figures, each an image with its caption, and links: what a folder of plots
 /// shows, readable on a phone. `figures` are `(file, caption)`, `links` `(href, text)`, both
 /// relative to the page.
-pub fn gallery(title: &str, intro: &str, figures: &[(&str, &str)], links: &[(&str, &str)]) -> String {
+pub fn gallery(
+    title: &str,
+    intro: &str,
+    figures: &[(&str, &str)],
+    links: &[(&str, &str)],
+) -> String {
     let mut s = format!(
         "<!doctype html><html><head><meta charset=utf-8>\
          <meta name=viewport content=\"width=device-width, initial-scale=1\">\

@@ -100,8 +100,15 @@ mod tests {
             p.inputs[0].sha256.as_deref(),
             Some("ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad")
         );
-        assert_eq!((p.inputs[1].bytes, p.inputs[1].sha256.as_deref()), (None, None));
-        assert!(p.date_utc.ends_with('Z') && p.date_utc.len() == 20, "{}", p.date_utc);
+        assert_eq!(
+            (p.inputs[1].bytes, p.inputs[1].sha256.as_deref()),
+            (None, None)
+        );
+        assert!(
+            p.date_utc.ends_with('Z') && p.date_utc.len() == 20,
+            "{}",
+            p.date_utc
+        );
         let v = p.attach(serde_json::json!({"a": 1}));
         assert_eq!(v["provenance"]["software"], "cta 0 (test)");
         std::fs::remove_dir_all(&dir).unwrap();

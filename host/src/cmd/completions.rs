@@ -71,7 +71,14 @@ mod tests {
         let mut out = Vec::new();
         write_completions(Shell::Bash, &mut out).unwrap();
         let s = String::from_utf8(out).unwrap();
-        for word in ["sweep", "analyze", "calibrate", "--resume", "--sim-effect", "completions"] {
+        for word in [
+            "sweep",
+            "analyze",
+            "calibrate",
+            "--resume",
+            "--sim-effect",
+            "completions",
+        ] {
             assert!(s.contains(word), "{word} missing from the bash completions");
         }
     }
@@ -94,7 +101,10 @@ mod tests {
     #[test]
     fn version_names_the_commit() {
         let v = crate::Cli::command().render_version();
-        assert!(v.starts_with(&format!("cta {} (", env!("CARGO_PKG_VERSION"))), "{v}");
+        assert!(
+            v.starts_with(&format!("cta {} (", env!("CARGO_PKG_VERSION"))),
+            "{v}"
+        );
         assert!(v.trim_end().ends_with(')') && !v.contains("()"), "{v}");
     }
 }

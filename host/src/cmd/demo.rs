@@ -128,7 +128,8 @@ fn remove_earlier_demo(out: &std::path::Path) -> Result<()> {
 /// Run `cta demo`.
 pub fn run(a: &DemoArgs) -> Result<()> {
     // Refuse a bad effect before anything is deleted or written.
-    cta_lab::sim::effects::Effect::parse(&a.effect).map_err(|e| anyhow::anyhow!("--effect: {e}"))?;
+    cta_lab::sim::effects::Effect::parse(&a.effect)
+        .map_err(|e| anyhow::anyhow!("--effect: {e}"))?;
     if a.out.exists() {
         if !a.force {
             bail!("{} exists; pass --force to replace it", a.out.display());
@@ -445,6 +446,9 @@ mod tests {
             format!("{:?}", calibrate_args(d, c, p))
         );
         let an = Wrap::<AnalyzeArgs>::parse_from(["cta", "run/data.csv", "--report", "report"]);
-        assert_eq!(format!("{:?}", an.inner), format!("{:?}", analyze_args(d, r)));
+        assert_eq!(
+            format!("{:?}", an.inner),
+            format!("{:?}", analyze_args(d, r))
+        );
     }
 }

@@ -6,11 +6,11 @@ use crate::cmd::fit::{prepare, sig};
 use crate::cmd::uncertainty::load_budget;
 use anyhow::{anyhow, bail, Result};
 use clap::Args;
-use cta_lab::analyze::digits::pm_parts;
-use cta_lab::data::fmt_list;
 use cta_core::collinearity::Params;
 use cta_core::pose::Calibration;
+use cta_lab::analyze::digits::pm_parts;
 use cta_lab::boards::files::read_json;
+use cta_lab::data::fmt_list;
 use cta_lab::fit::{self, DirectionModel, Evaluation, FitReport, Reference};
 use cta_lab::sim::Truth;
 use serde::Serialize;
@@ -188,7 +188,13 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     let reference = reference(a, [own.x, own.y, own.z], what)?;
     let mut evs = Vec::new();
     for (m, title) in &models {
-        let mut ev = fit::evaluate(*m, &prepared.data, reference, budget.rss_inches(), a.without_rail);
+        let mut ev = fit::evaluate(
+            *m,
+            &prepared.data,
+            reference,
+            budget.rss_inches(),
+            a.without_rail,
+        );
         if ev.separation_in.is_empty() {
             bail!(
                 "{}: no report left to evaluate with {} (every report at the 16-bit rail with \
@@ -229,7 +235,10 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
         }
     }
     if let Some(p) = &a.plot {
-        let fit_separations = rep.as_ref().map(|r| r.separations.clone()).unwrap_or_default();
+        let fit_separations = rep
+            .as_ref()
+            .map(|r| r.separations.clone())
+            .unwrap_or_default();
         let others: Vec<&Evaluation> = evs[1..].iter().map(|(e, _)| e).collect();
         evs[0]
             .0

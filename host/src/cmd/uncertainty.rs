@@ -45,7 +45,10 @@ pub fn run(a: &UncertaintyArgs) -> Result<()> {
     let table = UncertaintyTable::new(budget, a.diameter_in);
     if a.json {
         let inputs: Vec<&std::path::Path> = a.budget.iter().map(|p| p.as_path()).collect();
-        println!("{}", crate::json_with_provenance(&to_json(&table), &inputs)?);
+        println!(
+            "{}",
+            crate::json_with_provenance(&to_json(&table), &inputs)?
+        );
     } else {
         print_table(&table);
     }

@@ -162,11 +162,7 @@ pub(super) fn ruled_out(
 /// Analyze a dataset (module doc). Each fit is reported to `progress`: `position(fits so far,
 /// 0)` (how many fits the search takes is not known beforehand) and `message(what was
 /// fitted)`.
-pub fn analyze(
-    ds: &Dataset,
-    opts: &Options,
-    progress: &dyn Progress,
-) -> Result<Analysis, Error> {
+pub fn analyze(ds: &Dataset, opts: &Options, progress: &dyn Progress) -> Result<Analysis, Error> {
     let fits = AtomicU64::new(0);
     let fitted = |what: &str| {
         let n = fits.fetch_add(1, Ordering::Relaxed) + 1;
@@ -255,11 +251,13 @@ pub fn analyze(
             .collect(),
         max_effects: opts.max_effects,
     };
-    let sel = select::select_with_folds(&data, &sel_opts, &fold_seps, progress)
-        .map_err(|error| Error::Selection {
-            file: file.clone(),
-            error,
-            diagnosis: wiring::diagnose(ds),
+    let sel =
+        select::select_with_folds(&data, &sel_opts, &fold_seps, progress).map_err(|error| {
+            Error::Selection {
+                file: file.clone(),
+                error,
+                diagnosis: wiring::diagnose(ds),
+            }
         })?;
     let mut untested: Vec<Untested> = sel
         .untested
@@ -704,7 +702,12 @@ pub(super) fn data_notes<'d>(
 
 /// A chi-square far below its expectation: the noise the fits weight by is far larger than
 /// the scatter of the point means, so no effect could be significant against it.
-pub(super) fn noise_too_large(data: &Data, opts: &Options, chi2_dof: f64, rms: f64) -> Option<String> {
+pub(super) fn noise_too_large(
+    data: &Data,
+    opts: &Options,
+    chi2_dof: f64,
+    rms: f64,
+) -> Option<String> {
     if !(chi2_dof < NOISE_TOO_LARGE_CHI2_DOF) {
         return None;
     }

@@ -29,17 +29,16 @@ pub mod model;
 mod options;
 mod params;
 pub mod plausible;
-pub mod scatter;
 pub mod report;
 mod result;
+pub mod scatter;
 pub mod select;
-mod text;
 #[cfg(test)]
 mod tests;
+mod text;
 
 pub use analysis::{
-    analyze, board_note, MIN_POINTS_PER_SEPARATION, NOISE_TOO_LARGE_CHI2_DOF,
-    UNEXPLAINED_CHI2_DOF,
+    analyze, board_note, MIN_POINTS_PER_SEPARATION, NOISE_TOO_LARGE_CHI2_DOF, UNEXPLAINED_CHI2_DOF,
 };
 pub use corners::{CornersOut, CORNER_TWIST_WARN_IN};
 pub use digits::{pm, pm_parts};
@@ -48,7 +47,7 @@ pub use options::Options;
 pub use params::spreads;
 pub use plausible::BEYOND_BUDGET;
 pub use result::{
-    Analysis, BudgetCheck, Cause, Correlation, Detail, DroppedOut, Param, ParamMap, Rival, RuledOut,
-    SepSpread, TrialOut, Untested, BASE_CORRELATION_MIN, CORRELATION_MIN, RIVAL_DBIC,
+    Analysis, BudgetCheck, Cause, Correlation, Detail, DroppedOut, Param, ParamMap, Rival,
+    RuledOut, SepSpread, TrialOut, Untested, BASE_CORRELATION_MIN, CORRELATION_MIN, RIVAL_DBIC,
 };
 pub use text::{correlation_lines, correlations_text, cross_correlation_line, g, unit};

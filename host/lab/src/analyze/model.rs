@@ -207,9 +207,7 @@ impl Cand {
             Cand::FaceAngle if base == Base::Pinhole => &["DY"],
             Cand::FaceAngle => &["DX", "DY"],
             Cand::Saturation => &["lnS"],
-            Cand::PlateOffset | Cand::SeparationError | Cand::PlateTilt | Cand::LedPosition => {
-                &[]
-            }
+            Cand::PlateOffset | Cand::SeparationError | Cand::PlateTilt | Cand::LedPosition => &[],
         }
     }
 
@@ -464,7 +462,12 @@ impl Model {
     }
 
     fn n_global(&self) -> usize {
-        self.n_base() + self.effects.iter().map(|&e| self.global_len(e)).sum::<usize>()
+        self.n_base()
+            + self
+                .effects
+                .iter()
+                .map(|&e| self.global_len(e))
+                .sum::<usize>()
     }
 
     /// The LED (index into [`Model::leds`]) and coordinate (0: dx, 1: dy) parameter `i` is
@@ -519,7 +522,10 @@ impl Model {
                 .iter()
                 .enumerate()
                 .flat_map(|(k, l)| {
-                    [(dx(k), -l.xy[1] / (nf * rho)), (dy(k), l.xy[0] / (nf * rho))]
+                    [
+                        (dx(k), -l.xy[1] / (nf * rho)),
+                        (dy(k), l.xy[0] / (nf * rho)),
+                    ]
                 })
                 .collect(),
         ];
@@ -756,10 +762,8 @@ impl Model {
                     Base::Pinhole => head.alpha_y = head.alpha_x + rad(v[0]),
                 },
                 Cand::Saturation => fx.saturation = Some(v[0].exp()),
-                Cand::PlateOffset
-                | Cand::SeparationError
-                | Cand::PlateTilt
-                | Cand::LedPosition => {}
+                Cand::PlateOffset | Cand::SeparationError | Cand::PlateTilt | Cand::LedPosition => {
+                }
             }
         }
         let pose = cta_core::emulator::Pose {
@@ -1094,7 +1098,8 @@ pub fn fit(
         }
         // The per-LED gauge, over the LED parameters this fit frees.
         for row in model.led_gauge() {
-            let row: Vec<(usize, f64)> = row.into_iter().filter(|(i, _)| free.contains(i)).collect();
+            let row: Vec<(usize, f64)> =
+                row.into_iter().filter(|(i, _)| free.contains(i)).collect();
             if !row.is_empty() {
                 constraints.push(row);
             }

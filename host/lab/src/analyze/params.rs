@@ -11,7 +11,12 @@ use super::result::{
 
 /// The parameters of the fit `f` of `model` with their 1-sigma: the global ones only when
 /// `globals_only`, else with every per-separation one (named by `seps`).
-pub(super) fn params_of(model: &Model, f: &FitResult, seps: &[f64], globals_only: bool) -> Vec<Param> {
+pub(super) fn params_of(
+    model: &Model,
+    f: &FitResult,
+    seps: &[f64],
+    globals_only: bool,
+) -> Vec<Param> {
     let names = model.names(seps);
     let n = if globals_only {
         model.n_global_params()
@@ -174,7 +179,11 @@ pub(super) fn delta_method<'n>(
 /// effect (`proximity.S`); `a` is the earlier effect's. An effect whose quantities derive from
 /// one fitted parameter (`beacon_pattern`'s H_deg and m) contributes its first only;
 /// per-separation parameters are not included.
-pub(super) fn cross_correlations(model: &Model, f: &FitResult, effects: &[Cand]) -> Vec<Correlation> {
+pub(super) fn cross_correlations(
+    model: &Model,
+    f: &FitResult,
+    effects: &[Cand],
+) -> Vec<Correlation> {
     /// One effect's quantities: qualified names, gradient rows (J) and J P.
     struct Quantities {
         names: Vec<String>,

@@ -6,7 +6,6 @@
 //! sideways). Such a cause keeps its fit but carries a warning that says so and names the
 //! alternatives the data point to.
 
-
 use super::model::Cand;
 use super::result::{BudgetCheck, ParamMap};
 use crate::budget::Budget;
@@ -135,9 +134,9 @@ pub fn check(c: Cand, params: &ParamMap, budget: &Budget, r_max: f64) -> Option<
     };
     let warning = (ratio > BEYOND_BUDGET).then(|| {
         let what = match c {
-            Cand::PlateTilt => format!(
-                "its RMS tilt moves the farthest beacon by {fitted_mils:.1} mils in Z"
-            ),
+            Cand::PlateTilt => {
+                format!("its RMS tilt moves the farthest beacon by {fitted_mils:.1} mils in Z")
+            }
             _ => format!("its RMS over the separations is {fitted_mils:.1} mils in {axis}"),
         };
         let trend: Vec<String> = trends
@@ -182,7 +181,9 @@ mod tests {
         let line: Vec<f64> = (0..13).map(|i| 0.01 * i as f64 - 0.06).collect();
         assert!((trend_r2(&line) - 1.0).abs() < 1e-12);
         // Alternating values: no linear trend at all.
-        let alt: Vec<f64> = (0..13).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
+        let alt: Vec<f64> = (0..13)
+            .map(|i| if i % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
         assert!(trend_r2(&alt) < 0.05, "{}", trend_r2(&alt));
         assert_eq!(trend_r2(&[1.0, 2.0]), 0.0);
     }
@@ -205,7 +206,11 @@ mod tests {
         assert!((ok.budget_mils - 31.5).abs() < 0.1, "{}", ok.budget_mils);
         assert!((ok.ratio - 50.0 / ok.budget_mils).abs() < 1e-9);
         assert!(ok.warning.is_none());
-        assert!(ok.line.starts_with("X root-sum-square of thesis Table 2"), "{}", ok.line);
+        assert!(
+            ok.line.starts_with("X root-sum-square of thesis Table 2"),
+            "{}",
+            ok.line
+        );
         let far = check(Cand::PlateOffset, &offsets(0.11), &t2, 6.4).unwrap();
         let w = far.warning.unwrap();
         assert!(w.contains("3.5 times") && w.contains("gain_drift"), "{w}");

@@ -540,8 +540,8 @@ pub fn select_with_folds(
         why,
     })?;
     progress("starting model fitted");
-    let base_cv = cross_validate(&base_model, data, &base_fit.x, fold_seps)
-        .map_err(Error::StartCv)?;
+    let base_cv =
+        cross_validate(&base_model, data, &base_fit.x, fold_seps).map_err(Error::StartCv)?;
     progress("starting model cross-validated");
     let mut sel = Selection {
         base_model: base_model.clone(),

@@ -251,9 +251,7 @@ fn a_noise_far_larger_than_the_residuals_is_pointed_out() {
     assert!(a.chi2_dof_before < 0.2, "{}", a.chi2_dof_before);
     let note = a.data_notes.join(" | ");
     assert!(
-        note.contains(
-            "far smaller than the noise assumed for one sample per point (32.8 counts)"
-        ),
+        note.contains("far smaller than the noise assumed for one sample per point (32.8 counts)"),
         "{note}"
     );
     let rerun: f64 = (note.split("rerun with --noise ").nth(1))
@@ -359,9 +357,7 @@ fn reported_correlation_matches_the_scatter_over_seeds() {
     let syy: f64 = dy.iter().map(|b| (b - my).powi(2)).sum();
     let sample = sxy / (sxx * syy).sqrt();
     let rep = reported.iter().sum::<f64>() / n;
-    println!(
-        "face_angle DX, DY over 400 seeds: sample correlation {sample:.3}, reported {rep:.3}"
-    );
+    println!("face_angle DX, DY over 400 seeds: sample correlation {sample:.3}, reported {rep:.3}");
     // The sampling error of a correlation near 0.7 from 400 pairs is ~0.026 (60 pairs
     // gave 0.80 against 0.68: too few).
     assert!(rep > 0.5, "reported {rep}");
@@ -550,7 +546,10 @@ fn a_gain_drift_is_not_named_a_plate_offset_with_confidence() {
     eprintln!("{}\n{names:?}", a.verdict);
     for c in a.causes.iter().chain(&a.tentative) {
         if let Some(b) = &c.budget {
-            eprintln!("{}: {} mils, {:.2}x {}", c.effect, b.fitted_mils, b.ratio, b.line);
+            eprintln!(
+                "{}: {} mils, {:.2}x {}",
+                c.effect, b.fitted_mils, b.ratio, b.line
+            );
         }
     }
     let named = a.verdict.split(';').next().unwrap();
@@ -559,7 +558,10 @@ fn a_gain_drift_is_not_named_a_plate_offset_with_confidence() {
         let b = c.budget.as_ref().unwrap();
         assert!(b.ratio > super::BEYOND_BUDGET, "{b:?}");
         let w = b.warning.as_ref().unwrap();
-        assert!(w.contains("gain_drift") && w.contains("separation order"), "{w}");
+        assert!(
+            w.contains("gain_drift") && w.contains("separation order"),
+            "{w}"
+        );
         assert!(a.verdict.contains("not named as found"), "{}", a.verdict);
     }
 }
@@ -572,8 +574,16 @@ fn a_plate_offset_within_the_budget_is_named_with_its_budget_line() {
     assert_eq!(a.causes[0].effect, "plate_offset", "{}", a.verdict);
     let b = a.causes[0].budget.as_ref().unwrap();
     assert!(b.warning.is_none() && b.ratio < 1.5, "{b:?}");
-    assert!(b.line.contains("31.5 mils") || b.line.contains("24.4 mils"), "{}", b.line);
-    assert!(a.verdict.starts_with("named: plate_offset"), "{}", a.verdict);
+    assert!(
+        b.line.contains("31.5 mils") || b.line.contains("24.4 mils"),
+        "{}",
+        b.line
+    );
+    assert!(
+        a.verdict.starts_with("named: plate_offset"),
+        "{}",
+        a.verdict
+    );
     // A tight budget of the user's: the same fit is now far beyond it.
     let tight = crate::budget::Budget {
         items: vec![("plate".into(), [2.0; 6])],
@@ -586,9 +596,17 @@ fn a_plate_offset_within_the_budget_is_named_with_its_budget_line() {
     };
     let a = analyze(&ds, &opts, &Silent).unwrap();
     let b = a.causes[0].budget.as_ref().unwrap();
-    assert!(b.line.contains("tight.toml") && b.line.contains("2.0 mils"), "{}", b.line);
+    assert!(
+        b.line.contains("tight.toml") && b.line.contains("2.0 mils"),
+        "{}",
+        b.line
+    );
     assert!(b.warning.is_some(), "{b:?}");
-    assert!(a.verdict.starts_with("no cause named as found"), "{}", a.verdict);
+    assert!(
+        a.verdict.starts_with("no cause named as found"),
+        "{}",
+        a.verdict
+    );
 }
 
 /// The truth's LED offsets in `led_position`'s gauge ([`Model::led_gauge`]): their mean and
@@ -651,7 +669,15 @@ fn without_beacon_ids_per_led_candidates_are_not_tried() {
         s.beacon = None;
     }
     let a = analyze(&ds, &Options::default(), &Silent).unwrap();
-    let u = a.untested.iter().find(|u| u.effect == "led_position").unwrap();
-    assert!(u.reason.contains("not identified") && u.reason.contains("`beacon`"), "{}", u.reason);
+    let u = a
+        .untested
+        .iter()
+        .find(|u| u.effect == "led_position")
+        .unwrap();
+    assert!(
+        u.reason.contains("not identified") && u.reason.contains("`beacon`"),
+        "{}",
+        u.reason
+    );
     assert!(a.trials.iter().all(|t| t.effect != "led_position"));
 }

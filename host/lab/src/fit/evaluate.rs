@@ -186,21 +186,22 @@ impl Evaluation {
                         })
                         .collect(),
                     vec![
-                    // Not in the thesis's figure, but part of the error: a bias common to
-                    // the beacons of a separation (attitude the fit absorbed), often larger.
-                    Series::new(
-                        "|mean| of the error in angle (not in Figure 57)",
-                        pts(&abs_mean)
-                            .into_iter()
-                            .filter(|(_, m)| *m > 0.0)
-                            .collect(),
-                    )
-                    .with_markers(),
-                    Series::dashed(
-                        format!("mean CTA uncertainty (eq 36, {})", self.budget),
-                        pts(&self.cta_uncertainty_deg),
-                    )
-                    .with_markers()],
+                        // Not in the thesis's figure, but part of the error: a bias common to
+                        // the beacons of a separation (attitude the fit absorbed), often larger.
+                        Series::new(
+                            "|mean| of the error in angle (not in Figure 57)",
+                            pts(&abs_mean)
+                                .into_iter()
+                                .filter(|(_, m)| *m > 0.0)
+                                .collect(),
+                        )
+                        .with_markers(),
+                        Series::dashed(
+                            format!("mean CTA uncertainty (eq 36, {})", self.budget),
+                            pts(&self.cta_uncertainty_deg),
+                        )
+                        .with_markers(),
+                    ],
                 ]
                 .concat(),
             }],
@@ -257,7 +258,9 @@ impl DirectionModel<'_> {
     pub fn own_point(&self) -> Vector3<f64> {
         match self {
             DirectionModel::Pinhole(x) => Vector3::new(x[0], x[1], x[2]),
-            DirectionModel::NearField(c) => Vector3::new(c.d[0] as f64, c.d[1] as f64, c.d[2] as f64),
+            DirectionModel::NearField(c) => {
+                Vector3::new(c.d[0] as f64, c.d[1] as f64, c.d[2] as f64)
+            }
         }
     }
 }

@@ -115,7 +115,9 @@ pub enum LawError {
     )]
     SettingsIndistinct,
     /// The exponent cannot be told from the LEDs' constants.
-    #[error("the normal equations are singular: the exponent cannot be told from the LEDs' constants")]
+    #[error(
+        "the normal equations are singular: the exponent cannot be told from the LEDs' constants"
+    )]
     LedsIndistinct,
 }
 
@@ -314,11 +316,7 @@ impl Prepared<'_> {
         }
         let s = &a - &g * b.transpose();
         let rhs = &ba - &g * DVector::from_vec(bl.clone());
-        let s_inv = s
-            .clone()
-            .cholesky()
-            .map(|c| c.inverse())
-            .ok_or(Singular)?;
+        let s_inv = s.clone().cholesky().map(|c| c.inverse()).ok_or(Singular)?;
         // Near-singular: the exponent (or a setting) barely varies within the LEDs.
         for i in 0..m {
             if !(s_inv[(i, i)] * a[(i, i)] < 1e12) {

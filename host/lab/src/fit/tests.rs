@@ -212,7 +212,9 @@ fn twenty_inches_is_matched_within_a_tenth() {
         }
         .run();
         let rep = fit(&ds, Weights::None).unwrap();
-        rep.warnings.iter().any(|w| w.contains("separations below 20 in"))
+        rep.warnings
+            .iter()
+            .any(|w| w.contains("separations below 20 in"))
     };
     assert!(!warned(19.9992));
     assert!(!warned(20.0));
@@ -249,6 +251,12 @@ fn a_calibration_with_the_true_head_evaluates_to_no_error() {
     let f = |v: [f32; 3]| v.map(|x| x as f64);
     let [pd, pp] = [f(ph.d), f(ph.p)];
     let x = Params::from_column_slice(&[pd[0], pd[1], pd[2], pp[0], pp[1], pp[2], cal.h as f64]);
-    let pin = evaluate(DirectionModel::Pinhole(&x), &ds, Reference::Truth(d), [0.0; 3], true);
+    let pin = evaluate(
+        DirectionModel::Pinhole(&x),
+        &ds,
+        Reference::Truth(d),
+        [0.0; 3],
+        true,
+    );
     assert!(pin.angle_mean_deg[0] > 0.5, "{pin:?}");
 }

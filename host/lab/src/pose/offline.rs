@@ -146,8 +146,7 @@ pub fn solve_frames(
         model: options.model,
         ..SolverSettings::default()
     };
-    let mut solver =
-        PoseSolver::<f32>::new(cal, con, settings).map_err(OfflineError::Config)?;
+    let mut solver = PoseSolver::<f32>::new(cal, con, settings).map_err(OfflineError::Config)?;
     Ok(frames
         .iter()
         .map(|f| {
@@ -222,8 +221,22 @@ mod tests {
         for (h, b) in here.iter().zip(&board) {
             assert_eq!(h.ns_seq, b.ns_seq);
             assert_eq!(
-                (h.status, h.position, h.mrp, h.iterations, h.beacons, h.cold_start),
-                (b.status, b.position, b.mrp, b.iterations, b.beacons, b.cold_start)
+                (
+                    h.status,
+                    h.position,
+                    h.mrp,
+                    h.iterations,
+                    h.beacons,
+                    h.cold_start
+                ),
+                (
+                    b.status,
+                    b.position,
+                    b.mrp,
+                    b.iterations,
+                    b.beacons,
+                    b.cold_start
+                )
             );
             assert_eq!(h.sigma_position, b.sigma_position);
         }

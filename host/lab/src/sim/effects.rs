@@ -467,7 +467,10 @@ mod tests {
         ];
         for a in 0..2 {
             assert!(k[a] < 0.98, "{k:?}: a visible compression");
-            assert!((o[a] - o0[a] * k[a]).abs() < 1e-9 * o0[a].abs(), "{o:?} {o0:?} {k:?}");
+            assert!(
+                (o[a] - o0[a] * k[a]).abs() < 1e-9 * o0[a].abs(),
+                "{o:?} {o0:?} {k:?}"
+            );
         }
         let both = em(&[Effect::CellBias(2e-5, 0.0), Effect::Ambient(b)]).signals(&r);
         assert!((both[0] - s[0] - b - 2e-5).abs() < 1e-15 && (both[1] - s[1] - b).abs() < 1e-15);

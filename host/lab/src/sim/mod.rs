@@ -286,7 +286,10 @@ impl SimConfig {
         let led_offsets = (0..self.grid.0 * self.grid.1)
             .map(|_| {
                 if led_sigma > 0.0 {
-                    [rng_n(&mut led_rng) * led_sigma, rng_n(&mut led_rng) * led_sigma]
+                    [
+                        rng_n(&mut led_rng) * led_sigma,
+                        rng_n(&mut led_rng) * led_sigma,
+                    ]
                 } else {
                     [0.0; 2]
                 }

@@ -17,8 +17,8 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use super::store::{self, Event};
 use super::error::{Context, Result};
+use super::store::{self, Event};
 
 /// Where the four corners are read: at x, y = +/-`ROD_XY_IN` in the sensor board's frame N
 /// (in). Ch IV's level bound, 5 mils per foot "over one foot from the center", puts the
@@ -94,8 +94,8 @@ impl RunCorners {
 
     /// Read the corner readings of the journal `journal`.
     pub fn read(journal: &Path) -> Result<RunCorners> {
-        let bytes =
-            std::fs::read(journal).with_context(|| format!("{}: cannot read", journal.display()))?;
+        let bytes = std::fs::read(journal)
+            .with_context(|| format!("{}: cannot read", journal.display()))?;
         let (events, _torn) = super::status::parse_journal(journal, &bytes)?;
         let mut plates: Vec<PlateCorners> = Vec::new();
         for e in events {

@@ -110,9 +110,10 @@ impl<P: Protocol> Conn<P> {
         let port = open_serial(&self.path).map_err(|e| Fault::Lost(self.name, e.to_string()))?;
         let mut link = Link::new(port, self.config);
         let id = link.check_board().map_err(|e| match e {
-            LinkError::WrongBoard { .. } => {
-                Fault::Fatal(Error::Board(format!("{} port {}: {e}", self.name, self.path)))
-            }
+            LinkError::WrongBoard { .. } => Fault::Fatal(Error::Board(format!(
+                "{} port {}: {e}",
+                self.name, self.path
+            ))),
             e => Fault::Lost(self.name, e.to_string()),
         })?;
         self.link = Some(link);

@@ -37,10 +37,10 @@ pub use error::{Error, Result};
 use serde_json::json;
 
 use engine::{interruption, Ending, Engine, Operator, Scripted, SimOperator, INTERRUPTED, SIGNAL};
-use watch::{Unwatched, Watch};
 use plan::Plan;
 use sim::{Faults, SimCta, SimSettings};
 use store::{now, Event, PointStatus, RunDir};
+use watch::{Unwatched, Watch};
 
 /// What a sweep session is asked to do: a new run or a resume, on which boards, and how the
 /// simulated CTA behaves. The command line's `cta sweep` options, without the display ones.

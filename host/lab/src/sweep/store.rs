@@ -35,10 +35,10 @@ use std::path::{Path, PathBuf};
 
 use super::error::{bail, Context, Result};
 
-use super::plan::{Change, Plan, RESUME_MAY_CHANGE};
 pub use super::event::*;
 pub(crate) use super::layout::recovery_folder;
 pub use super::layout::{DATA, DATA_TAIL, JOURNAL, JOURNAL_TAIL, LOCK, MANIFEST, PLAN, TRUTH};
+use super::plan::{Change, Plan, RESUME_MAY_CHANGE};
 use crate::data::{comment_text, write_row, Sample, OPTIONAL, REQUIRED};
 
 /// Seconds since the Unix epoch.
@@ -182,7 +182,6 @@ struct Recovery {
 
 /// Longest time between two syncs while points complete.
 pub const SYNC_INTERVAL: std::time::Duration = std::time::Duration::from_millis(250);
-
 
 fn took_over(pid: String) -> String {
     format!(

@@ -237,7 +237,10 @@ pub fn run(args: &AnalyzeArgs) -> Result<()> {
     bar.finish_and_clear();
     // Printed before the report is written: the analysis is never lost to a failed write.
     if args.json {
-        println!("{}", crate::json_with_provenance(&a, &[args.file.as_path()])?);
+        println!(
+            "{}",
+            crate::json_with_provenance(&a, &[args.file.as_path()])?
+        );
     } else {
         print!("{}", render_text(&a));
     }

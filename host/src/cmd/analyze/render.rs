@@ -125,7 +125,12 @@ pub fn render_text(a: &Analysis) -> String {
     let _ = writeln!(
         s,
         "\n{:>8}  {:>16}  {:>11}  {:>19}  {:>6}  {:>11}",
-        "sep (in)", "angle std before", "after (deg)", "held-out RMS before", "after", "noise alone (counts)"
+        "sep (in)",
+        "angle std before",
+        "after (deg)",
+        "held-out RMS before",
+        "after",
+        "noise alone (counts)"
     );
     for (k, sep) in a.separations.iter().enumerate() {
         let _ = writeln!(

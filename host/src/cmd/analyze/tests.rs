@@ -338,7 +338,9 @@ fn the_per_separation_table_aligns() {
     // Every row ends each column where the header does.
     let ends = |l: &str| -> Vec<usize> {
         let b = l.as_bytes();
-        (1..b.len()).filter(|&i| b[i] == b' ' && b[i - 1] != b' ').collect()
+        (1..b.len())
+            .filter(|&i| b[i] == b' ' && b[i - 1] != b' ')
+            .collect()
     };
     let first = ends(rows[1]);
     for r in &rows[2..] {

@@ -133,7 +133,10 @@ pub fn run(a: &CalibrateArgs) -> Result<()> {
         None => Ok(()),
     };
     if a.json {
-        println!("{}", crate::json_with_provenance(&rep, &[a.file.as_path()])?);
+        println!(
+            "{}",
+            crate::json_with_provenance(&rep, &[a.file.as_path()])?
+        );
     } else {
         render::print_report(&rep, saved.as_ref().map(|o| o.as_deref()).ok());
     }

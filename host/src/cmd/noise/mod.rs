@@ -44,14 +44,18 @@ pub struct NoiseArgs {
 
 /// Run `cta noise`.
 pub fn run(args: &NoiseArgs) -> Result<()> {
-    let (ds, warnings) = cta_lab::sweep::read_measurements(&args.file).map_err(anyhow::Error::msg)?;
+    let (ds, warnings) =
+        cta_lab::sweep::read_measurements(&args.file).map_err(anyhow::Error::msg)?;
     for w in warnings {
         crate::say::warning(w);
     }
     let r = cta_lab::noise::analyze_noise(&ds)?;
     // The report first: a plot that cannot be written loses nothing.
     if args.json {
-        println!("{}", crate::json_with_provenance(&r, &[args.file.as_path()])?);
+        println!(
+            "{}",
+            crate::json_with_provenance(&r, &[args.file.as_path()])?
+        );
     } else {
         print!("{}", render_text(&r));
     }

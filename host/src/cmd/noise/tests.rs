@@ -63,7 +63,6 @@ fn constant_noise_with_railed_close_points_is_uniform() {
     }
 }
 
-
 /// Magnitude bins stop at the 16-bit ceiling (and hold a magnitude at it); a factor with
 /// one group gives no max/min (that would be X over Y, not between groups).
 #[test]
@@ -100,7 +99,6 @@ fn magnitude_bins_end_at_the_ceiling_and_one_group_has_no_ratio() {
         "{text}"
     );
 }
-
 
 #[test]
 fn magnitude_repeatability_is_measured() {

@@ -6,12 +6,12 @@ use std::sync::atomic::Ordering;
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::time::Duration;
 
+use cta_lab::sweep::corners::{CORNER_ORDER_TEXT, ROD_XY_IN};
 use cta_lab::sweep::engine::{Operator, INTERRUPTED};
-use cta_lab::sweep::{Error, Result};
 use cta_lab::sweep::plan::Point;
 use cta_lab::sweep::sim::separation_entry;
 use cta_lab::sweep::store::{levelness_question, SeparationEntry};
-use cta_lab::sweep::corners::{CORNER_ORDER_TEXT, ROD_XY_IN};
+use cta_lab::sweep::{Error, Result};
 
 use super::Bars;
 
@@ -114,9 +114,7 @@ impl Operator for Prompt {
                 "\nMove the plate to {} in (all LEDs are off). Enter the four corner \
                  separations in inches, at the rods x, y = +/-{} in of the sensor board's frame, \
                  in the order {} (e.g. `{0} {0} {0} {0}`; the order gives the plate's tilt): ",
-                p.separation,
-                ROD_XY_IN,
-                CORNER_ORDER_TEXT
+                p.separation, ROD_XY_IN, CORNER_ORDER_TEXT
             ))?;
             let v: Result<Vec<f64>, _> = a
                 .split([' ', ',', '\t'])

@@ -26,11 +26,11 @@
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use cta_core::pose::{
-    benchmark_frames_of, cold_frames_of, cta_constellation, four_array_constellation,
-    Calibration, Magnitude, ModelKind, PoseSolver, PoseStatus, SolverSettings,
-};
 use cta_core::mrp;
+use cta_core::pose::{
+    benchmark_frames_of, cold_frames_of, cta_constellation, four_array_constellation, Calibration,
+    Magnitude, ModelKind, PoseSolver, PoseStatus, SolverSettings,
+};
 use cta_qemu::{done, end, fail, mark, paint_stack, stack_used};
 
 /// Measured solves (each from the same warm start).
@@ -149,7 +149,9 @@ fn cold(solver: PoseSolver<f32>, name: &str, con: &cta_core::pose::Constellation
     // pose (the pinhole model's is biased in the near field, so the truth itself is not it).
     let (mut dt, mut dq, mut iters) = (0.0f32, 0.0f32, 0u8);
     for (sol, (spots, t, q)) in sols.iter().zip(&frames) {
-        let Some(sol) = sol else { fail("a cold frame was not solved") };
+        let Some(sol) = sol else {
+            fail("a cold frame was not solved")
+        };
         if sol.status != PoseStatus::Ok || !sol.cold_start {
             fail("a cold frame was not solved Ok from the cold start");
         }
