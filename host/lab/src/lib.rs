@@ -8,6 +8,7 @@ pub mod analyze;
 pub mod boards;
 pub mod bounded;
 pub mod budget;
+pub mod crosstalk;
 pub mod data;
 pub mod fit;
 pub mod html;

@@ -169,6 +169,9 @@ pub struct NoiseReport {
     pub weighting: String,
     /// Spot magnitude repeatability (`None` when the file records no magnitudes).
     pub magnitude: Option<MagnitudeNoise>,
+    /// The crosstalk check of a grouped sweep: beacons measured alone and in their group
+    /// (`None` when the file has none).
+    pub crosstalk: Option<crate::crosstalk::Check>,
 }
 
 /// Points left out of the X, Y noise by `cta calibrate`'s rail rule: a coordinate pinned at
@@ -684,6 +687,7 @@ pub fn analyze_noise(ds: &Dataset) -> Result<NoiseReport, NoiseError> {
     let magnitude = magnitude_noise(&rep);
     Ok(NoiseReport {
         magnitude,
+        crosstalk: crate::crosstalk::check(ds),
         file: ds.path.display().to_string(),
         samples: ds.samples.len(),
         left_out,

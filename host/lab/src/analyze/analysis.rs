@@ -477,6 +477,18 @@ pub fn analyze(ds: &Dataset, opts: &Options, progress: &dyn Progress) -> Result<
             (false, false) => format!("named: {found} ({figures}); {far}"),
         }
     };
+    // The crosstalk check of a grouped sweep, named before the fits' causes: it biases every
+    // grouped point the fits use.
+    let crosstalk = crate::crosstalk::check(ds);
+    let verdict = match &crosstalk {
+        Some(c) if c.named => format!(
+            "named: spot_crosstalk by the crosstalk check (C = {:.2e} +/- {:.1e}: the grouped \
+             data are biased by {:.2} counts RMS, at most {:.2}; rerun with smaller groups); \
+             the fits: {verdict}",
+            c.c, c.c_sigma, c.bias_rms, c.bias_max
+        ),
+        _ => verdict,
+    };
     let trials: Vec<TrialOut> = sel
         .trials
         .iter()
@@ -512,6 +524,7 @@ pub fn analyze(ds: &Dataset, opts: &Options, progress: &dyn Progress) -> Result<
         value("H"),
     ));
     Ok(Analysis {
+        crosstalk,
         file,
         model_from: opts.from.name().into(),
         causes,

@@ -331,6 +331,9 @@ pub struct Analysis {
     pub unexplained: bool,
     /// One-line verdict.
     pub verdict: String,
+    /// The crosstalk check of a grouped sweep (beacons measured alone and in their group);
+    /// `None` when the file has none.
+    pub crosstalk: Option<crate::crosstalk::Check>,
     /// Chi-square per degree of freedom of the starting model (all data).
     pub chi2_dof_before: f64,
     /// Of the final model.

@@ -99,7 +99,7 @@ pub enum ReadError {
         header_line: usize,
     },
     /// The same report twice: same separation, beacon position, beacon, frequency, power,
-    /// sensitivity and sample index.
+    /// sensitivity, group and sample index.
     DuplicateReport {
         /// File.
         path: PathBuf,
@@ -268,7 +268,7 @@ impl fmt::Display for ReadError {
             } => write!(
                 f,
                 "{}:{line}: repeats the report of line {first} (same separation, beacon position, beacon, \
-                 frequency, power, sensitivity and sample index {sample}): is (part of) the file in twice?",
+                 frequency, power, sensitivity, group and sample index {sample}): is (part of) the file in twice?",
                 path.display()
             ),
             ReadError::NotText {

@@ -77,6 +77,11 @@ fn domain(column: &str) -> Domain {
             hi: u32::MAX as f64,
             text: "0..4294967295",
         },
+        "group" => Domain::Int {
+            lo: 0.0,
+            hi: u32::MAX as f64,
+            text: "0..4294967295",
+        },
         "magnitude" => Domain::Range {
             lo: 0.0,
             lo_open: false,
@@ -364,8 +369,8 @@ impl Dataset {
         let opt: Vec<Option<usize>> = OPTIONAL.iter().map(|n| col(n)).collect();
         let domains: Vec<Domain> = header.iter().map(|h| domain(h)).collect();
         let mut samples = Vec::new();
-        // First line of each (separation, position, beacon, settings, sample index).
-        let mut seen: HashMap<[u64; 9], usize> = HashMap::new();
+        // First line of each (separation, position, beacon, settings, group, sample index).
+        let mut seen: HashMap<[u64; 10], usize> = HashMap::new();
         // The last row, when no line break follows it: its line, last column and last value.
         let mut unended: Option<(usize, String, String)> = None;
         while let Some((line, last_byte)) = next(&mut buf, &mut ends)? {
@@ -449,6 +454,7 @@ impl Dataset {
                 sensitivity: opt_num(3)?,
                 sample: opt_num(4)?.map(|v| v as u32),
                 magnitude: opt_num(5)?,
+                group: opt_num(6)?.map(|v| v as u32),
                 line,
             };
             if let Some(k) = s.sample {
@@ -462,6 +468,7 @@ impl Dataset {
                     o(s.frequency_hz),
                     o(s.power),
                     o(s.sensitivity),
+                    s.group.map_or(u64::MAX, u64::from),
                     u64::from(k),
                 ];
                 if let Some(&first) = seen.get(&key) {

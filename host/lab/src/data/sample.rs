@@ -14,13 +14,14 @@ pub const REQUIRED: [&str; 6] = [
     "y",
 ];
 /// The optional columns `cta` understands.
-pub const OPTIONAL: [&str; 6] = [
+pub const OPTIONAL: [&str; 7] = [
     "beacon",
     "frequency_hz",
     "power",
     "sensitivity",
     "sample",
     "magnitude",
+    "group",
 ];
 
 /// One row: one NorthStar report of one beacon.
@@ -46,6 +47,9 @@ pub struct Sample {
     pub sample: Option<u32>,
     /// Reported signal magnitude.
     pub magnitude: Option<f64>,
+    /// The sweep point the row was measured in: rows sharing it were lit together, in one
+    /// group of a grouped plan (`group = N`); a beacon measured alone has a point of its own.
+    pub group: Option<u32>,
     /// 1-based line number in the file (0 when made in memory).
     pub line: usize,
 }
@@ -70,9 +74,11 @@ pub(super) fn key_bits(v: f64) -> u64 {
 
 impl Dataset {
     /// Group the rows into points: one point per (separation, beacon position, frequency,
-    /// power, sensitivity), in first-seen order, each with the indices of its samples.
+    /// power, sensitivity, sweep point), in first-seen order, each with the indices of its
+    /// samples. The sweep point (`group`) keeps a beacon measured alone apart from the same
+    /// beacon measured in its group.
     pub fn points(&self) -> Vec<Point> {
-        let mut index: BTreeMap<[u64; 7], usize> = BTreeMap::new();
+        let mut index: BTreeMap<[u64; 8], usize> = BTreeMap::new();
         let mut out: Vec<Point> = Vec::new();
         for (i, s) in self.samples.iter().enumerate() {
             let key = [
@@ -83,6 +89,7 @@ impl Dataset {
                 s.frequency_hz.unwrap_or(f64::NAN).to_bits(),
                 s.power.unwrap_or(f64::NAN).to_bits(),
                 s.sensitivity.unwrap_or(f64::NAN).to_bits(),
+                s.group.map_or(u64::MAX, u64::from),
             ];
             let k = *index.entry(key).or_insert_with(|| {
                 out.push(Point {
@@ -124,7 +131,7 @@ pub fn write_row(w: &mut impl Write, s: &Sample) -> std::io::Result<()> {
     let u = |v: Option<u32>| v.map(|v| v.to_string()).unwrap_or_default();
     writeln!(
         w,
-        "{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{},{},{},{},{},{},{},{}",
         s.separation_in,
         s.r[0],
         s.r[1],
@@ -136,7 +143,8 @@ pub fn write_row(w: &mut impl Write, s: &Sample) -> std::io::Result<()> {
         o(s.power),
         o(s.sensitivity),
         u(s.sample),
-        o(s.magnitude)
+        o(s.magnitude),
+        u(s.group)
     )
 }
 

@@ -354,8 +354,11 @@ fn repeated_reports_are_refused_with_both_lines() {
     assert_eq!(
         e,
         "m.csv:5: repeats the report of line 2 (same separation, beacon position, beacon, frequency, \
-         power, sensitivity and sample index 0): is (part of) the file in twice?"
+         power, sensitivity, group and sample index 0): is (part of) the file in twice?"
     );
+    // The same beacon measured alone and in its group (two sweep points): two reports.
+    let body = "20,0,0,20,1,2,3,0,7\n20,0,0,20,1,3,3,0,9\n";
+    assert!(read(&format!("{H},beacon,sample,group\n{body}")).is_ok());
     // Another setting, another report; without sample indices rows are repeated samples.
     assert!(read(&format!(
         "{H},beacon,sample,power\n20,0,0,20,1,2,3,0,1\n20,0,0,20,1,2,3,0,2\n"

@@ -279,6 +279,15 @@ impl Effect {
                 }
                 Effect::Crosstalk(k)
             }
+            "spot_crosstalk" => {
+                return Err(range(
+                    "spot_crosstalk",
+                    "acts between beacons lit together: only the simulated CTA of a grouped \
+                     sweep has it (`cta sweep --plan PLAN --sim-effect spot_crosstalk=C`, \
+                     with `group` above 1 in the plan)"
+                        .into(),
+                ))
+            }
             other => return Err(EffectError::Unknown(other.into())),
         };
         Ok(e)

@@ -32,7 +32,8 @@ use cta_core::wire::sensor::{
 use cta_core::wire::{Identity, Protocol, Response};
 use serialport::SerialPort;
 
-use super::plan::{channel_of, Plan, Point};
+use super::plan::{channel_of, Plan};
+use super::points::{Lit, Point};
 use super::sim::{separation_entry, SimCta};
 use super::store::{now, Event, PointStatus, RunDir, SeparationEntry};
 use super::watch::Watch;
@@ -228,9 +229,20 @@ pub enum Ending {
 /// Result of one point's measurement.
 struct Measured {
     status: PointStatus,
-    samples: Vec<(i16, i16, u16)>,
+    /// Per beacon lit, in the point's order: its samples (x, y, magnitude).
+    samples: Vec<Vec<(i16, i16, u16)>>,
     reports: u32,
     lost: u32,
+    /// Spots left out of the data, by ID: an ID no LED of the point was lit at (a
+    /// reflection, another light source), or one ID twice in a report.
+    strays: std::collections::BTreeMap<u8, u32>,
+}
+
+impl Measured {
+    /// Samples of all beacons.
+    fn total(&self) -> usize {
+        self.samples.iter().map(Vec::len).sum()
+    }
 }
 
 /// Spot reports in a row at another sensitivity than the point's before the sweep counts the
@@ -379,6 +391,15 @@ impl<'a> Engine<'a> {
                  LED off mid-point. Set it back with `cta beacon --port {port} limits --deadman-ms \
                  {DEADMAN_DEFAULT_MS}` (or lower [timing] heartbeat_ms), then resume",
                 s.limits.deadman_ms
+            ))));
+        }
+        if usize::from(s.limits.max_lit) < self.plan.group {
+            let port = &self.beacon.path;
+            return Err(Fault::Fatal(Error::Board(format!(
+                "beacon board on {port}: it lights at most {} LEDs at once (its cap), and the \
+                 plan's `group` lights {}: raise the cap with `cta beacon --port {port} limits \
+                 --max-lit {}`, or make the group smaller",
+                s.limits.max_lit, self.plan.group, self.plan.group
             ))));
         }
         let now = Instant::now();
@@ -609,53 +630,18 @@ impl<'a> Engine<'a> {
             let e = entry.as_ref().expect("set above");
             match self.point_with_retries(store, &p, watch)? {
                 Some((m, attempts)) => {
-                    let rows: Vec<Sample> = m
-                        .samples
-                        .iter()
-                        .enumerate()
-                        .map(|(k, &(x, y, mag))| Sample {
-                            separation_in: e.mean,
-                            r: p.position(&plan.layout, e.mean),
-                            x: x as f64,
-                            y: y as f64,
-                            beacon: Some(p.beacon_id()),
-                            frequency_hz: Some(p.frequency_hz),
-                            power: Some(p.power as f64),
-                            sensitivity: Some(p.sensitivity as f64),
-                            sample: Some(k as u32),
-                            magnitude: Some(mag as f64),
-                            line: 0,
-                        })
-                        .collect();
-                    let comment = match m.status {
-                        PointStatus::Ok => None,
-                        s => Some(format!(
-                            "{}: point {i} separation {} beacon {} frequency_hz {} power {} \
-                             sensitivity {}: {} of {} samples in {} reports",
-                            if s == PointStatus::NoSignal {
-                                "no signal"
-                            } else {
-                                "partial"
-                            },
-                            e.mean,
-                            p.beacon_id(),
-                            p.frequency_hz,
-                            p.power,
-                            p.sensitivity,
-                            m.samples.len(),
-                            plan.samples,
-                            m.reports
-                        )),
-                    };
-                    store.commit_point(
-                        i,
-                        m.status,
-                        &rows,
-                        comment.as_deref(),
-                        m.reports,
-                        m.lost,
-                        attempts,
-                    )?;
+                    let (rows, comments) = rows_of(plan, &p, e.mean, &m);
+                    if !m.strays.is_empty() {
+                        store.log(Event::Fault {
+                            at: now(),
+                            point: i,
+                            board: "sensor".into(),
+                            what: strays_text(&m),
+                            action: "left out of the data".into(),
+                        })?;
+                    }
+                    store
+                        .commit_point(i, m.status, &rows, &comments, m.reports, m.lost, attempts)?;
                     match m.status {
                         PointStatus::Ok => self.stats.ok += 1,
                         PointStatus::NoSignal => self.stats.no_signal += 1,
@@ -911,17 +897,42 @@ impl<'a> Engine<'a> {
         Ok(())
     }
 
-    fn set_led(&mut self, p: &Point, mode: LedMode) -> Result<(), Fault> {
+    /// Light the point's beacons, each at its frequency (`on`), or turn them off. One beacon
+    /// is set alone (`Set`); a group is lit in one request (`SetMany`), which the board applies
+    /// whole or refuses whole (over its cap of lit LEDs, over its modulator's budget).
+    fn set_leds(&mut self, p: &Point, on: bool) -> Result<(), Fault> {
+        let mode = |l: &Lit| {
+            if on {
+                LedMode::Modulated(FreqSet::single(l.channel))
+            } else {
+                LedMode::Off
+            }
+        };
+        let request = match p.lit.as_slice() {
+            [l] => BeaconRequest::Set(LedSetting {
+                led: l.led,
+                mode: mode(l),
+            }),
+            _ if !on => BeaconRequest::AllOff,
+            lit => BeaconRequest::SetMany(
+                lit.iter()
+                    .map(|l| LedSetting {
+                        led: l.led,
+                        mode: mode(l),
+                    })
+                    .collect(),
+            ),
+        };
         self.beacon
             .link()?
-            .call(BeaconRequest::Set(LedSetting { led: p.led, mode }))
+            .call(request)
             .map_err(|e| link_fault("beacon", e))?;
         self.last_heartbeat = Instant::now();
         Ok(())
     }
 
     fn measure(&mut self, p: &Point) -> Result<Measured, Fault> {
-        self.set_led(p, LedMode::Modulated(FreqSet::single(p.channel)))?;
+        self.set_leds(p, true)?;
         let changed = self.sensitivity != Some(p.sensitivity);
         if changed {
             self.sensor
@@ -942,9 +953,10 @@ impl<'a> Engine<'a> {
         self.sensor_mode(Mode::Stream)?;
         let mut m = Measured {
             status: PointStatus::Ok,
-            samples: Vec::with_capacity(self.plan.samples as usize),
+            samples: vec![Vec::with_capacity(self.plan.samples as usize); p.lit.len()],
             reports: 0,
             lost: 0,
+            strays: Default::default(),
         };
         let wrong_limit = if changed {
             WRONG_SENSITIVITY_AFTER_CHANGE
@@ -961,7 +973,7 @@ impl<'a> Engine<'a> {
         if m.status != PointStatus::Ok {
             self.check_beacon(true)?;
         }
-        self.set_led(p, LedMode::Off)?;
+        self.set_leds(p, false)?;
         Ok(m)
     }
 
@@ -984,10 +996,14 @@ impl<'a> Engine<'a> {
         let mut last_seq: Option<u32> = None;
         let mut last_report = Instant::now();
         let timeout = Duration::from_millis(plan.report_timeout_ms);
+        // Done when every beacon has its samples or, still without any, counts as without
+        // signal; or when the reports allowed are spent.
         let done = |m: &Measured| {
-            m.samples.len() >= plan.samples as usize
-                || (m.samples.is_empty() && m.reports >= plan.no_signal_reports)
-                || m.reports >= plan.max_reports
+            m.reports >= plan.max_reports
+                || m.samples.iter().all(|s| {
+                    s.len() >= plan.samples as usize
+                        || (s.is_empty() && m.reports >= plan.no_signal_reports)
+                })
         };
         // Reports in a row at another sensitivity than the point's, and the last one's.
         let mut wrong_sensitivity = (0u32, 0u8);
@@ -1006,8 +1022,16 @@ impl<'a> Engine<'a> {
                 return Some(r.sensitivity);
             }
             m.reports += 1;
-            if let Some(s) = r.spots.iter().find(|s| s.id == p.channel) {
-                m.samples.push((s.x, s.y, s.magnitude));
+            for s in &r.spots {
+                let once = r.spots.iter().filter(|o| o.id == s.id).count() == 1;
+                match p.lit.iter().position(|l| l.channel == s.id) {
+                    Some(k) if once => {
+                        if m.samples[k].len() < plan.samples as usize {
+                            m.samples[k].push((s.x, s.y, s.magnitude));
+                        }
+                    }
+                    _ => *m.strays.entry(s.id).or_default() += 1,
+                }
             }
             None
         };
@@ -1081,15 +1105,74 @@ impl<'a> Engine<'a> {
             }
             self.heartbeat()?;
         }
-        m.status = if m.samples.len() >= plan.samples as usize {
+        m.status = if m.samples.iter().all(|s| s.len() >= plan.samples as usize) {
             PointStatus::Ok
-        } else if m.samples.is_empty() {
+        } else if m.total() == 0 {
             PointStatus::NoSignal
         } else {
             PointStatus::Partial
         };
         Ok(())
     }
+}
+
+/// The data rows of point `p` measured as `m` with the plate at `separation` (as recorded),
+/// every beacon's samples in the point's order; and a comment line for each beacon short of
+/// its samples (`no signal: ...`, `partial: ...`).
+fn rows_of(plan: &Plan, p: &Point, separation: f64, m: &Measured) -> (Vec<Sample>, Vec<String>) {
+    let mut rows = Vec::with_capacity(m.total());
+    let mut comments = Vec::new();
+    for (l, samples) in p.lit.iter().zip(&m.samples) {
+        let beacon = l.beacon_id(p.quadrant);
+        rows.extend(samples.iter().enumerate().map(|(k, &(x, y, mag))| Sample {
+            separation_in: separation,
+            r: l.position(&plan.layout, p.quadrant, separation),
+            x: x as f64,
+            y: y as f64,
+            beacon: Some(beacon),
+            frequency_hz: Some(l.frequency_hz),
+            power: Some(p.power as f64),
+            sensitivity: Some(p.sensitivity as f64),
+            sample: Some(k as u32),
+            magnitude: Some(mag as f64),
+            group: Some(p.index as u32),
+            line: 0,
+        }));
+        if samples.len() < plan.samples as usize {
+            comments.push(format!(
+                "{}: point {} separation {separation} beacon {beacon} frequency_hz {} power {} \
+                 sensitivity {}: {} of {} samples in {} reports",
+                if samples.is_empty() {
+                    "no signal"
+                } else {
+                    "partial"
+                },
+                p.index,
+                l.frequency_hz,
+                p.power,
+                p.sensitivity,
+                samples.len(),
+                plan.samples,
+                m.reports
+            ));
+        }
+    }
+    (rows, comments)
+}
+
+/// What the spots left out of a point's data were ([`Measured::strays`]).
+fn strays_text(m: &Measured) -> String {
+    let ids: Vec<String> = m
+        .strays
+        .iter()
+        .map(|(id, n)| format!("ID {id} in {n}"))
+        .collect();
+    format!(
+        "spots under an ID no LED of the point was lit at, or one ID twice in a report (a \
+         reflection, another light source): {} of {} reports",
+        ids.join(", "),
+        m.reports
+    )
 }
 
 /// The entries of the beacon board's `table` (millihertz) that the plan lights but that do

@@ -20,9 +20,11 @@ pub mod corners;
 pub mod engine;
 pub mod error;
 pub mod event;
+pub mod groups;
 mod journal;
 pub mod layout;
 pub mod plan;
+pub mod points;
 pub mod sim;
 pub mod status;
 pub mod store;
@@ -695,7 +697,8 @@ fn sim_settings(args: &SweepOptions) -> Result<Option<SimSettings>> {
         return Ok(None);
     }
     let d = SimSettings::default();
-    for e in &args.sim_effect {
+    let (_, others) = sim::take_spot_crosstalk(&args.sim_effect)?;
+    for e in &others {
         crate::sim::effects::Effect::parse(e)
             .map_err(|m| Error::Refused(format!("--sim-effect {e}: {m}")))?;
     }

@@ -15,12 +15,14 @@
 use std::fmt;
 use std::path::Path;
 
-use cta_core::emulator::grid_position;
-use cta_core::schedule::NORTHSTAR_TABLE_MHZ;
-use cta_core::wire::beacon::{DEADMAN_DEFAULT_MS, LED_COUNT};
+use cta_core::pose::MAX_BEACONS as MAX_SPOTS;
+use cta_core::schedule::{tick_cost, NORTHSTAR_TABLE_MHZ, TICK_BUDGET};
+use cta_core::wire::beacon::{FreqSet, LedMode, DEADMAN_DEFAULT_MS, LED_COUNT, MAX_LIT_DEFAULT};
+use cta_firmware_beacon::pins::BEACON_LINES;
 use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
+use super::groups::Cached;
 use crate::data::parse_separations;
 
 /// Longest `[timing] heartbeat_ms` accepted: half the beacon board's dead-man timeout
@@ -108,6 +110,23 @@ pub struct Plan {
     pub backoff_max_s: f64,
     /// Give up (stop the run, resumable) after a board has been lost this long, s.
     pub give_up_s: f64,
+    /// Beacons lit at once, each at its own frequency of `frequencies_hz` (1: one at a time).
+    #[serde(default = "one")]
+    pub group: usize,
+    /// Frequencies of `frequencies_hz` each beacon is measured at per setting, in rounds that
+    /// turn its frequency ([`super::groups`]); 0 (plans journalled before groups): all.
+    #[serde(default)]
+    pub frequencies_per_beacon: usize,
+    /// Beacons per separation measured alone as well as in their group (the crosstalk check).
+    #[serde(default)]
+    pub crosstalk_check: usize,
+    /// The groups, built from the keys above on first use.
+    #[serde(skip)]
+    pub(crate) schedule: Cached,
+}
+
+fn one() -> usize {
+    1
 }
 
 /// The plan keys `cta sweep --resume` accepts changed: the `[timing]` keys that govern only
@@ -147,7 +166,7 @@ pub const RESUME_MAY_CHANGE: [&str; 6] = [
 pub type KeyValue = fn(&Plan) -> String;
 
 /// Every plan key as written in the file (`[timing]` ones as `timing.KEY`), with its value.
-pub const KEYS: [(&str, KeyValue); 18] = [
+pub const KEYS: [(&str, KeyValue); 21] = [
     ("name", |p| show(&p.name)),
     ("separations_in", |p| show(&p.separations)),
     ("layout", |p| match p.layout {
@@ -161,6 +180,9 @@ pub const KEYS: [(&str, KeyValue); 18] = [
     ("samples", |p| show(&p.samples)),
     ("settle_ms", |p| show(&p.settle_ms)),
     ("rate_hz", |p| show(&p.rate_hz)),
+    ("group", |p| show(&p.group)),
+    ("frequencies_per_beacon", |p| show(&p.rounds())),
+    ("crosstalk_check", |p| show(&p.crosstalk_check)),
     ("timing.request_timeout_ms", |p| show(&p.request_timeout_ms)),
     ("timing.retries", |p| show(&p.retries)),
     ("timing.report_timeout_ms", |p| show(&p.report_timeout_ms)),
@@ -256,43 +278,6 @@ impl fmt::Display for Change {
     }
 }
 
-/// One measurement point.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Point {
-    /// Index in the plan's order (0-based).
-    pub index: usize,
-    /// Index into [`Plan::separations`].
-    pub sep_idx: usize,
-    /// Nominal separation, inches.
-    pub separation: f64,
-    /// Quadrant (0 for the single layout).
-    pub quadrant: usize,
-    /// Power level.
-    pub power: u8,
-    /// Sensitivity setting.
-    pub sensitivity: u8,
-    /// LED id on the array, 0..99.
-    pub led: u8,
-    /// Frequency channel in the NorthStar table (the spot ID the sensor reports).
-    pub channel: u8,
-    /// Modulation frequency, Hz.
-    pub frequency_hz: f64,
-}
-
-impl Point {
-    /// Beacon id written to the data (`100 * quadrant + led`).
-    pub fn beacon_id(&self) -> u32 {
-        100 * self.quadrant as u32 + self.led as u32
-    }
-
-    /// Nominal beacon position in N for a plate at `separation` (recorded), inches.
-    pub fn position(&self, layout: &Layout, separation: f64) -> [f64; 3] {
-        let g = grid_position(10, 1.0, separation, self.led as usize);
-        let c = layout.centre(self.quadrant);
-        [g.x + c[0], g.y + c[1], g.z]
-    }
-}
-
 /// A plan error: file, line (when known), key, message.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlanError {
@@ -335,6 +320,9 @@ struct Raw {
     samples: Spanned<i64>,
     settle_ms: Option<Spanned<i64>>,
     rate_hz: Option<Spanned<i64>>,
+    group: Option<Spanned<i64>>,
+    frequencies_per_beacon: Option<Spanned<i64>>,
+    crosstalk_check: Option<Spanned<i64>>,
     timing: Option<RawTiming>,
 }
 
@@ -372,7 +360,7 @@ enum Kind {
 
 /// Every plan key with the kind of its value and an example, as said in a type error:
 /// ``key `samples`: expected a whole number, e.g. 20, got 5.5``.
-const KINDS: [(&str, Kind, &str); 20] = [
+const KINDS: [(&str, Kind, &str); 23] = [
     ("name", Kind::Text, "\"lab run 1\""),
     ("separations_in", Kind::Any, ""),
     ("layout", Kind::Text, "\"single\""),
@@ -384,6 +372,9 @@ const KINDS: [(&str, Kind, &str); 20] = [
     ("samples", Kind::Whole, "20"),
     ("settle_ms", Kind::Whole, "200"),
     ("rate_hz", Kind::Whole, "10"),
+    ("group", Kind::Whole, "19"),
+    ("frequencies_per_beacon", Kind::Whole, "3"),
+    ("crosstalk_check", Kind::Whole, "4"),
     ("timing", Kind::Timing, ""),
     ("timing.request_timeout_ms", Kind::Whole, "500"),
     ("timing.retries", Kind::Whole, "2"),
@@ -811,6 +802,8 @@ impl Plan {
         };
         let settle_ms = opt("settle_ms", &raw.settle_ms, 200, 0, 600_000)? as u64;
         let rate_hz = opt("rate_hz", &raw.rate_hz, 10, 1, 50)? as u8;
+        let (group, frequencies_per_beacon, crosstalk_check) =
+            grouping(&raw, &beacons, &frequencies_hz, &err)?;
         let t = raw.timing.unwrap_or_default();
         let key = |k: &str| format!("timing.{k}");
         let request_timeout_ms = opt(
@@ -898,6 +891,10 @@ impl Plan {
             heartbeat_ms,
             backoff_max_s,
             give_up_s,
+            group,
+            frequencies_per_beacon,
+            crosstalk_check,
+            schedule: Cached::default(),
         })
     }
 
@@ -939,65 +936,142 @@ impl Plan {
             })
             .collect()
     }
+}
 
-    /// Number of points.
-    pub fn len(&self) -> usize {
-        self.per_separation() * self.separations.len()
+/// The keys of a grouped plan, checked: `group`, `frequencies_per_beacon` (all of
+/// `frequencies_hz` when not given) and `crosstalk_check` (4 in a grouped plan when not
+/// given). A group needs a frequency of its own for each beacon (the NorthStar tells spots
+/// apart by frequency alone), at most [`MAX_SPOTS`] spots per frame, at most the beacon
+/// board's default cap of lit LEDs, and a modulator that keeps up with it.
+fn grouping(
+    raw: &Raw,
+    beacons: &[u8],
+    frequencies_hz: &[f64],
+    err: &dyn Fn(&str, std::ops::Range<usize>, String) -> PlanError,
+) -> Result<(usize, usize, usize), PlanError> {
+    let nf = frequencies_hz.len();
+    let (group, gspan) = match &raw.group {
+        None => (1, 0..0),
+        Some(g) => (*g.get_ref(), g.span()),
+    };
+    let limit = MAX_SPOTS.min(MAX_LIT_DEFAULT as usize) as i64;
+    if group < 1 || group > limit {
+        return Err(err(
+            "group",
+            gspan,
+            format!(
+                "{group} is not a group size (1..={limit}: the NorthStar reports at most \
+                 {MAX_SPOTS} spots a frame, and the beacon board lights at most \
+                 {MAX_LIT_DEFAULT} LEDs at once by default)"
+            ),
+        ));
     }
-
-    /// `true` if the plan has no points (never, once validated).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
+    let group = group as usize;
+    if group > nf {
+        return Err(err(
+            "group",
+            gspan,
+            format!(
+                "{group} beacons at once need {group} different frequencies, but \
+                 `frequencies_hz` lists {nf}: the NorthStar tells spots apart by frequency \
+                 alone. List at least {group} frequencies of the NorthStar table ({} distinct), \
+                 or make the group at most {nf}",
+                distinct_table_frequencies()
+            ),
+        ));
     }
-
-    /// Points per separation.
-    pub fn per_separation(&self) -> usize {
-        self.layout.quadrants()
-            * self.power_levels.len()
-            * self.sensitivities.len()
-            * self.beacons.len()
-            * self.frequencies_hz.len()
+    if group > beacons.len() {
+        return Err(err(
+            "group",
+            gspan,
+            format!(
+                "{group} beacons at once, but the plan has {} (`beacons`): make the group at \
+                 most {}",
+                beacons.len(),
+                beacons.len()
+            ),
+        ));
     }
-
-    /// Samples the plan asks for in all.
-    pub fn total_samples(&self) -> u64 {
-        self.len() as u64 * self.samples as u64
-    }
-
-    /// Point number `index` (in `0..len()`).
-    pub fn point(&self, index: usize) -> Point {
-        let mut r = index;
-        let nf = self.frequencies_hz.len();
-        let nb = self.beacons.len();
-        let ns = self.sensitivities.len();
-        let np = self.power_levels.len();
-        let nq = self.layout.quadrants();
-        let f = r % nf;
-        r /= nf;
-        let b = r % nb;
-        r /= nb;
-        let s = r % ns;
-        r /= ns;
-        let p = r % np;
-        r /= np;
-        let q = r % nq;
-        let sep_idx = r / nq;
-        // Serpentine power order: reversed on every other plate position.
-        let block = sep_idx * nq + q;
-        let p = if block % 2 == 1 { np - 1 - p } else { p };
-        let hz = self.frequencies_hz[f];
-        Point {
-            index,
-            sep_idx,
-            separation: self.separations[sep_idx],
-            quadrant: q,
-            power: self.power_levels[p],
-            sensitivity: self.sensitivities[s],
-            led: self.beacons[b],
-            channel: channel_of(hz).unwrap_or(0),
-            frequency_hz: hz,
+    let rounds = match &raw.frequencies_per_beacon {
+        None => nf,
+        Some(k) => {
+            let v = *k.get_ref();
+            if v < 1 || v > nf as i64 {
+                return Err(err(
+                    "frequencies_per_beacon",
+                    k.span(),
+                    format!(
+                        "{v} is not allowed: each beacon can be measured at 1..={nf} of the \
+                         plan's frequencies (`frequencies_hz` lists {nf})"
+                    ),
+                ));
+            }
+            v as usize
+        }
+    };
+    let check = match &raw.crosstalk_check {
+        None if group > 1 => 4.min(beacons.len()),
+        None => 0,
+        Some(c) => {
+            let v = *c.get_ref();
+            if v > 0 && group == 1 {
+                return Err(err(
+                    "crosstalk_check",
+                    c.span(),
+                    "compares beacons measured alone with the same beacons in their group: \
+                     it needs `group` above 1"
+                        .into(),
+                ));
+            }
+            if v < 0 || v > beacons.len() as i64 {
+                return Err(err(
+                    "crosstalk_check",
+                    c.span(),
+                    format!(
+                        "{v} is not allowed: 0..={} beacons per separation (the plan's \
+                         beacons)",
+                        beacons.len()
+                    ),
+                ));
+            }
+            v as usize
+        }
+    };
+    // The modulator's tick must keep up with the largest group (every LED at one frequency).
+    if group > 1 {
+        let table = NORTHSTAR_TABLE_MHZ;
+        let mut modes = [LedMode::Off; LED_COUNT];
+        for (i, &hz) in frequencies_hz.iter().take(group).enumerate() {
+            let ch = channel_of(hz).unwrap_or(0);
+            modes[beacons[i] as usize] = LedMode::Modulated(FreqSet::single(ch));
+        }
+        let cost = tick_cost(&table, &modes, &BEACON_LINES);
+        if cost > TICK_BUDGET {
+            return Err(err(
+                "group",
+                gspan,
+                format!(
+                    "{group} LEDs at once would cost the beacon board's modulator about {cost} \
+                     instructions a tick, over its budget of {TICK_BUDGET}: make the group \
+                     smaller"
+                ),
+            ));
         }
     }
+    Ok((group, if rounds == nf { 0 } else { rounds }, check))
+}
+
+/// Distinct frequencies of the NorthStar table ([`NORTHSTAR_TABLE_MHZ`]): 19 of its 20 entries
+/// (ID 1's first LED and ID 9's second are both 4050 Hz), so at most 19 spots can be told
+/// apart in a frame.
+pub fn distinct_table_frequencies() -> usize {
+    let mut seen: Vec<u32> = Vec::new();
+    for m in NORTHSTAR_TABLE_MHZ {
+        if !seen.contains(&m) {
+            seen.push(m);
+        }
+    }
+    seen.len()
 }
 
 /// The NorthStar table channel of a frequency in Hz (exact to 1 mHz).
@@ -1012,7 +1086,7 @@ pub fn channel_of(hz: f64) -> Option<u8> {
 mod tests {
     use super::*;
 
-    const SHORT: &str = r#"
+    pub(crate) const SHORT: &str = r#"
 name = "t"
 separations_in = [20, 25]
 beacons = [0, 45, 99]
@@ -1022,21 +1096,6 @@ sensitivities = [4]
 samples = 5
 settle_ms = 0
 "#;
-
-    #[test]
-    fn expands_in_order_with_serpentine_power() {
-        let p = Plan::parse("p.toml", SHORT).unwrap();
-        assert_eq!(p.len(), 2 * 2 * 3);
-        let pts: Vec<Point> = (0..p.len()).map(|i| p.point(i)).collect();
-        assert_eq!(
-            pts.iter().map(|p| p.power).collect::<Vec<_>>(),
-            [1, 1, 1, 2, 2, 2, 2, 2, 2, 1, 1, 1]
-        );
-        assert_eq!(pts[4].led, 45);
-        assert_eq!(pts[7].separation, 25.0);
-        assert_eq!(pts[0].channel, 2);
-        assert_eq!(pts[0].position(&p.layout, 20.0), [-4.5, -4.5, 20.0]);
-    }
 
     /// A measurement file (or JSON) given as the plan is said not to be a plan, at its first
     /// line that is not a comment; a plan with a TOML mistake keeps TOML's own message.
@@ -1186,7 +1245,7 @@ settle_ms = 0
             assert!(s.contains("dead-man") && s.contains("10000 ms"), "{s}");
         }
         // The shipped plans are valid.
-        for p in ["chvi.toml", "demo.toml", "short.toml"] {
+        for p in ["chvi.toml", "chvi-single.toml", "demo.toml", "short.toml"] {
             let path = Path::new(env!("CARGO_MANIFEST_DIR"))
                 .join("../plans")
                 .join(p);
@@ -1194,30 +1253,43 @@ settle_ms = 0
         }
     }
 
-    /// `host/plans/chvi.toml` is the thesis Ch VI scheme it says it is: 2 to 30 in by 1 in
-    /// (step 1), every beacon measured 100-200 times "at various frequencies for each
-    /// intensity level" (step 2: several frequencies, both power levels), all four
-    /// sensitivities (step 3); about 3.5 million samples, the size the sweep's performance
-    /// target is set for (host/SWEEP.md, Performance).
+    /// `host/plans/chvi-single.toml` and `chvi.toml` are the thesis Ch VI scheme they say
+    /// they are: 2 to 30 in by 1 in (step 1), every beacon measured 100-200 times "at various
+    /// frequencies for each intensity level" (step 2: several frequencies, both power levels),
+    /// all four sensitivities (step 3); about 3.5 million samples, the size the sweep's
+    /// performance target is set for (host/SWEEP.md, Performance). The grouped plan takes the
+    /// same samples, and its crosstalk check's, in 16 times fewer points.
     #[test]
-    fn the_shipped_ch_vi_plan_is_the_thesis_scheme() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../plans/chvi.toml");
-        let p = Plan::load(&path).unwrap();
-        let inches: Vec<f64> = (2..=30).map(f64::from).collect();
-        assert_eq!(p.separations, inches);
-        assert_eq!(p.beacons, (0..100).collect::<Vec<u8>>());
-        assert!(
-            p.frequencies_hz.len() >= 3,
-            "various frequencies: {:?}",
-            p.frequencies_hz
-        );
-        assert_eq!(p.power_levels, [1, 2]);
-        assert_eq!(p.sensitivities, [1, 2, 3, 4]);
-        let per_location = p.samples as usize * p.frequencies_hz.len();
-        assert!((100..=200).contains(&per_location), "{per_location}");
-        // The arithmetic of its header comment.
-        assert_eq!(p.len(), 69_600);
-        assert_eq!(p.total_samples(), 3_480_000);
+    fn the_shipped_ch_vi_plans_are_the_thesis_scheme() {
+        let load = |name: &str| {
+            Plan::load(
+                &Path::new(env!("CARGO_MANIFEST_DIR"))
+                    .join("../plans")
+                    .join(name),
+            )
+            .unwrap()
+        };
+        let (single, grouped) = (load("chvi-single.toml"), load("chvi.toml"));
+        for p in [&single, &grouped] {
+            let inches: Vec<f64> = (2..=30).map(f64::from).collect();
+            assert_eq!(p.separations, inches);
+            assert_eq!(p.beacons, (0..100).collect::<Vec<u8>>());
+            assert!(
+                p.rounds() >= 3,
+                "various frequencies: {:?}",
+                p.frequencies_hz
+            );
+            assert_eq!(p.power_levels, [1, 2]);
+            assert_eq!(p.sensitivities, [1, 2, 3, 4]);
+            let per_location = p.samples as usize * p.rounds();
+            assert!((100..=200).contains(&per_location), "{per_location}");
+        }
+        // The arithmetic of the header comments.
+        assert_eq!(single.len(), 69_600);
+        assert_eq!(single.total_samples(), 3_480_000);
+        assert_eq!((grouped.group, grouped.per_block()), (19, 3 * 6));
+        assert_eq!(grouped.len(), 29 * (8 * 18 + 4));
+        assert_eq!(grouped.total_samples(), 3_480_000 + 29 * 4 * 50);
     }
 
     #[test]
@@ -1359,18 +1431,5 @@ settle_ms = 0
             a.starts_with("111") && b.starts_with("211") && a.ends_with("..."),
             "{a}"
         );
-    }
-
-    #[test]
-    fn quad_layout_offsets_quadrants() {
-        let p = Plan::parse(
-            "p.toml",
-            "separations_in = \"10..11\"\nlayout = \"quad\"\nbeacons = [0]\nsamples = 1\n",
-        )
-        .unwrap();
-        assert_eq!(p.len(), 8);
-        let q3 = p.point(3);
-        assert_eq!(q3.beacon_id(), 300);
-        assert_eq!(q3.position(&p.layout, 10.0), [1.0, 1.0, 10.0]);
     }
 }

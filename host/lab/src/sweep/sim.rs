@@ -38,7 +38,7 @@ use std::time::{Duration, Instant};
 use super::error::{bail, Context, Error, Result};
 use cta_core::emulator::{grid_position, saturate_i16, Emulator};
 use cta_core::pose::Spot;
-use cta_core::wire::beacon::{LedMode, LED_COUNT};
+use cta_core::wire::beacon::{FreqSet, LedMode, LED_COUNT};
 use cta_core::wire::sensor::Mode;
 use cta_core::wire::ResetCause;
 use cta_firmware_beacon::board::{Board as BeaconBoard, Outputs};
@@ -271,6 +271,8 @@ struct World {
     geometry: Vec<Placement>,
     /// Each LED's true in-plane offset from its nominal place (`led_position`), in.
     led_offsets: Vec<[f64; 2]>,
+    /// The share of other lit spots' signal in each spot's channel ([`spot_crosstalk`]).
+    spot_crosstalk: f64,
     separations: Vec<f64>,
     layout: Layout,
     settings: SimSettings,
@@ -318,6 +320,9 @@ impl World {
         // Scale: an on-axis beacon at 30 in, power 2, sensitivity 4 reads MAG_AT_30.
         let on_axis_30 = self.em.magnitude(&nalgebra::Vector3::new(0.0, 0.0, 30.0));
         let scale = MAG_AT_30 / on_axis_30;
+        // Every lit spot's noise-free reading and magnitude first: `spot_crosstalk` mixes
+        // them.
+        let mut lit: Vec<(usize, FreqSet, [f64; 2], f64)> = Vec::new();
         for (led, mode) in st.leds.iter().enumerate() {
             let LedMode::Modulated(set) = mode else {
                 continue;
@@ -338,6 +343,22 @@ impl World {
             if mag.is_nan() || mag < NO_SIGNAL {
                 continue;
             }
+            lit.push((led, *set, out, mag));
+        }
+        let mixed = spot_crosstalk(
+            self.spot_crosstalk,
+            &lit.iter().map(|&(_, _, o, m)| (o, m)).collect::<Vec<_>>(),
+        );
+        // A spot's noise is drawn afresh when it is lit with others: the same beacon alone
+        // and in a group are two measurements (the crosstalk check compares them).
+        let company = if lit.len() > 1 {
+            lit.iter().fold(lit.len() as u64, |h, &(led, set, ..)| {
+                mix(&[h, led as u64, set.0 as u64])
+            })
+        } else {
+            0
+        };
+        for (&(led, set, _, mag), out) in lit.iter().zip(mixed) {
             let sigma = self.settings.noise * (STRONG / mag).sqrt().max(1.0);
             for ch in set.indices() {
                 let key = [
@@ -350,7 +371,11 @@ impl World {
                     ch as u64,
                     k,
                 ];
-                let mut rng = StdRng::seed_from_u64(mix(&key));
+                let seed = match company {
+                    0 => mix(&key),
+                    c => mix(&[mix(&key), c]),
+                };
+                let mut rng = StdRng::seed_from_u64(seed);
                 let nx: f64 = rng.sample(StandardNormal);
                 let ny: f64 = rng.sample(StandardNormal);
                 // Drawn after x and y, so it never changes them.
@@ -376,6 +401,55 @@ impl World {
             spots,
         }
     }
+}
+
+/// The readings of spots lit together when the detector leaks a fraction `c` of every other
+/// spot's signal into each spot's channel (`spot_crosstalk=C`): the NorthStar separates spots
+/// by demodulating the same four cell signals at each spot's frequency, and a filter that
+/// rejects the other frequencies only in part adds their cell signals, weighted by their
+/// magnitude, to the spot's own. A spot's reading is then pulled toward the others':
+/// `(m_i o_i + c sum_j m_j o_j) / (m_i + c sum_j m_j)` over the others `j`, for readings `o`
+/// and magnitudes `m`. A spot lit alone reads as without it.
+pub fn spot_crosstalk(c: f64, spots: &[([f64; 2], f64)]) -> Vec<[f64; 2]> {
+    let total_m: f64 = spots.iter().map(|s| s.1).sum();
+    let total: [f64; 2] = [0, 1].map(|k| spots.iter().map(|s| s.0[k] * s.1).sum());
+    spots
+        .iter()
+        .map(|&(o, m)| {
+            if c == 0.0 {
+                return o;
+            }
+            let w = c * (total_m - m);
+            [0, 1].map(|k| (m * o[k] + c * (total[k] - o[k] * m)) / (m + w))
+        })
+        .collect()
+}
+
+/// The value of a `spot_crosstalk=C` effect among the `--sim-effect` specs, and the other
+/// specs: the sweep's simulated detector applies it between the spots of a frame; the other
+/// effects act on each spot alone.
+pub(crate) fn take_spot_crosstalk(specs: &[String]) -> Result<(f64, Vec<String>)> {
+    let mut c = 0.0;
+    let mut rest = Vec::new();
+    for s in specs {
+        match s.split_once('=') {
+            Some((n, v)) if n.trim() == "spot_crosstalk" => {
+                c = v
+                    .trim()
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|c| (0.0..0.5).contains(c))
+                    .ok_or_else(|| {
+                        Error::Refused(format!(
+                            "--sim-effect {s}: spot_crosstalk=C takes a fraction C in [0, 0.5) \
+                             (the share of every other lit spot's signal in a spot's channel)"
+                        ))
+                    })?;
+            }
+            _ => rest.push(s.clone()),
+        }
+    }
+    Ok((c, rest))
 }
 
 /// SplitMix64 over a key: a well-mixed seed from the sample's identity.
@@ -794,8 +868,8 @@ impl SimCta {
     /// [`SimCta::spawn`], with the boards `posing` names identifying themselves as hardware
     /// (for tests; the sweep's own simulated CTA never does).
     pub fn spawn_posing_as(plan: &Plan, settings: &SimSettings, posing: Posing) -> Result<SimCta> {
-        let effects = settings
-            .effects
+        let (spot_crosstalk, others) = take_spot_crosstalk(&settings.effects)?;
+        let effects = others
             .iter()
             .map(|s| Effect::parse(s).map_err(|e| Error::Refused(format!("--sim-effect {s}: {e}"))))
             .collect::<Result<Vec<_>>>()?;
@@ -841,6 +915,7 @@ impl SimCta {
             ),
             geometry: phys.geometry,
             led_offsets: phys.led_offsets,
+            spot_crosstalk,
             separations: plan.separations.clone(),
             layout: plan.layout,
             settings: settings.clone(),
@@ -932,6 +1007,10 @@ impl SimCta {
         t.separation_errors = phys.geometry.iter().map(|g| g.sep_error).collect();
         t.plate_tilts_deg = phys.geometry.iter().map(|g| g.tilt_deg).collect();
         t.noise_counts = self.config.noise;
+        if self.world.spot_crosstalk > 0.0 {
+            t.effects
+                .push(format!("spot_crosstalk={}", self.world.spot_crosstalk));
+        }
         t.noise_law = Some(format!(
             "noise_counts for a spot of magnitude {STRONG} or more, noise_counts * sqrt({STRONG} \
              / magnitude) for a dimmer one (its shot noise; about 1.5x at 30 in on axis)"

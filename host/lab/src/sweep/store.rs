@@ -868,21 +868,22 @@ impl RunDir {
         self.append_journal(&bytes)
     }
 
-    /// Commit a point: its rows (or a `# no signal` comment), then its journal line.
+    /// Commit a point: its comment lines (`# no signal: ...` for each beacon short of its
+    /// samples) and rows, then its journal line.
     #[allow(clippy::too_many_arguments)]
     pub fn commit_point(
         &mut self,
         i: usize,
         status: PointStatus,
         rows: &[Sample],
-        comment: Option<&str>,
+        comments: &[String],
         reports: u32,
         lost: u32,
         attempts: u32,
     ) -> Result<()> {
         self.begin()?;
         let mut buf = Vec::with_capacity(64 * rows.len() + 64);
-        if let Some(c) = comment {
+        for c in comments {
             writeln!(buf, "# {}", comment_text(c))?;
         }
         for r in rows {

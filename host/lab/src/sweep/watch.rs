@@ -3,7 +3,8 @@
 
 use std::path::Path;
 
-use super::plan::{Plan, Point};
+use super::plan::Plan;
+use super::points::Point;
 
 /// The sweep's progress and events as they happen. Every method does nothing by default.
 pub trait Watch {

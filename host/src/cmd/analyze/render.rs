@@ -22,6 +22,9 @@ pub fn render_text(a: &Analysis) -> String {
         let _ = writeln!(s, "  note: {n}");
     }
     let _ = writeln!(s, "\n{}\n", a.verdict);
+    if let Some(c) = &a.crosstalk {
+        let _ = writeln!(s, "{}\n", c.summary());
+    }
     for (k, c) in a.causes.iter().chain(&a.tentative).enumerate() {
         let tag = if k < a.causes.len() {
             ""

@@ -153,6 +153,9 @@ pub fn render_text(r: &NoiseReport) -> String {
             }
         }
     }
+    if let Some(c) = &r.crosstalk {
+        let _ = writeln!(s, "\n{}", c.summary());
+    }
     s
 }
 

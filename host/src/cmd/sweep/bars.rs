@@ -6,7 +6,8 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use cta_lab::sweep::plan::{Plan, Point};
+use cta_lab::sweep::plan::Plan;
+use cta_lab::sweep::points::Point;
 use cta_lab::sweep::watch::Watch;
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 

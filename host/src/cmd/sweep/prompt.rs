@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use cta_lab::sweep::corners::{CORNER_ORDER_TEXT, ROD_XY_IN};
 use cta_lab::sweep::engine::{Operator, INTERRUPTED};
-use cta_lab::sweep::plan::Point;
+use cta_lab::sweep::points::Point;
 use cta_lab::sweep::sim::separation_entry;
 use cta_lab::sweep::store::{levelness_question, SeparationEntry};
 use cta_lab::sweep::{Error, Result};
