@@ -121,26 +121,18 @@ impl Check {
 /// Key of a beacon's setting: separation, position, frequency, power, sensitivity.
 type Setting = [u64; 7];
 
-fn setting(p: &Point) -> Setting {
-    let s = &p.first;
-    [
-        s.separation_in.to_bits(),
-        s.r[0].to_bits(),
-        s.r[1].to_bits(),
-        s.r[2].to_bits(),
-        s.frequency_hz.unwrap_or(f64::NAN).to_bits(),
-        s.power.unwrap_or(f64::NAN).to_bits(),
-        s.sensitivity.unwrap_or(f64::NAN).to_bits(),
-    ]
-}
-
 /// The largest magnitude the NorthStar reports (16 bits): a spot at it is saturated, its
 /// true magnitude unknown.
 const MAGNITUDE_RAIL: f64 = 65535.0;
 
-/// A point's samples summed up for the check.
+/// One point of a measurement file (a beacon's samples at one setting in one sweep point),
+/// summed up for the check.
 #[derive(Debug, Clone, Copy)]
-struct Stats {
+pub struct PointSums {
+    /// The setting: separation, position, frequency, power, sensitivity.
+    setting: Setting,
+    /// The sweep point (`group` column).
+    group: Option<u32>,
     /// Mean (x, y), counts.
     mean: [f64; 2],
     /// Sum of squared deviations from the mean per axis.
@@ -154,7 +146,13 @@ struct Stats {
     clipped: bool,
 }
 
-fn stats(ds: &Dataset, p: &Point) -> Stats {
+/// The points of `ds` summed up ([`PointSums`]), in the order of [`Dataset::points`].
+pub fn point_sums(ds: &Dataset) -> Vec<PointSums> {
+    ds.points().iter().map(|p| sums(ds, p)).collect()
+}
+
+fn sums(ds: &Dataset, p: &Point) -> PointSums {
+    let f = &p.first;
     let n = p.rows.len() as f64;
     let mut mean = [0.0; 2];
     let mut magnitude = 0.0;
@@ -173,7 +171,17 @@ fn stats(ds: &Dataset, p: &Point) -> Stats {
         ss[0] += (s.x - mean[0]).powi(2);
         ss[1] += (s.y - mean[1]).powi(2);
     }
-    Stats {
+    PointSums {
+        setting: [
+            f.separation_in.to_bits(),
+            f.r[0].to_bits(),
+            f.r[1].to_bits(),
+            f.r[2].to_bits(),
+            f.frequency_hz.unwrap_or(f64::NAN).to_bits(),
+            f.power.unwrap_or(f64::NAN).to_bits(),
+            f.sensitivity.unwrap_or(f64::NAN).to_bits(),
+        ],
+        group: f.group,
         mean,
         ss,
         n: p.rows.len(),
@@ -185,24 +193,27 @@ fn stats(ds: &Dataset, p: &Point) -> Stats {
 /// The crosstalk check of a measurement file: `None` when it has no beacon measured both
 /// alone and in a group (a file without the `group` column, a one-at-a-time sweep).
 pub fn check(ds: &Dataset) -> Option<Check> {
-    let points = ds.points();
+    check_sums(&point_sums(ds))
+}
+
+/// [`check`] over points already summed up (a sweep keeps those of the points it compares).
+pub fn check_sums(stat: &[PointSums]) -> Option<Check> {
     // Points by sweep point (`group`), and each group's size.
     let mut by_group: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
-    for (k, p) in points.iter().enumerate() {
-        if let Some(g) = p.first.group {
+    for (k, p) in stat.iter().enumerate() {
+        if let Some(g) = p.group {
             by_group.entry(g).or_default().push(k);
         }
     }
-    let size = |k: usize| points[k].first.group.map_or(0, |g| by_group[&g].len());
+    let size = |k: usize| stat[k].group.map_or(0, |g| by_group[&g].len());
     // A beacon's setting in a group of two or more: its point.
     let mut grouped: BTreeMap<Setting, usize> = BTreeMap::new();
-    for (k, p) in points.iter().enumerate() {
+    for (k, p) in stat.iter().enumerate() {
         if size(k) > 1 {
-            grouped.insert(setting(p), k);
+            grouped.insert(p.setting, k);
         }
     }
-    let stat: Vec<Stats> = points.iter().map(|p| stats(ds, p)).collect();
-    let group_of = |k: usize| &by_group[&points[k].first.group.expect("grouped points have one")];
+    let group_of = |k: usize| &by_group[&stat[k].group.expect("grouped points have one")];
     // The first-order pull of point `k` per unit C: sum_j m_j (o_j - o_k) / m_k over the
     // other points of its group (`own` = the reading taken for o_k).
     let pull = |k: usize, own: [f64; 2]| -> [f64; 2] {
@@ -220,11 +231,11 @@ pub fn check(ds: &Dataset) -> Option<Check> {
     let (mut pairs, mut clipped, mut largest) = (0usize, 0usize, 0usize);
     let (mut ss_d, mut ss_noise, mut chi2, mut expected, mut spread) = (0.0, 0.0, 0.0, 0.0, 0.0);
     let (mut dv, mut vv) = (0.0, 0.0);
-    for (k, p) in points.iter().enumerate() {
+    for (k, p) in stat.iter().enumerate() {
         if size(k) != 1 {
             continue;
         }
-        let Some(&g) = grouped.get(&setting(p)) else {
+        let Some(&g) = grouped.get(&p.setting) else {
             continue;
         };
         let (a, b) = (stat[k], stat[g]);

@@ -38,7 +38,7 @@ use super::sim::{separation_entry, SimCta};
 use super::store::{now, Event, PointStatus, RunDir, SeparationEntry};
 use super::watch::Watch;
 use crate::boards::link::{open_serial, Link, LinkConfig, LinkError};
-use crate::data::Sample;
+use crate::data::{Dataset, Sample};
 
 /// Set by the signal handlers (Ctrl-C, SIGTERM, SIGHUP: see `sweep::run`); checked between
 /// and inside points, and while waiting for the operator. Shared with `signal_hook`'s flag
@@ -290,6 +290,9 @@ pub struct Engine<'a> {
     pub skip_settle: bool,
     /// Session counters.
     pub stats: Stats,
+    /// The points of the crosstalk check's blocks measured in this session, summed up
+    /// ([`crate::crosstalk`]).
+    pub checked: Vec<crate::crosstalk::PointSums>,
     /// The beacon board's frequency table (millihertz), as read at the last connection and
     /// checked against the plan ([`Engine::check_table`]): the table the run lights from.
     pub table_mhz: Vec<u32>,
@@ -325,6 +328,7 @@ impl<'a> Engine<'a> {
             last_heartbeat: Instant::now(),
             skip_settle: false,
             stats: Stats::default(),
+            checked: Vec::new(),
             table_mhz: Vec::new(),
             beacon_seen: None,
             sensor_seen: None,
@@ -631,6 +635,12 @@ impl<'a> Engine<'a> {
             match self.point_with_retries(store, &p, watch)? {
                 Some((m, attempts)) => {
                     let (rows, comments) = rows_of(plan, &p, e.mean, &m);
+                    if plan.in_check_block(&p) {
+                        self.checked.extend(crate::crosstalk::point_sums(&Dataset {
+                            path: Default::default(),
+                            samples: rows.clone(),
+                        }));
+                    }
                     if !m.strays.is_empty() {
                         store.log(Event::Fault {
                             at: now(),

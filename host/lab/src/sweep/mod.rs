@@ -19,6 +19,7 @@ use crate::data::{Dataset, ReadError};
 pub mod corners;
 pub mod engine;
 pub mod error;
+pub mod estimate;
 pub mod event;
 pub mod groups;
 mod journal;
@@ -107,6 +108,9 @@ pub struct Summary {
     pub resume: String,
     /// A resume that found every point committed: nothing was measured and no board opened.
     pub already_complete: bool,
+    /// The crosstalk check over the beacons measured alone and in their group in this session
+    /// (`None` when it measured none; `cta noise RUN/data.csv` checks the whole run).
+    pub crosstalk: Option<crate::crosstalk::Check>,
 }
 
 /// `N of M points done (next: point N)`: how far a run has got. Points are numbered from 0,
@@ -428,6 +432,7 @@ pub fn sweep_with(
         seconds: t0.elapsed().as_secs_f64(),
         resume: resume_command(&store.dir, ports),
         already_complete: false,
+        crosstalk: crate::crosstalk::check_sums(&engine.checked),
     })
 }
 
@@ -532,6 +537,7 @@ fn already_complete(
             ports.as_ref().map(|(b, s)| (b.as_str(), s.as_str())),
         ),
         already_complete: true,
+        crosstalk: None,
     })
 }
 

@@ -1258,7 +1258,7 @@ settle_ms = 0
     /// frequencies for each intensity level" (step 2: several frequencies, both power levels),
     /// all four sensitivities (step 3); about 3.5 million samples, the size the sweep's
     /// performance target is set for (host/SWEEP.md, Performance). The grouped plan takes the
-    /// same samples, and its crosstalk check's, in 16 times fewer points.
+    /// same samples, and its crosstalk check's, in 18 times fewer points.
     #[test]
     fn the_shipped_ch_vi_plans_are_the_thesis_scheme() {
         let load = |name: &str| {
@@ -1287,8 +1287,8 @@ settle_ms = 0
         // The arithmetic of the header comments.
         assert_eq!(single.len(), 69_600);
         assert_eq!(single.total_samples(), 3_480_000);
-        assert_eq!((grouped.group, grouped.per_block()), (19, 3 * 6));
-        assert_eq!(grouped.len(), 29 * (8 * 18 + 4));
+        assert_eq!((grouped.group, grouped.per_block()), (19, 16));
+        assert_eq!(grouped.len(), 29 * (8 * 16 + 4));
         assert_eq!(grouped.total_samples(), 3_480_000 + 29 * 4 * 50);
     }
 

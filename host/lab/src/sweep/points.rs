@@ -6,14 +6,14 @@
 //! block's points. Power levels alternate direction from one plate position to the next
 //! (serpentine), so the operator flips the power switches once per plate position instead
 //! of twice. A block of a one-at-a-time plan is every beacon at every frequency (beacon
-//! outer); a block of a grouped plan is its rounds of groups ([`super::groups`]). One block
+//! outer); a block of a grouped plan is its groups ([`super::groups`]). One block
 //! of every separation (a different one from one separation to the next, so that over the run
 //! every power level and sensitivity is checked) ends with the beacons of the crosstalk
 //! check, each lit alone at the frequency it had in round 0.
 
 use cta_core::emulator::grid_position;
 
-use super::groups::{self, Rounds};
+use super::groups::{self, Groups};
 use super::plan::{channel_of, Layout, Plan};
 
 /// One beacon lit at a point.
@@ -57,6 +57,9 @@ pub struct Point {
     pub power: u8,
     /// Sensitivity setting.
     pub sensitivity: u8,
+    /// The block within the separation (its quadrant, power level and sensitivity), in
+    /// measurement order.
+    pub block: usize,
     /// The beacons lit, each at its own frequency.
     pub lit: Vec<Lit>,
     /// A crosstalk check: a beacon of a group lit alone, to compare with its reading in the
@@ -87,8 +90,8 @@ impl Plan {
         self.group <= 1 && self.rounds() == self.frequencies_hz.len() && self.crosstalk_check == 0
     }
 
-    /// The groups of every round of a block (built on first use).
-    pub fn groups(&self) -> &Rounds {
+    /// The groups of a block (built on first use).
+    pub fn groups(&self) -> &Groups {
         self.schedule.0.get_or_init(|| {
             groups::build(
                 &self.beacons,
@@ -105,7 +108,7 @@ impl Plan {
         if self.one_at_a_time() {
             self.beacons.len() * self.frequencies_hz.len()
         } else {
-            self.rounds() * self.groups()[0].len()
+            self.groups().len()
         }
     }
 
@@ -116,6 +119,12 @@ impl Plan {
         } else {
             self.crosstalk_check.min(self.beacons.len())
         }
+    }
+
+    /// Whether point `p` is in the block of its separation that holds the crosstalk check:
+    /// the beacons measured alone, and the groups they are compared with.
+    pub fn in_check_block(&self, p: &Point) -> bool {
+        self.checks() > 0 && p.block == p.sep_idx % self.blocks()
     }
 
     /// Blocks per separation.
@@ -172,8 +181,8 @@ impl Plan {
         let p = (block / ns) % np;
         let q = block / (ns * np);
         // Serpentine power order: reversed on every other plate position.
-        let block = sep_idx * nq + q;
-        let p = if block % 2 == 1 { np - 1 - p } else { p };
+        let place = sep_idx * nq + q;
+        let p = if place % 2 == 1 { np - 1 - p } else { p };
         let lit = |b: usize, f: usize| {
             let hz = self.frequencies_hz[f];
             Lit {
@@ -186,15 +195,15 @@ impl Plan {
         let (lit, alone) = if self.one_at_a_time() {
             (vec![lit(unit / nf, unit % nf)], false)
         } else {
-            let rounds = self.groups();
-            let ng = rounds[0].len();
-            if unit < self.rounds() * ng {
-                let g = &rounds[unit / ng][unit % ng];
+            let groups = self.groups();
+            let ng = groups.len();
+            if unit < ng {
+                let g = &groups[unit];
                 (g.iter().map(|&(b, f)| lit(b, f)).collect(), false)
             } else {
                 let checked = groups::checked(self.beacons.len(), nc, sep_idx);
-                let b = checked[unit - self.rounds() * ng];
-                (vec![lit(b, groups::first_frequency(rounds, b))], true)
+                let b = checked[unit - ng];
+                (vec![lit(b, groups::first_frequency(groups, b))], true)
             }
         };
         Point {
@@ -204,6 +213,7 @@ impl Plan {
             quadrant: q,
             power: self.power_levels[p],
             sensitivity: self.sensitivities[s],
+            block,
             lit,
             alone,
         }
@@ -270,9 +280,9 @@ settle_ms = 0
                    4650, 4770, 4890, 5010]\nfrequencies_per_beacon = 3\ngroup = 19\n\
                    crosstalk_check = 2\nsensitivities = [2, 4]\nsamples = 5\n";
         let p = Plan::parse("g.toml", src).unwrap();
-        assert_eq!(p.per_block(), 3 * 6);
-        assert_eq!(p.per_separation(), 2 * 18 + 2);
-        assert_eq!(p.len(), 2 * 38);
+        assert_eq!(p.per_block(), 16);
+        assert_eq!(p.per_separation(), 2 * 16 + 2);
+        assert_eq!(p.len(), 2 * 34);
         assert_eq!(p.total_samples(), 2 * (2 * 300 + 2) * 5);
         let mut per_beacon = vec![Vec::new(); 100];
         for i in 0..p.per_block() {
@@ -280,20 +290,23 @@ settle_ms = 0
             if pt.alone {
                 continue;
             }
-            assert!((16..=17).contains(&pt.lit.len()), "{}", pt.lit.len());
+            assert!(pt.lit.len() == 19 || i == 15, "{}", pt.lit.len());
             for l in &pt.lit {
                 per_beacon[l.led as usize].push(l.channel);
             }
         }
         assert!(per_beacon.iter().all(|c| c.len() == 3));
         // Separation 0 checks in its first block, separation 1 in its second.
-        let check = p.point(18);
+        let check = p.point(16);
         assert!(check.alone && check.lit.len() == 1 && check.sensitivity == 2);
-        assert!(!p.point(20).alone && p.point(20).sensitivity == 4);
-        let later = p.point(38 + 18 + 18);
+        assert!(!p.point(18).alone && p.point(18).sensitivity == 4);
+        let later = p.point(34 + 16 + 16);
         assert!(later.alone && later.sensitivity == 4 && later.sep_idx == 1);
+        assert_eq!((check.block, p.point(18).block, later.block), (0, 1, 1));
+        assert!(p.in_check_block(&check) && p.in_check_block(&later));
+        assert!(!p.in_check_block(&p.point(18)) && p.in_check_block(&p.point(34 + 16)));
         let b = check.first().led;
-        let grouped = (0..6)
+        let grouped = (0..16)
             .map(|i| p.point(i))
             .find(|pt| pt.lit.iter().any(|l| l.led == b))
             .unwrap();

@@ -284,4 +284,7 @@ fn print_summary(s: &Summary) {
         st.samples as f64 / s.seconds.max(1e-9),
         s.dir.join(store::DATA).display()
     );
+    if let Some(c) = &s.crosstalk {
+        println!("  {} (this session)", c.summary());
+    }
 }
