@@ -38,6 +38,7 @@ use std::time::{Duration, Instant};
 use super::error::{bail, Context, Error, Result};
 use cta_core::emulator::{grid_position, saturate_i16, Emulator};
 use cta_core::pose::Spot;
+use cta_core::schedule::NORTHSTAR_TABLE_MHZ;
 use cta_core::wire::beacon::{FreqSet, LedMode, LED_COUNT};
 use cta_core::wire::sensor::Mode;
 use cta_core::wire::ResetCause;
@@ -115,6 +116,10 @@ pub struct Faults {
     pub drop: f64,
     /// Probability that a byte is corrupted (one bit flipped).
     pub corrupt: f64,
+    /// Probability that a NorthStar frame carries a stray spot: one under an ID no LED is lit
+    /// at (a reflection of another light source the detector locked onto).
+    #[serde(default)]
+    pub stray: f64,
     /// Scheduled faults.
     pub events: Vec<ScheduledFault>,
 }
@@ -130,7 +135,7 @@ pub struct FaultSpecError(pub String);
 pub const MAX_BYTE_FAULT: f64 = 0.005;
 
 impl Faults {
-    /// Parse a comma-separated spec: `drop=P`, `corrupt=P`,
+    /// Parse a comma-separated spec: `drop=P`, `corrupt=P`, `stray=P` (per frame),
     /// `KIND=BOARD@N:MS` with KIND `vanish`, `silent` or `stall`, BOARD `beacon` or `sensor`,
     /// and `reset=BOARD@N` ([`FaultKind::Reset`]).
     pub fn parse(spec: &str) -> Result<Faults, FaultSpecError> {
@@ -156,6 +161,13 @@ impl Faults {
                     })
             };
             match k {
+                "stray" => {
+                    f.stray = v
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|p| (0.0..=1.0).contains(p))
+                        .ok_or_else(|| format!("fault `{part}`: a probability per frame, 0..=1"))?
+                }
                 "drop" => f.drop = prob(v)?,
                 "corrupt" => f.corrupt = prob(v)?,
                 "reset" => {
@@ -392,6 +404,20 @@ impl World {
                     // Rounded, as the coordinates: truncation would bias ln M by -0.5 / M,
                     // which depends on the distance.
                     magnitude: m.min(65535.0).round() as u16,
+                });
+            }
+        }
+        if self.settings.faults.stray > 0.0 {
+            let key = [self.settings.seed, si as u64, st.quadrant as u64, k, 0x57a4];
+            let mut rng = StdRng::seed_from_u64(mix(&key));
+            let lit_ids: Vec<u8> = lit.iter().flat_map(|(_, set, ..)| set.indices()).collect();
+            let free = (0..NORTHSTAR_TABLE_MHZ.len() as u8).find(|id| !lit_ids.contains(id));
+            if let (true, Some(id)) = (rng.random::<f64>() < self.settings.faults.stray, free) {
+                let _ = spots.push(Spot {
+                    id,
+                    x: rng.random_range(-20_000..20_000),
+                    y: rng.random_range(-20_000..20_000),
+                    magnitude: 8_000,
                 });
             }
         }

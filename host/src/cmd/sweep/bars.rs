@@ -6,6 +6,7 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use cta_lab::sweep::estimate::{self, Steps};
 use cta_lab::sweep::plan::Plan;
 use cta_lab::sweep::points::Point;
 use cta_lab::sweep::watch::Watch;
@@ -26,6 +27,42 @@ pub struct Bars {
     log: Option<Instant>,
     /// When the last line about progress was logged.
     last_progress: Arc<Mutex<Instant>>,
+    /// The manual steps' durations the ETA's model assumes.
+    steps: Steps,
+    /// The run's modelled timeline and where this session started ([`Eta`]).
+    eta: Arc<Mutex<Option<Eta>>>,
+}
+
+/// The ETA: the run's duration model ([`estimate::timeline`]), scaled by the pace this session
+/// has kept against it. On the real boards the pace is about 1; on the unthrottled simulated
+/// CTA far below.
+struct Eta {
+    /// When each point starts in the model, s; the run's end last.
+    timeline: Vec<f64>,
+    /// The first point of the session.
+    from: usize,
+    /// When the session's first point started.
+    t0: Instant,
+}
+
+impl Eta {
+    /// The time left after point `i` is done.
+    fn after(&self, i: usize) -> Duration {
+        let t = &self.timeline;
+        let (done, end) = (i + 1, t.len() - 1);
+        if done > end || done <= self.from {
+            return Duration::ZERO;
+        }
+        let modelled = (t[done] - t[self.from]).max(1e-9);
+        let pace = self.t0.elapsed().as_secs_f64() / modelled;
+        Duration::from_secs_f64(((t[end] - t[done]) * pace).max(0.0))
+    }
+}
+
+/// `H:MM:SS`.
+fn clock(d: Duration) -> String {
+    let s = d.as_secs();
+    format!("{}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60)
 }
 
 /// Log mode: the longest time without a line about progress.
@@ -51,14 +88,7 @@ fn progress_line(
         if done >= n || !per_sec.is_finite() || per_sec <= 0.0 {
             return String::new();
         }
-        let s = eta.as_secs();
-        format!(
-            "; {:.1} points/min, ETA {}:{:02}:{:02}",
-            per_sec * 60.0,
-            s / 3600,
-            s / 60 % 60,
-            s % 60
-        )
+        format!("; {:.1} points/min, ETA {}", per_sec * 60.0, clock(eta))
     };
     if done.is_multiple_of(per.max(1)) || done == n {
         Some(format!(
@@ -74,9 +104,12 @@ fn progress_line(
 
 impl Bars {
     /// Bars on stderr; with `quiet`, neither bars nor log lines. Log lines replace the bars
-    /// when stderr is not a terminal.
-    pub fn new(quiet: bool) -> Bars {
-        Bars::with(quiet, !quiet && !std::io::stderr().is_terminal())
+    /// when stderr is not a terminal. `steps`: the manual steps' durations for the ETA.
+    pub fn new(quiet: bool, steps: Steps) -> Bars {
+        Bars {
+            steps,
+            ..Bars::with(quiet, !quiet && !std::io::stderr().is_terminal())
+        }
     }
 
     /// Bars (hidden when `hidden` or when stderr is not a terminal), and log lines when `log`.
@@ -92,7 +125,7 @@ impl Bars {
                 .progress_chars("=> ")
         };
         let total = multi.add(ProgressBar::new(0).with_style(style(
-            "run        [{bar:40}] {pos}/{len} points  {elapsed_precise} ETA {eta_precise}  {msg}",
+            "run        [{bar:40}] {pos}/{len} points  {elapsed_precise} ETA {prefix}  {msg}",
         )));
         let sep = multi.add(ProgressBar::new(0).with_style(style(
             "{prefix:>10} [{bar:40}] {pos}/{len} points  ETA {eta}",
@@ -103,6 +136,8 @@ impl Bars {
             sep,
             log: log.then(Instant::now),
             last_progress: Arc::new(Mutex::new(Instant::now())),
+            steps: Steps::default(),
+            eta: Arc::new(Mutex::new(None)),
         }
     }
 
@@ -134,7 +169,16 @@ impl Watch for Bars {
     fn start(&self, plan: &Plan, from: usize) {
         self.total.set_length(plan.len() as u64);
         self.total.set_position(from as u64);
-        self.total.reset_eta();
+        let timeline = estimate::timeline(plan, &self.steps);
+        // Until a point is done: the model's own estimate, at the boards' pace.
+        let left = timeline[timeline.len() - 1] - timeline[from.min(timeline.len() - 1)];
+        self.total
+            .set_prefix(clock(Duration::from_secs_f64(left.max(0.0))));
+        *self.eta.lock().unwrap_or_else(|e| e.into_inner()) = Some(Eta {
+            timeline,
+            from,
+            t0: Instant::now(),
+        });
         self.sep.set_length(plan.per_separation() as u64);
         self.sep
             .set_position((from % plan.per_separation().max(1)) as u64);
@@ -152,6 +196,13 @@ impl Watch for Bars {
     fn point_done(&self, plan: &Plan, i: usize, separation: f64) {
         self.total.inc(1);
         self.sep.inc(1);
+        let eta = self
+            .eta
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .as_ref()
+            .map_or(Duration::ZERO, |e| e.after(i));
+        self.total.set_prefix(clock(eta));
         if self.log.is_none() {
             return;
         }
@@ -163,7 +214,7 @@ impl Watch for Bars {
             separation,
             last.elapsed(),
             self.total.per_sec(),
-            self.total.eta(),
+            eta,
         ) {
             self.log(&line);
             *last = Instant::now();

@@ -9,6 +9,8 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Result};
 use cta_lab::sweep::engine::{interruption, interruption_signal, Ending, INTERRUPTED, SIGNAL};
+use cta_lab::sweep::estimate::{self, Steps};
+use cta_lab::sweep::plan::Plan;
 use cta_lab::sweep::{points_done, status, store, Summary, SweepOptions};
 
 pub use bars::Bars;
@@ -94,8 +96,8 @@ pub struct SweepArgs {
     #[arg(long, requires = "resume")]
     pub sim_unthrottled: bool,
     /// Simulated CTA: inject faults (testing): `drop=P`, `corrupt=P` (per byte, both lines,
-    /// P at most 0.005),
-    /// `vanish=BOARD@N:MS` (unplugged), `silent=BOARD@N:MS`, `stall=sensor@N:MS`, triggered at
+    /// P at most 0.005), `stray=P` (a NorthStar frame carries a spot under an ID no LED is
+    /// lit at, with probability P), `vanish=BOARD@N:MS` (unplugged), `silent=BOARD@N:MS`, `stall=sensor@N:MS`, triggered at
     /// the N-th point attempt of the session, and `reset=BOARD@N` (the board restarts, its
     /// port staying up: the beacon as the N-th attempt starts, the sensor as it ends),
     /// comma-separated.
@@ -139,9 +141,33 @@ pub struct SweepArgs {
     /// With --status: JSON instead of the table.
     #[arg(long, requires = "status")]
     pub json: bool,
+    /// Say how long the plan (or, with --resume, the rest of the run) takes on the real boards
+    /// at the plan's rate, settle times, plate moves and power switches included, and start
+    /// nothing. The progress bar's ETA uses the same model, scaled by the pace it measures.
+    #[arg(long, conflicts_with_all = ["out", "status", "beacon", "sensor", "force", "yes"])]
+    pub estimate: bool,
+    /// Minutes the operator takes to move the plate and read its four corners (for --estimate
+    /// and the ETA).
+    #[arg(long, value_name = "MIN", default_value_t = Steps::default().plate_move_s / 60.0)]
+    pub plate_move_min: f64,
+    /// Minutes the operator takes to flip the array's power switches.
+    #[arg(long, value_name = "MIN", default_value_t = Steps::default().power_switch_s / 60.0)]
+    pub power_switch_min: f64,
+    /// Minutes the operator takes to mount the array in the next quadrant (quad layout).
+    #[arg(long, value_name = "MIN", default_value_t = Steps::default().quadrant_s / 60.0)]
+    pub quadrant_min: f64,
 }
 
 impl SweepArgs {
+    /// The manual steps' durations given.
+    pub fn steps(&self) -> Steps {
+        Steps {
+            plate_move_s: self.plate_move_min * 60.0,
+            power_switch_s: self.power_switch_min * 60.0,
+            quadrant_s: self.quadrant_min * 60.0,
+        }
+    }
+
     /// The run's options: everything but what only the command line shows.
     pub fn options(&self) -> SweepOptions {
         SweepOptions {
@@ -178,6 +204,10 @@ pub fn run(args: &SweepArgs) -> Result<()> {
         }
         return Ok(());
     }
+    if args.estimate {
+        print!("{}", estimate_text(args)?);
+        return Ok(());
+    }
     for (sig, e) in crate::signals::catch_stop(&INTERRUPTED, Some(&SIGNAL)) {
         crate::say::warning(format_args!(
             "cannot catch signal {sig} ({e}): it would stop the sweep uncleanly"
@@ -207,7 +237,7 @@ pub fn run(args: &SweepArgs) -> Result<()> {
 /// Run (or resume) the sweep with progress bars (or log lines) on stderr and the operator
 /// asked on the terminal.
 pub fn sweep(args: &SweepArgs) -> Result<Summary> {
-    let bars = Bars::new(args.quiet);
+    let bars = Bars::new(args.quiet, args.steps());
     let mut prompt = Prompt::new(&bars);
     let r = cta_lab::sweep::sweep_with(&args.options(), &bars, Some(&mut prompt));
     bars.finish();
@@ -238,6 +268,63 @@ pub struct Interrupted {
     pub next_point: usize,
     /// Points in the plan.
     pub points: usize,
+}
+
+/// `cta sweep --estimate`: the duration of the plan given, or of the rest of the run resumed.
+fn estimate_text(args: &SweepArgs) -> Result<String> {
+    let steps = args.steps();
+    for (name, v) in [
+        ("--plate-move-min", args.plate_move_min),
+        ("--power-switch-min", args.power_switch_min),
+        ("--quadrant-min", args.quadrant_min),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            bail!("{name} {v}: give the minutes the step takes, 0 or more");
+        }
+    }
+    let (plan, from, what) = match (&args.resume, &args.plan) {
+        (Some(dir), _) => {
+            let st = status::status(dir)?;
+            let plan = Plan::load(&dir.join(store::PLAN))?;
+            (plan, st.done, format!("the rest of {}", dir.display()))
+        }
+        (None, Some(p)) => (Plan::load(p)?, 0, format!("plan {}", p.display())),
+        (None, None) => bail!("--estimate needs --plan PLAN.toml, or --resume RUN_DIR"),
+    };
+    let e = estimate::estimate(&plan, from, &steps);
+    let lit = if plan.group > 1 {
+        format!("up to {} beacons lit at once", plan.group)
+    } else {
+        "one beacon at a time".into()
+    };
+    Ok(format!(
+        "{what} (`{}`): {} points, {lit}, {} samples, at {} Hz\n  \
+         measuring: {} ({:.2} s a point: {} ms settle, {} reports, requests)\n  \
+         manual steps: {} ({} plate moves at {} min, {} power switch changes at {} min{})\n  \
+         total on the real boards: {}\n",
+        plan.name,
+        e.points,
+        e.samples,
+        plan.rate_hz,
+        estimate::human(e.measuring_s),
+        e.point_s,
+        plan.settle_ms,
+        plan.samples + 1,
+        estimate::human(e.manual_s),
+        e.plate_moves,
+        args.plate_move_min,
+        e.power_switches,
+        args.power_switch_min,
+        if e.quadrant_mounts > 0 {
+            format!(
+                ", {} array mounts at {} min",
+                e.quadrant_mounts, args.quadrant_min
+            )
+        } else {
+            String::new()
+        },
+        estimate::human(e.total_s)
+    ))
 }
 
 fn print_summary(s: &Summary) {
