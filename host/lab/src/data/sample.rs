@@ -103,14 +103,21 @@ impl Dataset {
         out
     }
 
-    /// Write in the documented format (all columns, `comments` as leading `#` lines).
+    /// Write in the documented format (`comments` as leading `#` lines): every column, but
+    /// `group` only when a row records one (a sweep's file; a simulated one has none).
     pub fn write(&self, w: &mut impl Write, comments: &[String]) -> std::io::Result<()> {
         for c in comments {
             writeln!(w, "# {}", comment_text(c))?;
         }
-        writeln!(w, "{},{}", REQUIRED.join(","), OPTIONAL.join(","))?;
+        let group = self.samples.iter().any(|s| s.group.is_some());
+        let columns = if group {
+            &OPTIONAL[..]
+        } else {
+            &OPTIONAL[..OPTIONAL.len() - 1]
+        };
+        writeln!(w, "{},{}", REQUIRED.join(","), columns.join(","))?;
         for s in &self.samples {
-            write_row(w, s)?;
+            write_fields(w, s, group)?;
         }
         Ok(())
     }
@@ -125,13 +132,18 @@ pub fn comment_text(text: &str) -> String {
         .collect()
 }
 
-/// Write one row in the documented column order (REQUIRED then OPTIONAL).
+/// Write one row in the documented column order (REQUIRED then OPTIONAL), every column.
 pub fn write_row(w: &mut impl Write, s: &Sample) -> std::io::Result<()> {
+    write_fields(w, s, true)
+}
+
+/// One row, with the `group` column or without it.
+fn write_fields(w: &mut impl Write, s: &Sample, group: bool) -> std::io::Result<()> {
     let o = |v: Option<f64>| v.map(|v| format!("{v}")).unwrap_or_default();
     let u = |v: Option<u32>| v.map(|v| v.to_string()).unwrap_or_default();
-    writeln!(
+    write!(
         w,
-        "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{},{},{},{},{},{},{}",
         s.separation_in,
         s.r[0],
         s.r[1],
@@ -144,8 +156,11 @@ pub fn write_row(w: &mut impl Write, s: &Sample) -> std::io::Result<()> {
         o(s.sensitivity),
         u(s.sample),
         o(s.magnitude),
-        u(s.group)
-    )
+    )?;
+    if group {
+        write!(w, ",{}", u(s.group))?;
+    }
+    writeln!(w)
 }
 
 /// Repeated samples of one beacon at one setting.

@@ -322,7 +322,16 @@ pub fn sweep_with(
         Err((out, src, title)) => {
             let header = [
                 title,
-                format!("{} points x {} samples; {on}", plan.len(), plan.samples),
+                if plan.one_at_a_time() {
+                    format!("{} points x {} samples; {on}", plan.len(), plan.samples)
+                } else {
+                    format!(
+                        "{} points of up to {} beacons lit at once, {} samples each; {on}",
+                        plan.len(),
+                        plan.group,
+                        plan.samples
+                    )
+                },
                 "no-signal and partial points are recorded as comment lines; see journal.jsonl"
                     .into(),
             ];
