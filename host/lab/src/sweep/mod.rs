@@ -25,6 +25,8 @@ mod journal;
 pub mod layout;
 pub mod plan;
 pub mod points;
+mod pty;
+pub mod signals;
 pub mod sim;
 pub mod status;
 pub mod store;
