@@ -17,6 +17,7 @@ use super::error::{bail, Context, Error, Result};
 use serde_json::{json, Value};
 
 use super::plan::Plan;
+use super::stamp;
 use super::store::{self, Event, PointStatus};
 
 /// Whether a session holds the run, and how that is known.
@@ -601,9 +602,12 @@ impl Status {
             "separations": self.separations.iter().map(|s| json!({
                 "separation_in": s.separation_in, "done": s.done, "total": s.total,
             })).collect::<Vec<_>>(),
-            "last_commit": self.last_commit.map(|(i, at)| json!({ "point": i, "at": at })),
+            "last_commit": self.last_commit.map(|(i, at)| json!({
+                "point": i, "at": at, "time": at.and_then(stamp::iso8601),
+            })),
             "sessions": self.sessions.iter().map(|s| json!({
-                "n": s.n, "at": s.at, "from_point": s.from_point, "on": s.on,
+                "n": s.n, "at": s.at, "time": stamp::iso8601(s.at), "from_point": s.from_point,
+                "on": s.on,
             })).collect::<Vec<_>>(),
             "faults": self.faults,
             "last_fault": self.last_fault.as_ref().map(|(p, b, w, a)| json!({
