@@ -23,7 +23,8 @@ extern crate std;
 
 pub mod board;
 pub mod pins;
-#[cfg(feature = "sim")]
+// The simulated board runs behind a pseudo-terminal: Unix only.
+#[cfg(all(feature = "sim", unix))]
 pub mod sim;
 
 pub use cta_core::schedule::{Modulator, TICK_HZ};

@@ -4,23 +4,34 @@
 //! beacon set. The host (`cta sensor --sim`) and the end-to-end tests talk to it exactly as
 //! to the real board, over the pty's path.
 
+// The board behind a pseudo-terminal ([`SimBoard`]) is Unix only; the simulated NorthStar,
+// [`physics`] and [`answer_commands`] are portable.
+#[cfg(unix)]
 use std::io::{Read, Write};
+#[cfg(unix)]
 use std::sync::atomic::{AtomicBool, Ordering};
+#[cfg(unix)]
 use std::sync::{Arc, Mutex};
+#[cfg(unix)]
 use std::thread::JoinHandle;
+#[cfg(unix)]
 use std::time::{Duration, Instant};
 
 use cta_core::emulator::{Effects, Emulator, Head, Pose as HeadPose};
 use cta_core::pose::{simulate_spots_with, Calibration, Constellation};
+#[cfg(unix)]
 use cta_core::wire::ResetCause;
 use nalgebra::Vector3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
+#[cfg(unix)]
 use serialport::{SerialPort, TTYPort};
 
+#[cfg(unix)]
 use crate::board::{Board, Io};
 use crate::northstar::{self, NsCommand, SpotFrame, MAX_FRAME};
+#[cfg(unix)]
 use crate::storage::RamFlash;
 
 /// The simulated NorthStar: true physics, true beacon positions, the target's true pose.
@@ -171,12 +182,14 @@ pub fn physics(cal: &Calibration) -> Emulator<f64> {
     )
 }
 
+#[cfg(unix)]
 struct SimIo<'a> {
     port: &'a mut TTYPort,
     start: Instant,
     to_ns: Vec<u8>,
 }
 
+#[cfg(unix)]
 impl Io for SimIo<'_> {
     fn now_us(&mut self) -> u64 {
         self.start.elapsed().as_micros() as u64
@@ -190,6 +203,7 @@ impl Io for SimIo<'_> {
 }
 
 /// A running simulated board. Dropping it stops the board thread.
+#[cfg(unix)]
 pub struct SimBoard {
     path: String,
     stop: Arc<AtomicBool>,
@@ -197,6 +211,7 @@ pub struct SimBoard {
     thread: Option<JoinHandle<()>>,
 }
 
+#[cfg(unix)]
 impl SimBoard {
     /// Start the board (empty flash) behind a new pseudo-terminal.
     pub fn spawn(northstar: SimNorthStar) -> std::io::Result<Self> {
@@ -238,6 +253,7 @@ impl SimBoard {
     }
 }
 
+#[cfg(unix)]
 impl Drop for SimBoard {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
@@ -247,6 +263,7 @@ impl Drop for SimBoard {
     }
 }
 
+#[cfg(unix)]
 fn run(
     mut master: TTYPort,
     _slave: TTYPort,

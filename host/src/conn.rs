@@ -30,7 +30,7 @@ pub struct Beacon;
 impl Board for Beacon {
     const NAME: &'static str = "beacon";
     const PORT_HELP: &'static str =
-        "Serial port of the board (e.g. /dev/ttyUSB0, or the pty printed by `cta beacon sim`)";
+        "Serial port of the board (e.g. /dev/ttyUSB0, COM3 on Windows, or the pty printed by `cta beacon sim`)";
     const SIM_HELP: &'static str = "Talk to a simulated board started in this process (instead \
          of --port); it lives for this command only";
     const DEFAULT_TIMEOUT_MS: u64 = 500;
@@ -44,7 +44,7 @@ pub struct Sensor;
 impl Board for Sensor {
     const NAME: &'static str = "sensor";
     const PORT_HELP: &'static str =
-        "Serial port of the board (e.g. /dev/ttyUSB1, or the pty printed by `cta sensor sim`)";
+        "Serial port of the board (e.g. /dev/ttyUSB1, COM4 on Windows, or the pty printed by `cta sensor sim`)";
     const SIM_HELP: &'static str =
         "Talk to a simulated board started in this process (instead of --port)";
     const DEFAULT_TIMEOUT_MS: u64 = 500;

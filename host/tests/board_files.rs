@@ -115,6 +115,7 @@ fn sensor_status_says_the_last_pose_in_words() {
 /// `cta sensor` takes `--retries` as `cta beacon` does (the link's resends after a timeout,
 /// before or after the subcommand): against a port nobody answers, the attempts follow it.
 #[test]
+#[cfg(unix)] // A port nobody answers: a pty.
 fn sensor_retries_sets_the_links_resends() {
     use serialport::SerialPort as _;
     let (_master, slave) = serialport::TTYPort::pair().expect("a pseudo-terminal");

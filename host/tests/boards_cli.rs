@@ -760,6 +760,7 @@ fn the_sim_boards_pinhole_pose_reads_the_range() {
 /// The error of a command whose port went away while it ran: the board and the port named in
 /// front, the port's error once (it used to read `cta: error: Broken pipe` for `stream`, and
 /// `serial port error: Broken pipe: Broken pipe` for `heartbeat`).
+#[cfg(unix)]
 fn names_the_lost_port_once(o: &Output, board: &str, port: &str) {
     fails_with(o, &[&format!("{board} board on {port}: port lost: ")]);
     let err = stderr(o);
@@ -774,6 +775,7 @@ fn names_the_lost_port_once(o: &Output, board: &str, port: &str) {
 }
 
 #[test]
+#[cfg(unix)] // The boards on ptys.
 fn a_port_lost_mid_command_is_named_with_its_board() {
     // Sensor: a stream until Ctrl-C, its board stopped after the first report.
     let sim = Sim::start(&["sensor", "sim"]);

@@ -2,7 +2,7 @@
 //! and a non-zero exit, never a panic.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 mod common;
 use common::{cta, json, s, simulate};
@@ -428,7 +428,7 @@ fn a_closed_output_pipe_ends_quietly() {
     // The reader is gone before cta writes its first line: like `cta nearfield | head -0`.
     let (reader, writer) = std::io::pipe().unwrap();
     drop(reader);
-    let o = Command::new(env!("CARGO_BIN_EXE_cta"))
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_cta"))
         .arg("nearfield")
         .stdout(writer)
         .stderr(std::process::Stdio::piped())

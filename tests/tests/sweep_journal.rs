@@ -3,14 +3,18 @@
 //! twice is refused; a journal that lost its tail while the manifest says more was done is a
 //! contradiction refused (and with `--recover-truncated` the bytes past the journal's last
 //! point are kept aside, as uncommitted leftovers always are); a forged or copied journal
-//! line is refused by its check.
+//! line is refused by its check; a journal written before the ISO 8601 `time` beside each
+//! `at` resumes.
 
 use std::path::{Path, PathBuf};
 
 use cta_lab::data::Dataset;
 use cta_lab::sweep::plan::Plan;
+use cta_lab::sweep::stamp::iso8601;
 use cta_lab::sweep::{self, engine::Ending, SweepOptions};
-use cta_tests::{resume_args, snapshot, sweep_args, write_plan, TestDir};
+use cta_tests::{
+    crash_after, data_lines, older_journal, resume_args, snapshot, sweep_args, write_plan, TestDir,
+};
 
 const PLAN: &str = r#"
 name = "journal checks"
@@ -235,5 +239,101 @@ fn a_forged_or_copied_journal_line_is_refused() {
             before,
             "{what}: the refusal changed the run"
         );
+    }
+}
+
+/// A journal line's chain as the sweep seals it (sweep/journal.rs, restated here so a journal
+/// of the version before `time` can be written exactly as it wrote one): FNV-1a 64 over the
+/// previous chain's little-endian bytes, then over the line's JSON without its chain.
+fn sealed(text: &str) -> String {
+    let fnv = |mut h: u64, bytes: &[u8]| {
+        for &b in bytes {
+            h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        h
+    };
+    const START: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut prev = START;
+    let mut out = String::new();
+    for json in text.lines() {
+        let h = fnv(fnv(START, &prev.to_le_bytes()), json.as_bytes());
+        out.push_str(&format!(
+            "{},\"chain\":\"{h:016x}\"}}\n",
+            json.strip_suffix('}').unwrap()
+        ));
+        prev = h;
+    }
+    out
+}
+
+/// The `at` of a journal line (its first: the event's own, before any nested value).
+fn at_of(l: &str) -> f64 {
+    let from = l.find("\"at\":").unwrap() + 5;
+    let to = from + l[from..].find([',', '}']).unwrap();
+    l[from..to].parse().unwrap()
+}
+
+/// The journal lines' `time` fields removed: times as epoch seconds (`at`) alone.
+fn epoch_only(text: &str) -> String {
+    text.lines()
+        .map(|l| match l.find(",\"time\":\"") {
+            Some(a) => {
+                let b = a + 9 + l[a + 9..].find('"').unwrap() + 1;
+                format!("{}{}\n", &l[..a], &l[b..])
+            }
+            None => format!("{l}\n"),
+        })
+        .collect()
+}
+
+/// Every time the sweep journals is there twice, `at` (seconds since the epoch) and `time`
+/// (ISO 8601 UTC); a run made by the version before `time` (its journal sealed as that
+/// version sealed it, with `at` alone), killed after 7 points, still resumes, to the data of
+/// the uninterrupted run, and the lines the resume adds carry both times again.
+#[test]
+fn a_journal_with_epoch_times_alone_resumes() {
+    let (_d, run) = complete_run("epoch", PLAN);
+    let full = data_lines(&run);
+    let jp = run.join("journal.jsonl");
+    let j = read(&jp);
+    let mut timed = 0;
+    for l in j.lines().filter(|l| l.contains("\"at\":")) {
+        let at = at_of(l);
+        let iso = iso8601(at).unwrap();
+        assert!(
+            l.contains(&format!("\"at\":{at},\"time\":\"{iso}\"")),
+            "{l}"
+        );
+        timed += 1;
+    }
+    // A session, a point per committed point, a stop at least.
+    assert!(timed >= point_lines(&j).len() + 2, "{j}");
+    crash_after(&run, 7);
+    let before = older_journal(&read(&jp));
+    let old = sealed(&epoch_only(&before));
+    assert!(
+        !old.contains("\"time\"") && old.contains("\"at\":"),
+        "{old}"
+    );
+    assert_eq!(point_lines(&old).len(), 7);
+    std::fs::write(&jp, &old).unwrap();
+    let s = resume(&run, false).unwrap();
+    assert_eq!(s.ending, Ending::Complete);
+    assert_eq!(
+        data_lines(&run),
+        full,
+        "the resumed data differ from the uninterrupted run's"
+    );
+    let after = read(&jp);
+    assert!(
+        after.starts_with(&old),
+        "the resume rewrote the older lines"
+    );
+    let added = &after[old.len()..];
+    assert!(added.contains("\"event\":\"session\""), "{added}");
+    for l in added.lines().filter(|l| l.contains("\"at\":")) {
+        let at = at_of(l);
+        let iso = iso8601(at).unwrap();
+        assert!(l.contains(&format!("\"time\":\"{iso}\"")), "{l}");
     }
 }

@@ -16,9 +16,9 @@ use cta_core::wire::beacon::{
 };
 use cta_core::wire::Identity;
 use cta_firmware_beacon::pins::{Pin, BEACON_LINES, BEACON_PINS, RESERVED_PINS, SPARE_PIN};
-use cta_firmware_beacon::sim::SimBoard;
 
 use crate::boards::link::{open_serial, BoardAt, Link, LinkConfig, LinkError};
+use crate::boards::pty::BeaconSim as SimBoard;
 
 /// What went wrong with a beacon board command.
 #[derive(Debug, thiserror::Error)]

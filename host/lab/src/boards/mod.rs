@@ -4,4 +4,5 @@
 pub mod beacon;
 pub mod files;
 pub mod link;
+pub mod pty;
 pub mod sensor;

@@ -14,12 +14,12 @@ use cta_core::wire::sensor::{
 use cta_core::wire::{Identity, Response};
 /// The sensor firmware's library (board logic, NorthStar link, simulated board).
 pub use cta_firmware_sensor as firmware;
-use cta_firmware_sensor::sim::SimBoard;
 /// The vector type of the pose API (for callers without their own nalgebra dependency).
 pub use nalgebra::Vector3;
 
 use crate::boards::files::read_json;
 use crate::boards::link::{open_serial, BoardAt, Link, LinkConfig, LinkError};
+use crate::boards::pty::SensorSim as SimBoard;
 use crate::pose::calibrations::sim_calibration;
 use crate::pose::head::SimScene;
 use crate::pose::plate::{read_constellation, set_brightness};

@@ -34,6 +34,7 @@ use serialport::SerialPort;
 
 use super::plan::{channel_of, Plan};
 use super::points::{Lit, Point};
+use super::signals as sig;
 use super::sim::{separation_entry, SimCta};
 use super::store::{now, Event, PointStatus, RunDir, SeparationEntry};
 use super::watch::Watch;
@@ -53,8 +54,8 @@ pub static SIGNAL: LazyLock<Arc<AtomicUsize>> = LazyLock::new(|| Arc::new(Atomic
 /// SIGINT (and when [`INTERRUPTED`] was set without a signal), `SIGTERM`, `SIGHUP`.
 pub fn interruption() -> &'static str {
     match interruption_signal() {
-        libc::SIGTERM => "SIGTERM",
-        libc::SIGHUP => "SIGHUP",
+        sig::SIGTERM => "SIGTERM",
+        sig::SIGHUP => "SIGHUP",
         _ => "Ctrl-C",
     }
 }
@@ -62,8 +63,8 @@ pub fn interruption() -> &'static str {
 /// The number of the signal that stopped the sweep: SIGTERM, SIGHUP, else SIGINT (Ctrl-C).
 pub fn interruption_signal() -> i32 {
     match i32::try_from(SIGNAL.load(Ordering::SeqCst)).unwrap_or(0) {
-        s @ (libc::SIGTERM | libc::SIGHUP) => s,
-        _ => libc::SIGINT,
+        s @ (sig::SIGTERM | sig::SIGHUP) => s,
+        _ => sig::SIGINT,
     }
 }
 

@@ -1,7 +1,10 @@
 //! The journal's vocabulary: what a run directory's `journal.jsonl` records, one event a
-//! line, and the plate separation measured from the corners (thesis Ch IV).
+//! line, and the plate separation measured from the corners (thesis Ch IV). Every time is
+//! written twice, as `at` (seconds since the epoch) and `time` (ISO 8601 UTC, [`stamp`]).
 
 use serde::{Deserialize, Serialize};
+
+use super::stamp;
 
 /// What became of a point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -129,7 +132,8 @@ pub enum Event {
     Session {
         /// Session number, 1-based.
         n: u32,
-        /// Wall-clock time, RFC 3339-like UTC seconds since the epoch.
+        /// Wall-clock time, seconds since the epoch (and `time`, ISO 8601 UTC: [`stamp`]).
+        #[serde(flatten, with = "stamp::at")]
         at: f64,
         /// `cta` version.
         software: String,
@@ -189,14 +193,16 @@ pub enum Event {
         /// committed data are still what was written. Absent in journals of older versions.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         csv_hash: Option<String>,
-        /// When it was committed, seconds since the epoch (`cta sweep --status`'s last commit
-        /// and rate). Absent in journals of older versions.
-        #[serde(default, skip_serializing_if = "Option::is_none")]
+        /// When it was committed, seconds since the epoch (and `time`, ISO 8601 UTC:
+        /// [`stamp`]; `cta sweep --status`'s last commit and rate). Absent in journals of
+        /// older versions.
+        #[serde(flatten, with = "stamp::opt_at")]
         at: Option<f64>,
     },
     /// Something went wrong, and what was done about it.
     Fault {
-        /// Seconds since the epoch.
+        /// Seconds since the epoch (and `time`, ISO 8601 UTC: [`stamp`]).
+        #[serde(flatten, with = "stamp::at")]
         at: f64,
         /// Point being measured.
         point: usize,
@@ -209,7 +215,8 @@ pub enum Event {
     },
     /// A session ended.
     Stop {
-        /// Seconds since the epoch.
+        /// Seconds since the epoch (and `time`, ISO 8601 UTC: [`stamp`]).
+        #[serde(flatten, with = "stamp::at")]
         at: f64,
         /// "complete", "interrupted (Ctrl-C)", "gave up: ...".
         reason: String,

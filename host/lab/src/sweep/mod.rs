@@ -26,7 +26,10 @@ mod journal;
 pub mod layout;
 pub mod plan;
 pub mod points;
+mod pty;
+pub mod signals;
 pub mod sim;
+pub mod stamp;
 pub mod status;
 pub mod store;
 pub mod watch;
@@ -802,11 +805,13 @@ fn write_manifest(store: &RunDir, plan: &Plan, state: &str) -> Result<()> {
         Some(Event::Stop { reason, .. }) => Some(reason.clone()),
         _ => None,
     };
+    let updated = now();
     let v = json!({
         "software": format!("cta {}", env!("CARGO_PKG_VERSION")),
         "state": state,
         "reason": reason,
-        "updated": now(),
+        "updated": updated,
+        "updated_time": stamp::iso8601(updated),
         "plan": plan,
         "points": { "total": plan.len(), "done": store.next_point(), "ok": ok, "no_signal": no_signal, "partial": partial },
         "samples": samples,

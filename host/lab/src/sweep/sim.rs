@@ -50,10 +50,11 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
-use serialport::{SerialPort, TTYPort};
+use serialport::SerialPort;
 
 use super::corners::{CORNER_ORDER, ROD_XY_IN};
 use super::plan::{Layout, Plan};
+use super::pty::{self, Port};
 use super::store::{corner_mean, corner_uncertainty, SeparationEntry};
 use crate::sim::effects::Effect;
 use crate::sim::{Placement, SimConfig, Truth};
@@ -494,8 +495,8 @@ fn mix(key: &[u64]) -> u64 {
 /// A pty behind a stable symbolic link, which can be unplugged and plugged back.
 struct Endpoint {
     link: PathBuf,
-    master: Option<TTYPort>,
-    _slave: Option<TTYPort>,
+    master: Option<Port>,
+    _slave: Option<Port>,
 }
 
 impl Endpoint {
@@ -510,13 +511,7 @@ impl Endpoint {
     }
 
     fn plug(&mut self) -> Result<()> {
-        let (master, slave) = TTYPort::pair().context("cannot create a pseudo-terminal")?;
-        let name = slave
-            .name()
-            .ok_or_else(|| Error::Refused("pseudo-terminal without a name".into()))?;
-        let _ = std::fs::remove_file(&self.link);
-        std::os::unix::fs::symlink(&name, &self.link)
-            .with_context(|| format!("cannot link {}", self.link.display()))?;
+        let (master, slave) = pty::plug(&self.link)?;
         self.master = Some(master);
         self._slave = Some(slave);
         Ok(())

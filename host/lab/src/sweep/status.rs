@@ -5,10 +5,11 @@
 //! file are only read (never opened for writing, never locked, never cut). Whether a session is
 //! running is learnt from the kernel's table of `flock(2)` locks (`/proc/locks`), which lists
 //! the lock a running sweep holds on `sweep.lock` without anyone taking it; where that table
-//! cannot be read, from the pid the running sweep writes in `sweep.lock` (emptied when it
-//! ends) and whether that process is alive. A sweep appends whole lines to the journal, so a
-//! reader can only see its last line half-written: a last line without its newline is left
-//! out (and said), as a resume would drop it.
+//! cannot be read (macOS), from the pid the running sweep writes in `sweep.lock` (emptied when
+//! it ends) and whether that process is alive. On Windows the lock is mandatory: a held
+//! `sweep.lock` cannot be read, which is itself the answer (running, pid unknown). A sweep
+//! appends whole lines to the journal, so a reader can only see its last line half-written: a
+//! last line without its newline is left out (and said), as a resume would drop it.
 
 use std::path::{Path, PathBuf};
 
@@ -16,6 +17,7 @@ use super::error::{bail, Context, Error, Result};
 use serde_json::{json, Value};
 
 use super::plan::Plan;
+use super::stamp;
 use super::store::{self, Event, PointStatus};
 
 /// Whether a session holds the run, and how that is known.
@@ -351,10 +353,10 @@ fn journalled_plan(events: &[Event]) -> Option<Plan> {
     })
 }
 
-/// Who holds `dir`'s lock, without taking it: the kernel's lock table first, then the pid in
-/// the lock file.
+/// Who holds `dir`'s lock, without taking it: the kernel's lock table first (Linux), then
+/// the pid in the lock file.
+#[cfg(unix)]
 pub fn holder(dir: &Path) -> Holder {
-    use std::os::unix::fs::MetadataExt;
     let path = dir.join(store::LOCK);
     let written: Option<u32> = std::fs::read_to_string(&path)
         .ok()
@@ -362,7 +364,9 @@ pub fn holder(dir: &Path) -> Holder {
     let Ok(meta) = std::fs::metadata(&path) else {
         return Holder::Free(None);
     };
+    #[cfg(target_os = "linux")]
     if let Ok(table) = std::fs::read_to_string("/proc/locks") {
+        use std::os::unix::fs::MetadataExt;
         let id = format!(
             "{:02x}:{:02x}:{}",
             libc::major(meta.dev()),
@@ -385,15 +389,32 @@ pub fn holder(dir: &Path) -> Holder {
             },
         };
     }
-    // No lock table: the pid a running sweep writes (and empties when it ends).
+    #[cfg(not(target_os = "linux"))]
+    let _ = meta; // The file exists: all that is asked of it without a lock table.
+                  // No lock table: the pid a running sweep writes (and empties when it ends).
     match written {
         Some(pid) if runs_cta(pid) => Holder::Running(Some(pid)),
         other => Holder::Free(other),
     }
 }
 
+/// Who holds `dir`'s lock, without taking it. Windows locks are mandatory and cover the whole
+/// file: while a sweep holds it, reading the file fails with a lock violation, so a read that
+/// works says nobody holds it (and gives the pid a killed session left).
+#[cfg(not(unix))]
+pub fn holder(dir: &Path) -> Holder {
+    /// Windows' ERROR_LOCK_VIOLATION: the file is locked by another process.
+    const LOCK_VIOLATION: i32 = 33;
+    match std::fs::read_to_string(dir.join(store::LOCK)) {
+        Ok(s) => Holder::Free(s.trim().parse().ok()),
+        Err(e) if e.raw_os_error() == Some(LOCK_VIOLATION) => Holder::Running(None),
+        Err(_) => Holder::Free(None),
+    }
+}
+
 /// Whether `pid` is a live `cta` process: its name where `/proc` gives it (a pid reused by
 /// another program is no sweep), else whether it exists at all.
+#[cfg(unix)]
 fn runs_cta(pid: u32) -> bool {
     match std::fs::read_to_string(format!("/proc/{pid}/comm")) {
         Ok(name) => name.trim() == "cta",
@@ -402,6 +423,7 @@ fn runs_cta(pid: u32) -> bool {
 }
 
 /// Whether process `pid` exists (signal 0: nothing is sent).
+#[cfg(unix)]
 fn alive(pid: u32) -> bool {
     let Ok(p) = libc::pid_t::try_from(pid) else {
         return false;
@@ -580,9 +602,12 @@ impl Status {
             "separations": self.separations.iter().map(|s| json!({
                 "separation_in": s.separation_in, "done": s.done, "total": s.total,
             })).collect::<Vec<_>>(),
-            "last_commit": self.last_commit.map(|(i, at)| json!({ "point": i, "at": at })),
+            "last_commit": self.last_commit.map(|(i, at)| json!({
+                "point": i, "at": at, "time": at.and_then(stamp::iso8601),
+            })),
             "sessions": self.sessions.iter().map(|s| json!({
-                "n": s.n, "at": s.at, "from_point": s.from_point, "on": s.on,
+                "n": s.n, "at": s.at, "time": stamp::iso8601(s.at), "from_point": s.from_point,
+                "on": s.on,
             })).collect::<Vec<_>>(),
             "faults": self.faults,
             "last_fault": self.last_fault.as_ref().map(|(p, b, w, a)| json!({

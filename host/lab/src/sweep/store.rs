@@ -11,11 +11,13 @@
 //! RUN_DIR/sweep.lock     the pid of the `cta sweep` using the run (locked while it runs)
 //! ```
 //!
-//! One process at a time: a [`RunDir`] holds an exclusive `flock(2)` on `sweep.lock` (released
-//! by the kernel however the process ends), so a second `cta sweep` on the same directory is
-//! refused with the holder's pid instead of interleaving its journal lines with the first's. A
-//! pid left in the file by a process that was killed (nobody holds the lock) is taken over, and
-//! a note says so.
+//! One process at a time: a [`RunDir`] holds an exclusive lock on `sweep.lock` (`flock(2)` on
+//! Unix, `LockFileEx` on Windows, through `fs4`; released by the system however the process
+//! ends), so a second `cta sweep` on the same directory is refused with the holder's pid
+//! instead of interleaving its journal lines with the first's. A pid left in the file by a
+//! process that was killed (nobody holds the lock) is taken over, and a note says so. (Windows
+//! locks are mandatory: there the file cannot be read while held, and the refusal says "pid
+//! unknown".)
 //!
 //! Commit protocol for a point: its rows (or its "no signal" comment) are appended to
 //! `data.csv` and flushed to the operating system; its `point` event, carrying the file length
@@ -30,7 +32,6 @@
 
 use std::fs::{File, OpenOptions};
 use std::io::{BufRead, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
-use std::os::unix::io::AsRawFd;
 use std::path::{Path, PathBuf};
 
 use super::error::{bail, Context, Result};
@@ -70,7 +71,8 @@ impl Fnv {
     }
 }
 
-/// An exclusive lock on a run directory: `flock(2)` on [`LOCK`], which holds the holder's pid.
+/// An exclusive lock on a run directory: `flock(2)` (Unix) or `LockFileEx` (Windows) on
+/// [`LOCK`], which holds the holder's pid.
 struct Lock {
     file: File,
 }
@@ -87,14 +89,13 @@ impl Lock {
             .truncate(false)
             .open(&path)
             .with_context(|| format!("{}: cannot open the lock file", path.display()))?;
-        // SAFETY: flock on a file descriptor we own; no memory is involved.
-        let r = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+        // Called through the trait: `File::try_lock` (Rust 1.89) is another method.
+        let r = fs4::FileExt::try_lock(&file);
         let mut holder = String::new();
         let _ = file.read_to_string(&mut holder);
         let holder = holder.trim().to_string();
-        if r != 0 {
-            let e = std::io::Error::last_os_error();
-            if e.kind() == std::io::ErrorKind::WouldBlock {
+        if let Err(e) = r {
+            if let fs4::TryLockError::WouldBlock = e {
                 bail!(
                     "{}: the run is in use by another `cta sweep` ({}); wait for it to end or stop \
                      it first: two sessions on one run directory would corrupt its journal",
@@ -106,7 +107,8 @@ impl Lock {
                     }
                 );
             }
-            return Err(e).with_context(|| format!("{}: cannot lock", path.display()));
+            return Err(std::io::Error::from(e))
+                .with_context(|| format!("{}: cannot lock", path.display()));
         }
         let mut lock = Lock { file };
         lock.write(&format!("{}\n", std::process::id()))
@@ -123,7 +125,7 @@ impl Lock {
 
 impl Drop for Lock {
     fn drop(&mut self) {
-        // Released: no pid left behind (the flock itself goes with the file descriptor).
+        // Released: no pid left behind (the lock itself goes with the file handle).
         let _ = self.write("");
     }
 }
@@ -942,6 +944,7 @@ pub struct GivenPlan<'a> {
 /// `Err` with the operating system's reason when this process may not write `path`: the
 /// permission bits, a file system mounted read-only, an immutable file (`access(2)`, `W_OK`;
 /// nothing is opened or changed).
+#[cfg(unix)]
 fn writable(path: &Path) -> std::io::Result<()> {
     use std::os::unix::ffi::OsStrExt;
     let c = std::ffi::CString::new(path.as_os_str().as_bytes()).map_err(std::io::Error::other)?;
@@ -950,6 +953,23 @@ fn writable(path: &Path) -> std::io::Result<()> {
         Ok(())
     } else {
         Err(std::io::Error::last_os_error())
+    }
+}
+
+/// `Err` when the file `path` is read-only (its read-only attribute; nothing is opened or
+/// changed). Elsewhere than Unix there is no `access(2)`, and Windows does not enforce a
+/// folder's read-only attribute: a folder, or an access-control list that refuses writing,
+/// is found when the session writes, and named then.
+#[cfg(not(unix))]
+fn writable(path: &Path) -> std::io::Result<()> {
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_dir() && meta.permissions().readonly() {
+        Err(std::io::Error::new(
+            std::io::ErrorKind::PermissionDenied,
+            "read-only",
+        ))
+    } else {
+        Ok(())
     }
 }
 

@@ -55,10 +55,12 @@ pub struct SweepArgs {
     /// Overwrite an existing, non-empty --out directory.
     #[arg(long)]
     pub force: bool,
-    /// Serial port of the beacon board (e.g. /dev/ttyUSB0). With --sensor: real hardware.
+    /// Serial port of the beacon board (e.g. /dev/ttyUSB0; macOS /dev/cu.usbserial-...; Windows
+    /// COM3). With --sensor: real hardware.
     #[arg(long, value_name = "PORT", requires = "sensor")]
     pub beacon: Option<String>,
-    /// Serial port of the sensor board (e.g. /dev/ttyUSB1).
+    /// Serial port of the sensor board (e.g. /dev/ttyUSB1; macOS /dev/cu.usbserial-...; Windows
+    /// COM4).
     #[arg(long, value_name = "PORT", requires = "beacon")]
     pub sensor: Option<String>,
     /// Use the simulated CTA (the default when no ports are given).

@@ -15,6 +15,13 @@ use cta_lab::sweep::{Error, Result};
 
 use super::Bars;
 
+/// The controlling terminal, where a question is also asked when stderr is not it.
+#[cfg(not(windows))]
+const TERMINAL: &str = "/dev/tty";
+/// The console, where a question is also asked when stderr is not it.
+#[cfg(windows)]
+const TERMINAL: &str = "CONOUT$";
+
 /// Prompts on the terminal (stderr) and reads the answers from stdin.
 ///
 /// Stdin is read on a helper thread, one line at a time, so that a wait for the operator can
@@ -60,7 +67,7 @@ impl Prompt {
             // Asked on the controlling terminal too, if there is one, when stderr is not it:
             // `cta sweep ... 2>log` must not wait on a question nobody sees.
             if !std::io::stderr().is_terminal() {
-                if let Ok(mut tty) = std::fs::OpenOptions::new().write(true).open("/dev/tty") {
+                if let Ok(mut tty) = std::fs::OpenOptions::new().write(true).open(TERMINAL) {
                     let _ = write!(tty, "{question}");
                 }
             }
