@@ -270,3 +270,85 @@ fn a_group_cut_short_is_measured_again_whole() {
     assert_eq!(ds.samples.len() as u64, full.stats.samples);
     assert!(points.values().all(|lit| lit.values().all(|&n| n == 4)));
 }
+
+/// A beacon board whose cap of lit LEDs is below the plan's group is refused when the sweep
+/// connects, before anything is lit, naming the cap and the command that raises it.
+#[test]
+fn a_board_that_lights_fewer_leds_than_the_group_is_refused() {
+    use cta_core::wire::beacon::{Beacon, BeaconRequest, Limits};
+    use cta_lab::boards::link::{open_serial, Link, LinkConfig};
+    use cta_lab::sweep::engine::Engine;
+    use cta_lab::sweep::sim::{SimCta, SimSettings};
+
+    let d = TestDir::new("sweep-groups-cap");
+    let plan = Plan::load(&write_plan(&d, PLAN)).unwrap();
+    let sim = SimCta::spawn(&plan, &SimSettings::default()).unwrap();
+    let (b, s) = (
+        sim.beacon_path().display().to_string(),
+        sim.sensor_path().display().to_string(),
+    );
+    {
+        let mut link: Link<Beacon, _> = Link::new(open_serial(&b).unwrap(), LinkConfig::default());
+        link.call(BeaconRequest::SetLimits(Limits {
+            max_lit: 12,
+            ..Limits::default()
+        }))
+        .unwrap();
+    }
+    let e = format!("{:#}", Engine::new(&plan, &b, &s).connect().unwrap_err());
+    assert!(
+        e.contains("lights at most 12 LEDs at once")
+            && e.contains("`group` lights 19")
+            && e.contains("--max-lit 19"),
+        "{e}"
+    );
+    // A group the board can light passes.
+    let small = Plan::parse("p.toml", &PLAN.replace("group = 19", "group = 12")).unwrap();
+    Engine::new(&small, &b, &s).connect().unwrap();
+}
+
+/// Plans a board or the detector cannot do are refused before anything is lit, naming the
+/// key and the limit.
+#[test]
+fn impossible_groups_are_refused_naming_the_key_and_the_limit() {
+    let refused = |from: &str, to: &str| {
+        Plan::parse("p.toml", &PLAN.replace(from, to))
+            .unwrap_err()
+            .to_string()
+    };
+    let e = refused("group = 19", "group = 25");
+    assert!(
+        e.contains("key `group`: 25 is not a group size (1..=20"),
+        "{e}"
+    );
+    let few = PLAN
+        .replace(
+            "frequencies_hz = [2010, 3040, 3090, 3210, 3330, 3450, 3570, 3690, 3810, 3930,\n                  4050, 4170, 4290, 4410, 4530, 4650, 4770, 4890, 5010]",
+            "frequencies_hz = [2010, 3040, 3090]",
+        )
+        .replace("frequencies_per_beacon = 2", "frequencies_per_beacon = 1");
+    let e = Plan::parse("p.toml", &few).unwrap_err().to_string();
+    assert!(
+        e.contains("key `group`: 19 beacons at once need 19 different frequencies, but `frequencies_hz` lists 3")
+            && e.contains("19 distinct"),
+        "{e}"
+    );
+    let e = refused("frequencies_per_beacon = 2", "frequencies_per_beacon = 20");
+    assert!(e.contains("key `frequencies_per_beacon`: 20 is not allowed: each beacon can be measured at 1..=19"), "{e}");
+    let e = refused("5010]", "5010, 4050]");
+    assert!(e.contains("4050 Hz is listed twice"), "{e}");
+    let e = refused("beacons = \"all\"", "beacons = [1, 2, 3]");
+    assert!(e.contains("19 beacons at once, but the plan has 3"), "{e}");
+    let e = Plan::parse(
+        "p.toml",
+        &PLAN
+            .replace("group = 19", "group = 1")
+            .replace("crosstalk_check = 3", "crosstalk_check = 2"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("key `crosstalk_check`") && e.contains("needs `group` above 1"),
+        "{e}"
+    );
+}
