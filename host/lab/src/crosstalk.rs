@@ -19,6 +19,28 @@ use serde::Serialize;
 
 use crate::data::{Dataset, Point};
 
+/// The readings of spots lit together when the detector leaks a fraction `c` of every other
+/// spot's signal into each spot's channel (`spot_crosstalk=C`): the NorthStar separates spots
+/// by demodulating the same four cell signals at each spot's frequency, and a filter that
+/// rejects the other frequencies only in part adds their cell signals, weighted by their
+/// magnitude, to the spot's own. A spot's reading is then pulled toward the others':
+/// `(m_i o_i + c sum_j m_j o_j) / (m_i + c sum_j m_j)` over the others `j`, for readings `o`
+/// and magnitudes `m`. A spot lit alone reads as without it.
+pub fn spot_crosstalk(c: f64, spots: &[([f64; 2], f64)]) -> Vec<[f64; 2]> {
+    let total_m: f64 = spots.iter().map(|s| s.1).sum();
+    let total: [f64; 2] = [0, 1].map(|k| spots.iter().map(|s| s.0[k] * s.1).sum());
+    spots
+        .iter()
+        .map(|&(o, m)| {
+            if c == 0.0 {
+                return o;
+            }
+            let w = c * (total_m - m);
+            [0, 1].map(|k| (m * o[k] + c * (total[k] - o[k] * m)) / (m + w))
+        })
+        .collect()
+}
+
 /// `C / sigma` from which `spot_crosstalk` is named: far beyond what the many pairs of a run
 /// give by chance.
 pub const NAMED_SIGMA: f64 = 5.0;
@@ -65,6 +87,19 @@ impl Check {
     /// the differences exceed their noise.
     pub fn chi2_sigma(&self) -> f64 {
         (self.chi2 - self.chi2_expected) / self.chi2_spread
+    }
+
+    /// A short warning when `spot_crosstalk` is named, for every command that reads the file
+    /// (`None` otherwise).
+    pub fn warning(&self) -> Option<String> {
+        self.named.then(|| {
+            format!(
+                "the crosstalk check names spot_crosstalk (C = {:.2e} +/- {:.1e}, from {} beacons \
+                 measured alone and in their group): the grouped rows are biased by {:.2} counts \
+                 RMS, at most {:.2}; rerun with smaller groups (`cta noise` gives the check)",
+                self.c, self.c_sigma, self.pairs, self.bias_rms, self.bias_max
+            )
+        })
     }
 
     /// One line for people: what the check found and, when named, what to do.
@@ -318,7 +353,7 @@ mod tests {
     fn file(c: f64, noise: f64) -> Dataset {
         let truth = [[-300.0, 0.0], [300.0, 100.0], [0.0, -400.0]];
         let mags = [1000.0, 2000.0, 1000.0];
-        let mixed = crate::sweep::sim::spot_crosstalk(
+        let mixed = spot_crosstalk(
             c,
             &truth
                 .iter()

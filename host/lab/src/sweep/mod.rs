@@ -835,9 +835,10 @@ pub fn data_path(dir: &Path) -> PathBuf {
 }
 
 /// Read a measurement file with the warnings every analysis command prints on load
-/// ([`Dataset::read_warned`]); a run directory given instead is refused, naming its data file.
+/// ([`Dataset::read_warned`], and the crosstalk check's when it names `spot_crosstalk`); a run
+/// directory given instead is refused, naming its data file.
 pub fn read_measurements(path: &Path) -> Result<(Dataset, Vec<String>), ReadError> {
-    Dataset::read_warned(path).map_err(|e| match e {
+    let (ds, mut warnings) = Dataset::read_warned(path).map_err(|e| match e {
         ReadError::Folder { path, data: None } => {
             let data = data_path(&path);
             ReadError::Folder {
@@ -846,5 +847,12 @@ pub fn read_measurements(path: &Path) -> Result<(Dataset, Vec<String>), ReadErro
             }
         }
         e => e,
-    })
+    })?;
+    // Grouped rows biased by crosstalk mislead every fit: said on load.
+    if ds.samples.iter().any(|s| s.group.is_some()) {
+        if let Some(w) = crate::crosstalk::check(&ds).and_then(|c| c.warning()) {
+            warnings.push(format!("{}: {w}", ds.path.display()));
+        }
+    }
+    Ok((ds, warnings))
 }

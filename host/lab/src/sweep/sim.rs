@@ -284,7 +284,8 @@ struct World {
     geometry: Vec<Placement>,
     /// Each LED's true in-plane offset from its nominal place (`led_position`), in.
     led_offsets: Vec<[f64; 2]>,
-    /// The share of other lit spots' signal in each spot's channel ([`spot_crosstalk`]).
+    /// The share of other lit spots' signal in each spot's channel
+    /// ([`crate::crosstalk::spot_crosstalk`]).
     spot_crosstalk: f64,
     separations: Vec<f64>,
     layout: Layout,
@@ -358,7 +359,7 @@ impl World {
             }
             lit.push((led, *set, out, mag));
         }
-        let mixed = spot_crosstalk(
+        let mixed = crate::crosstalk::spot_crosstalk(
             self.spot_crosstalk,
             &lit.iter().map(|&(_, _, o, m)| (o, m)).collect::<Vec<_>>(),
         );
@@ -428,28 +429,6 @@ impl World {
             spots,
         }
     }
-}
-
-/// The readings of spots lit together when the detector leaks a fraction `c` of every other
-/// spot's signal into each spot's channel (`spot_crosstalk=C`): the NorthStar separates spots
-/// by demodulating the same four cell signals at each spot's frequency, and a filter that
-/// rejects the other frequencies only in part adds their cell signals, weighted by their
-/// magnitude, to the spot's own. A spot's reading is then pulled toward the others':
-/// `(m_i o_i + c sum_j m_j o_j) / (m_i + c sum_j m_j)` over the others `j`, for readings `o`
-/// and magnitudes `m`. A spot lit alone reads as without it.
-pub fn spot_crosstalk(c: f64, spots: &[([f64; 2], f64)]) -> Vec<[f64; 2]> {
-    let total_m: f64 = spots.iter().map(|s| s.1).sum();
-    let total: [f64; 2] = [0, 1].map(|k| spots.iter().map(|s| s.0[k] * s.1).sum());
-    spots
-        .iter()
-        .map(|&(o, m)| {
-            if c == 0.0 {
-                return o;
-            }
-            let w = c * (total_m - m);
-            [0, 1].map(|k| (m * o[k] + c * (total[k] - o[k] * m)) / (m + w))
-        })
-        .collect()
 }
 
 /// The value of a `spot_crosstalk=C` effect among the `--sim-effect` specs, and the other
