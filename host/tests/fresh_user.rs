@@ -84,7 +84,7 @@ fn a_file_cut_off_mid_row_is_said_to_be() {
         fails_in_one_line(
             &run(&args),
             &[
-                &format!("trunc.csv:{lines}: 5 fields, the header has 12"),
+                &format!("trunc.csv:{lines}: 5 fields, the header has 13"),
                 "the file looks cut off (a copy not finished, a sweep still writing?)",
             ],
         );
@@ -93,7 +93,7 @@ fn a_file_cut_off_mid_row_is_said_to_be() {
     let short = d.join("short.csv");
     std::fs::write(&short, format!("{}\n", &text[..keep])).unwrap();
     let o = cta(&["fit", s(&short)]);
-    fails_in_one_line(&o, &["5 fields, the header has 12"]);
+    fails_in_one_line(&o, &["5 fields, the header has 13"]);
     assert!(!stderr(&o).contains("cut off"), "{}", stderr(&o));
     // A whole last row without a newline is fine.
     let whole = d.join("whole.csv");
@@ -112,14 +112,15 @@ fn a_file_cut_inside_its_last_value_is_warned_about() {
     simulate(&full, &["--separations", "25,30", "--samples", "3"]);
     let text = std::fs::read_to_string(&full).unwrap();
     let lines = text.lines().count();
-    let body = &text.trim_end()[..text.trim_end().len() - 5];
+    // The last value is the time (`180.98`): cut to `180.`, which still reads.
+    let body = &text.trim_end()[..text.trim_end().len() - 2];
     let value = body.rsplit(',').next().unwrap();
     assert!(value.parse::<f64>().is_ok() && value.len() > 3, "{value}");
     let cut = d.join("cut.csv");
     std::fs::write(&cut, body).unwrap();
     let want = format!(
         "warning: {}:{lines}: the file's last line has no end of line: its last value, \
-         `{value}` (column `magnitude`), may be cut short",
+         `{value}` (column `time_s`), may be cut short",
         s(&cut)
     );
     for args in readers(&cut, &d.join("cal.json")) {

@@ -252,14 +252,50 @@ pub fn snapshot(dir: &Path) -> Vec<(String, u32, Vec<u8>)> {
 }
 
 /// The lines of `RUN/data.csv` after its first, which names the plan file the run was
-/// started with (so two runs of one plan from different places compare equal).
+/// started with (so two runs of one plan from different places compare equal), without the
+/// clock columns ([`without_clock`]).
 pub fn data_lines(run: &Path) -> Vec<String> {
-    std::fs::read_to_string(sweep::data_path(run))
-        .unwrap()
+    without_clock(&std::fs::read_to_string(sweep::data_path(run)).unwrap())
         .lines()
         .skip(1)
         .map(String::from)
         .collect()
+}
+
+/// A measurement file's text without its clock columns, `time_s` and `report`: when each report
+/// was taken and the board's counter differ from one run of a plan to the next (a resumed run
+/// took its later points later, on a board whose counter started again), every measured value
+/// does not.
+pub fn without_clock(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut drop: Vec<usize> = Vec::new();
+    let mut header = false;
+    for line in text.split_inclusive('\n') {
+        let body = line.trim_end_matches(['\n', '\r']);
+        if body.starts_with('#') || body.is_empty() {
+            out.push_str(line);
+            continue;
+        }
+        let fields: Vec<&str> = body.split(',').collect();
+        if !header {
+            header = true;
+            drop = fields
+                .iter()
+                .enumerate()
+                .filter(|(_, f)| **f == "time_s" || **f == "report")
+                .map(|(k, _)| k)
+                .collect();
+        }
+        let kept: Vec<&str> = fields
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !drop.contains(k))
+            .map(|(_, f)| *f)
+            .collect();
+        out.push_str(&kept.join(","));
+        out.push_str(&line[body.len()..]);
+    }
+    out
 }
 
 /// The sample rows of `RUN/data.csv`: its lines but the comments (header comments, "no
@@ -271,8 +307,8 @@ pub fn data_rows(run: &Path) -> Vec<String> {
         .collect()
 }
 
-/// `run`'s `data.csv` is `expected`'s, line for line after the first ([`data_lines`]);
-/// otherwise panics with the first line that differs.
+/// `run`'s `data.csv` is `expected`'s, line for line after the first, the clock columns left
+/// out ([`data_lines`]); otherwise panics with the first line that differs.
 #[track_caller]
 pub fn assert_same_data(expected: &Path, run: &Path) {
     let (a, b) = (data_lines(expected), data_lines(run));

@@ -16,7 +16,7 @@ use cta_lab::sweep::store::{Event, RunDir};
 use cta_lab::sweep::{self, engine::Ending, SweepOptions};
 use cta_tests::{
     child, child_paths, crash_after, journal, journal_field, older_journal, resume_args, snapshot,
-    sweep_args, write_plan, TestDir,
+    sweep_args, without_clock, write_plan, TestDir,
 };
 
 const PLAN: &str = r#"
@@ -176,9 +176,13 @@ fn uncommitted_leftovers_are_discarded_and_said() {
         "{j}"
     );
     // The points were measured again: the file is the uninterrupted run's.
-    assert_eq!(read(&run.join("data.csv")), full);
+    assert_eq!(
+        without_clock(&read(&run.join("data.csv"))),
+        without_clock(&full)
+    );
     // Rows appended after the end of a complete run: cut, and said.
-    std::fs::write(run.join("data.csv"), format!("{full}5,1,2,3\n")).unwrap();
+    let complete = read(&run.join("data.csv"));
+    std::fs::write(run.join("data.csv"), format!("{complete}5,1,2,3\n")).unwrap();
     resume(&run).unwrap();
     let j = read(&run.join("journal.jsonl"));
     assert!(
@@ -187,7 +191,10 @@ fn uncommitted_leftovers_are_discarded_and_said() {
         ),
         "{j}"
     );
-    assert_eq!(read(&run.join("data.csv")), full);
+    assert_eq!(
+        read(&run.join("data.csv")),
+        complete
+    );
 }
 
 #[test]
@@ -372,7 +379,10 @@ fn a_timing_change_resumes_with_a_note_and_the_same_data() {
     );
     assert!(stderr.contains(&note), "{note}\n{stderr}");
     // Points 20.. measured again under the new timing: the uninterrupted run's file.
-    assert_eq!(read(&run.join("data.csv")), full);
+    assert_eq!(
+        without_clock(&read(&run.join("data.csv"))),
+        without_clock(&full)
+    );
     // The session journals the note and the plan it used; the manifest shows that plan.
     let session = last_session(&run);
     assert!(
@@ -411,7 +421,10 @@ fn a_timing_change_resumes_with_a_note_and_the_same_data() {
             && !session.contains("request_timeout_ms`:"),
         "{session}"
     );
-    assert_eq!(read(&run.join("data.csv")), full);
+    assert_eq!(
+        without_clock(&read(&run.join("data.csv"))),
+        without_clock(&full)
+    );
 }
 
 #[test]
@@ -493,7 +506,10 @@ fn a_given_plan_with_a_timing_change_resumes_as_an_edited_one_and_becomes_the_ru
         )) && session.contains("\"retries\":4"),
         "{session}"
     );
-    assert_eq!(read(&run.join("data.csv")), full);
+    assert_eq!(
+        without_clock(&read(&run.join("data.csv"))),
+        without_clock(&full)
+    );
     // The run directory records the plan used: plan.toml is the given file, the manifest
     // shows it, and the next resume, from plan.toml, finds nothing changed.
     assert_eq!(read(&plan), text);
@@ -802,7 +818,10 @@ fn a_resume_on_another_kind_of_board_is_refused_naming_both() {
         // On the run's kind of boards it resumes: the leftovers cut and measured again.
         let same = boards(first);
         assert_eq!(resume_on(&run, &same).unwrap().ending, Ending::Complete);
-        assert_eq!(read(&run.join("data.csv")), full);
+        assert_eq!(
+            without_clock(&read(&run.join("data.csv"))),
+            without_clock(&full)
+        );
         assert!(
             last_session(&run).contains("data.csv: set aside"),
             "{}",
@@ -842,12 +861,19 @@ fn a_resume_whose_boards_do_not_answer_changes_nothing() {
         format!("{e:#}").contains(&gone.display().to_string()),
         "{e:#}"
     );
-    assert_eq!(read(&run.join("data.csv")), full, "data.csv cut");
+    assert_eq!(
+        without_clock(&read(&run.join("data.csv"))),
+        without_clock(&full),
+        "data.csv cut"
+    );
     assert_eq!(read(&run.join("journal.jsonl")), journal, "journal touched");
     // The resume that goes ahead cuts the leftovers, says so, and completes the run.
     assert_eq!(resume_on(&run, &first).unwrap().ending, Ending::Complete);
     assert!(last_session(&run).contains("data.csv: set aside"));
-    assert_eq!(read(&run.join("data.csv")), full);
+    assert_eq!(
+        without_clock(&read(&run.join("data.csv"))),
+        without_clock(&full)
+    );
 }
 
 /// The last point whose data end within the first `len` bytes of the run's data file, by the
@@ -946,8 +972,8 @@ fn a_data_file_cut_short_names_what_it_holds_and_recovers_on_request() {
         29 - i as usize
     );
     assert_eq!(
-        read(&run.join("data.csv")),
-        full,
+        without_clock(&read(&run.join("data.csv"))),
+        without_clock(&full),
         "not the uninterrupted run's data"
     );
     // What was cut is kept: the journal's lines after point i, the bytes past it.

@@ -388,6 +388,7 @@ mod tests {
             magnitude: Some(mags[b]),
             group: Some(group),
             line: 0,
+            ..Default::default()
         };
         for k in 0..200 {
             for b in 0..3 {

@@ -77,6 +77,17 @@ fn domain(column: &str) -> Domain {
             hi: u32::MAX as f64,
             text: "0..4294967295",
         },
+        "time_s" => Domain::Range {
+            lo: 0.0,
+            lo_open: false,
+            hi: 1e9,
+            text: "0..1e9 s",
+        },
+        "report" => Domain::Int {
+            lo: 0.0,
+            hi: u32::MAX as f64,
+            text: "0..4294967295",
+        },
         "group" => Domain::Int {
             lo: 0.0,
             hi: u32::MAX as f64,
@@ -455,6 +466,8 @@ impl Dataset {
                 sample: opt_num(4)?.map(|v| v as u32),
                 magnitude: opt_num(5)?,
                 group: opt_num(6)?.map(|v| v as u32),
+                time_s: opt_num(7)?,
+                report: opt_num(8)?.map(|v| v as u32),
                 line,
             };
             if let Some(k) = s.sample {

@@ -14,7 +14,7 @@ pub const REQUIRED: [&str; 6] = [
     "y",
 ];
 /// The optional columns `cta` understands.
-pub const OPTIONAL: [&str; 7] = [
+pub const OPTIONAL: [&str; 9] = [
     "beacon",
     "frequency_hz",
     "power",
@@ -22,7 +22,13 @@ pub const OPTIONAL: [&str; 7] = [
     "sample",
     "magnitude",
     "group",
+    "time_s",
+    "report",
 ];
+
+/// The optional columns after `magnitude`, which [`Dataset::write`] writes only when a row
+/// records them: `group`, `time_s`, `report`.
+const LATE: usize = 6;
 
 /// One row: one NorthStar report of one beacon.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -50,6 +56,11 @@ pub struct Sample {
     /// The sweep point the row was measured in: rows sharing it were lit together, in one
     /// group of a grouped plan (`group = N`); a beacon measured alone has a point of its own.
     pub group: Option<u32>,
+    /// When the report was taken: seconds since the run started (a sweep: from the sensor
+    /// board's report clock; a simulation: when the sweep order would take it).
+    pub time_s: Option<f64>,
+    /// The sensor board's report counter (every report of a session, spots and poses alike).
+    pub report: Option<u32>,
     /// 1-based line number in the file (0 when made in memory).
     pub line: usize,
 }
@@ -104,20 +115,26 @@ impl Dataset {
     }
 
     /// Write in the documented format (`comments` as leading `#` lines): every column, but
-    /// `group` only when a row records one (a sweep's file; a simulated one has none).
+    /// `group`, `time_s` and `report` only when a row records them (a sweep's file has all
+    /// three; a simulated one the time alone).
     pub fn write(&self, w: &mut impl Write, comments: &[String]) -> std::io::Result<()> {
         for c in comments {
             writeln!(w, "# {}", comment_text(c))?;
         }
-        let group = self.samples.iter().any(|s| s.group.is_some());
-        let columns = if group {
-            &OPTIONAL[..]
-        } else {
-            &OPTIONAL[..OPTIONAL.len() - 1]
-        };
+        let late = [
+            self.samples.iter().any(|s| s.group.is_some()),
+            self.samples.iter().any(|s| s.time_s.is_some()),
+            self.samples.iter().any(|s| s.report.is_some()),
+        ];
+        let columns: Vec<&str> = OPTIONAL
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| *k < LATE || late[k - LATE])
+            .map(|(_, c)| *c)
+            .collect();
         writeln!(w, "{},{}", REQUIRED.join(","), columns.join(","))?;
         for s in &self.samples {
-            write_fields(w, s, group)?;
+            write_fields(w, s, late)?;
         }
         Ok(())
     }
@@ -134,11 +151,11 @@ pub fn comment_text(text: &str) -> String {
 
 /// Write one row in the documented column order (REQUIRED then OPTIONAL), every column.
 pub fn write_row(w: &mut impl Write, s: &Sample) -> std::io::Result<()> {
-    write_fields(w, s, true)
+    write_fields(w, s, [true; 3])
 }
 
-/// One row, with the `group` column or without it.
-fn write_fields(w: &mut impl Write, s: &Sample, group: bool) -> std::io::Result<()> {
+/// One row, with the late columns `late` says (`group`, `time_s`, `report`).
+fn write_fields(w: &mut impl Write, s: &Sample, late: [bool; 3]) -> std::io::Result<()> {
     let o = |v: Option<f64>| v.map(|v| format!("{v}")).unwrap_or_default();
     let u = |v: Option<u32>| v.map(|v| v.to_string()).unwrap_or_default();
     write!(
@@ -157,8 +174,14 @@ fn write_fields(w: &mut impl Write, s: &Sample, group: bool) -> std::io::Result<
         u(s.sample),
         o(s.magnitude),
     )?;
-    if group {
+    if late[0] {
         write!(w, ",{}", u(s.group))?;
+    }
+    if late[1] {
+        write!(w, ",{}", o(s.time_s))?;
+    }
+    if late[2] {
+        write!(w, ",{}", u(s.report))?;
     }
     writeln!(w)
 }

@@ -6,6 +6,29 @@ pub mod effects;
 mod files;
 mod placement;
 mod rail;
+/// The NorthStar's report rate a simulated file is timed at, Hz (the sensor's typical rate).
+pub const SIM_RATE_HZ: f64 = 10.0;
+/// Settle time before a simulated point's first report, s (a sweep plan's default).
+pub const SIM_SETTLE_S: f64 = 0.2;
+/// The requests around a point, s (as `cta sweep --estimate` counts them).
+pub const SIM_REQUESTS_S: f64 = 0.08;
+/// A plate move between separations, s (as `cta sweep --estimate` assumes).
+pub const SIM_PLATE_MOVE_S: f64 = 180.0;
+
+/// When a one-at-a-time sweep would take sample `s` of beacon `i` (of `n`, `samples` each) at
+/// separation `k`, in seconds since the run started: a plate move before each separation,
+/// then each point its settle time, a report for the stream to start, and its samples at
+/// [`SIM_RATE_HZ`]. Gives simulated files the `time_s` column a sweep writes, so effects that
+/// drift over a run can be simulated and looked for.
+pub fn sweep_time(k: usize, n: usize, i: usize, s: usize, samples: usize) -> f64 {
+    let point = SIM_SETTLE_S + (samples as f64 + 1.0) / SIM_RATE_HZ + SIM_REQUESTS_S;
+    let t = (k + 1) as f64 * SIM_PLATE_MOVE_S
+        + (k * n + i) as f64 * point
+        + SIM_SETTLE_S
+        + (s as f64 + 1.0) / SIM_RATE_HZ;
+    (t * 1e4).round() / 1e4
+}
+
 #[cfg(test)]
 mod tests;
 mod truth;
@@ -371,7 +394,8 @@ impl SimConfig {
         Ok((ds, truth))
     }
 
-    /// Run the simulation: the dataset and its truth. Unchecked: for user input, use
+    /// Run the simulation: the dataset and its truth; each row timed as a one-at-a-time sweep
+    /// would take it ([`sweep_time`]). Unchecked: for user input, use
     /// [`SimConfig::try_run`].
     pub fn run(&self) -> (Dataset, Truth) {
         let phys = self.physics();
@@ -427,6 +451,7 @@ impl SimConfig {
                         } else {
                             mag
                         }),
+                        time_s: Some(sweep_time(k, n, i, s, self.samples)),
                         ..Default::default()
                     });
                 }

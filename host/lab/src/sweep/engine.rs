@@ -230,8 +230,9 @@ pub enum Ending {
 /// Result of one point's measurement.
 struct Measured {
     status: PointStatus,
-    /// Per beacon lit, in the point's order: its samples (x, y, magnitude).
-    samples: Vec<Vec<(i16, i16, u16)>>,
+    /// Per beacon lit, in the point's order: its samples (x, y, magnitude, seconds since the
+    /// run started, report counter).
+    samples: Vec<Vec<(i16, i16, u16, f64, u32)>>,
     reports: u32,
     lost: u32,
     /// Spots left out of the data, by ID: an ID no LED of the point was lit at (a
@@ -280,6 +281,26 @@ fn went_back(now: u32, seen: u32) -> bool {
     now.wrapping_sub(seen) > u32::MAX / 2
 }
 
+/// The sensor board's report clock tied to the host's wall clock at the last restore: a
+/// report's time since the run started, in seconds.
+#[derive(Debug, Clone, Copy, Default)]
+struct BoardClock {
+    /// Board time at the tie, microseconds since its reset.
+    board_us: u64,
+    /// Host time at the tie, seconds since the epoch.
+    epoch_s: f64,
+    /// When the run started, seconds since the epoch.
+    run_start: f64,
+}
+
+impl BoardClock {
+    /// Seconds since the run started of a report the board timed `t_us`, to 0.1 ms.
+    fn seconds(&self, t_us: u64) -> f64 {
+        let t = self.epoch_s + (t_us as f64 - self.board_us as f64) / 1e6 - self.run_start;
+        (t.max(0.0) * 1e4).round() / 1e4
+    }
+}
+
 /// The engine.
 pub struct Engine<'a> {
     plan: &'a Plan,
@@ -294,6 +315,11 @@ pub struct Engine<'a> {
     /// The points of the crosstalk check's blocks measured in this session, summed up
     /// ([`crate::crosstalk`]).
     pub checked: Vec<crate::crosstalk::PointSums>,
+    /// When the run started (its first session), seconds since the epoch: the origin of the
+    /// data's `time_s`.
+    pub run_start: f64,
+    /// The sensor board's clock as tied at the last restore.
+    clock: BoardClock,
     /// The beacon board's frequency table (millihertz), as read at the last connection and
     /// checked against the plan ([`Engine::check_table`]): the table the run lights from.
     pub table_mhz: Vec<u32>,
@@ -330,6 +356,8 @@ impl<'a> Engine<'a> {
             skip_settle: false,
             stats: Stats::default(),
             checked: Vec::new(),
+            run_start: now(),
+            clock: BoardClock::default(),
             table_mhz: Vec::new(),
             beacon_seen: None,
             sensor_seen: None,
@@ -524,6 +552,13 @@ impl<'a> Engine<'a> {
             seq: s.reports,
             t_us: s.uptime_ms * 1000,
         });
+        // The board's clock tied to the host's (to the status's round trip, milliseconds): the
+        // time of each sample from the report's own clock, across resets and sessions.
+        self.clock = BoardClock {
+            board_us: s.uptime_ms * 1000,
+            epoch_s: now(),
+            run_start: self.run_start,
+        };
         Ok(())
     }
 
@@ -1018,6 +1053,11 @@ impl<'a> Engine<'a> {
         };
         // Reports in a row at another sensitivity than the point's, and the last one's.
         let mut wrong_sensitivity = (0u32, 0u8);
+        // The board's clock, tied to the host's at the first report since the last restore.
+        let clock = BoardClock {
+            run_start: self.run_start,
+            ..self.clock
+        };
         // Takes a report in; returns the sensitivity it reports when that is not the point's.
         let mut absorb = |r: SpotReport, m: &mut Measured| -> Option<u8> {
             if done(m) {
@@ -1033,12 +1073,13 @@ impl<'a> Engine<'a> {
                 return Some(r.sensitivity);
             }
             m.reports += 1;
+            let time_s = clock.seconds(r.t_us);
             for s in &r.spots {
                 let once = r.spots.iter().filter(|o| o.id == s.id).count() == 1;
                 match p.lit.iter().position(|l| l.channel == s.id) {
                     Some(k) if once => {
                         if m.samples[k].len() < plan.samples as usize {
-                            m.samples[k].push((s.x, s.y, s.magnitude));
+                            m.samples[k].push((s.x, s.y, s.magnitude, time_s, r.seq));
                         }
                     }
                     _ => *m.strays.entry(s.id).or_default() += 1,
@@ -1135,20 +1176,27 @@ fn rows_of(plan: &Plan, p: &Point, separation: f64, m: &Measured) -> (Vec<Sample
     let mut comments = Vec::new();
     for (l, samples) in p.lit.iter().zip(&m.samples) {
         let beacon = l.beacon_id(p.quadrant);
-        rows.extend(samples.iter().enumerate().map(|(k, &(x, y, mag))| Sample {
-            separation_in: separation,
-            r: l.position(&plan.layout, p.quadrant, separation),
-            x: x as f64,
-            y: y as f64,
-            beacon: Some(beacon),
-            frequency_hz: Some(l.frequency_hz),
-            power: Some(p.power as f64),
-            sensitivity: Some(p.sensitivity as f64),
-            sample: Some(k as u32),
-            magnitude: Some(mag as f64),
-            group: Some(p.index as u32),
-            line: 0,
-        }));
+        rows.extend(
+            samples
+                .iter()
+                .enumerate()
+                .map(|(k, &(x, y, mag, t, seq))| Sample {
+                    separation_in: separation,
+                    r: l.position(&plan.layout, p.quadrant, separation),
+                    x: x as f64,
+                    y: y as f64,
+                    beacon: Some(beacon),
+                    frequency_hz: Some(l.frequency_hz),
+                    power: Some(p.power as f64),
+                    sensitivity: Some(p.sensitivity as f64),
+                    sample: Some(k as u32),
+                    magnitude: Some(mag as f64),
+                    group: Some(p.index as u32),
+                    time_s: Some(t),
+                    report: Some(seq),
+                    line: 0,
+                }),
+        );
         if samples.len() < plan.samples as usize {
             comments.push(format!(
                 "{}: point {} separation {separation} beacon {beacon} frequency_hz {} power {} \

@@ -397,6 +397,14 @@ pub fn sweep_with(
                 _ => "",
             },
         ));
+        engine.run_start = store
+            .events
+            .iter()
+            .find_map(|e| match e {
+                Event::Session { at, .. } => Some(*at),
+                _ => None,
+            })
+            .unwrap_or_else(now);
         engine.run(&mut store, operator, from, watch)
     })();
     let ending = match result {
