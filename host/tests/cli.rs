@@ -1475,3 +1475,46 @@ fn quiet_silences_warnings_not_errors() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("cta: error:"));
 }
+
+/// `cta sweep --estimate`: the plan's duration on the real boards, by part, with the operator's
+/// minutes; nothing started and no run folder made. Bad minutes are refused by name.
+#[test]
+fn sweep_estimate_says_how_long_a_plan_takes_and_starts_nothing() {
+    let plans = Path::new(env!("CARGO_MANIFEST_DIR")).join("plans");
+    let o = cta(&["sweep", "--plan", s(&plans.join("chvi.toml")), "--estimate"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("3828 points, up to 19 beacons lit at once, 3485800 samples")
+            && text.contains("29 plate moves at 3 min")
+            && text.contains("total on the real boards: 7 h 46 min"),
+        "{text}"
+    );
+    // Slower plate moves: 29 more minutes for each minute more a move.
+    let o = cta(&[
+        "sweep",
+        "--plan",
+        s(&plans.join("chvi.toml")),
+        "--estimate",
+        "--plate-move-min",
+        "4",
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("total on the real boards: 8 h 15 min"));
+    let o = cta(&[
+        "sweep",
+        "--plan",
+        s(&plans.join("chvi-single.toml")),
+        "--estimate",
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("total on the real boards: 4 d 11 h"));
+    let o = cta(&[
+        "sweep",
+        "--plan",
+        s(&plans.join("chvi.toml")),
+        "--estimate",
+        "--power-switch-min",
+        "-1",
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--power-switch-min -1"));
+}

@@ -191,10 +191,7 @@ fn uncommitted_leftovers_are_discarded_and_said() {
         ),
         "{j}"
     );
-    assert_eq!(
-        read(&run.join("data.csv")),
-        complete
-    );
+    assert_eq!(read(&run.join("data.csv")), complete);
 }
 
 #[test]

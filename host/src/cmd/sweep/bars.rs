@@ -240,6 +240,30 @@ impl Watch for Bars {
 mod tests {
     use super::*;
 
+    /// The ETA is the model's time left, scaled by the session's pace against the model: a
+    /// session twice as fast as the model halves it; a resumed session counts from its first
+    /// point; nothing is left after the last point.
+    #[test]
+    fn the_eta_is_the_model_scaled_by_the_pace_kept() {
+        let timeline = vec![0.0, 10.0, 20.0, 40.0, 100.0];
+        let eta = |from: usize, elapsed: f64, i: usize| {
+            Eta {
+                timeline: timeline.clone(),
+                from,
+                t0: Instant::now() - Duration::from_secs_f64(elapsed),
+            }
+            .after(i)
+            .as_secs_f64()
+        };
+        // Point 0 done in its modelled 10 s: 90 s left.
+        assert!((eta(0, 10.0, 0) - 90.0).abs() < 0.5);
+        // Twice as fast: half.
+        assert!((eta(0, 5.0, 0) - 45.0).abs() < 0.5);
+        // Resumed at point 2, which took 20 s of model in 40 s: 60 s of model left, 120 s.
+        assert!((eta(2, 40.0, 2) - 120.0).abs() < 0.5);
+        assert_eq!(eta(0, 10.0, 3), 0.0);
+    }
+
     /// In log mode a line comes at each separation's end, and in between at least every
     /// [`PROGRESS_EVERY`], each with the points done of all, the rate and the ETA (but at
     /// the end, and before the rate is known).
