@@ -71,6 +71,7 @@ fn a_grouped_sweep_records_every_spot_of_a_frame_under_its_own_beacon() {
     assert_eq!(plan.per_block(), 11);
     assert_eq!(s.points, 3 * (2 * 11 + 3));
     assert_eq!(s.stats.ok, s.points, "{:?}", s.stats);
+    assert_eq!(s.stats.beacons, (3 * (2 * 200 + 3), 0, 0));
     assert_eq!(s.stats.samples, plan.total_samples());
     assert_eq!(plan.total_samples(), 3 * (2 * 200 + 3) * 8);
     let (ds, points) = by_point(&run);

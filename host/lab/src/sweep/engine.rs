@@ -214,6 +214,9 @@ pub struct Stats {
     pub reconnects: usize,
     /// Reports lost on the wire.
     pub lost_reports: u64,
+    /// Beacons measured (a grouped point lights several), by outcome: all their samples, none
+    /// (no signal), some (partial).
+    pub beacons: (usize, usize, usize),
 }
 
 /// How a session ended.
@@ -694,6 +697,13 @@ impl<'a> Engine<'a> {
                         PointStatus::Partial => self.stats.partial += 1,
                     }
                     self.stats.samples += rows.len() as u64;
+                    for got in m.samples.iter().map(Vec::len) {
+                        match got {
+                            0 => self.stats.beacons.1 += 1,
+                            n if n >= plan.samples as usize => self.stats.beacons.0 += 1,
+                            _ => self.stats.beacons.2 += 1,
+                        }
+                    }
                     self.stats.lost_reports += m.lost as u64;
                     watch.point_done(plan, i, p.separation);
                 }

@@ -363,6 +363,14 @@ fn print_summary(s: &Summary) {
         s.next_point,
         s.points
     );
+    let (b_ok, b_none, b_part) = st.beacons;
+    if b_ok + b_none + b_part != st.ok + st.no_signal + st.partial {
+        println!(
+            "  beacons measured in them: {} ({b_ok} with all their samples, {b_none} no signal, \
+             {b_part} partial)",
+            b_ok + b_none + b_part
+        );
+    }
     println!(
         "  samples: {}   faults: {}   retries: {}   reconnections: {}   lost reports: {}",
         st.samples, st.faults, st.retries, st.reconnects, st.lost_reports
