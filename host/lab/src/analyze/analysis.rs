@@ -519,6 +519,8 @@ pub fn analyze(ds: &Dataset, opts: &Options, progress: &dyn Progress) -> Result<
     // say so, with the reading of X and Y that squares it.
     let params_after = params_of(fm, ff, &data.seps, true);
     let value = |n: &str| params_after.iter().find(|q| q.name == n).map(|q| q.value);
+    // Per-separation apparatus causes against the run's time: a drift looks like them.
+    data_notes.extend(super::trend::notes(&causes, &ds));
     data_notes.extend(wiring::turned_head_note(
         ["p1", "p2", "p3"].map(|n| value(n).unwrap_or(0.0)),
         value("H"),

@@ -36,6 +36,7 @@ pub mod select;
 #[cfg(test)]
 mod tests;
 mod text;
+mod trend;
 
 pub use analysis::{
     analyze, board_note, MIN_POINTS_PER_SEPARATION, NOISE_TOO_LARGE_CHI2_DOF, UNEXPLAINED_CHI2_DOF,

@@ -10,7 +10,7 @@ use super::data::Data;
 use super::diag;
 
 /// A named (or tentative) cause.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Default, Serialize)]
 pub struct Cause {
     /// Vocabulary name.
     pub effect: String,
