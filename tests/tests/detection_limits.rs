@@ -86,6 +86,7 @@ fn ladder(name: &str) -> Vec<(Effect, Vec<f64>)> {
             "separation_error" => (Effect::SeparationError(0.05 * f), vec![0.05 * f]),
             "plate_tilt" => (Effect::PlateTilt(0.2 * f), vec![0.2 * f]),
             "led_position" => (Effect::LedPosition(0.004 * f), vec![0.004 * f]),
+            "led_tilt" => (Effect::LedTilt(3.0 * f), vec![3.0 * f]),
             other => unreachable!("{other}"),
         }
     };
