@@ -222,10 +222,11 @@ fn detection_limits() {
     let mut smallest: Vec<(String, String)> = Vec::new();
     // The compact matrix: per effect, per rung, "named (other named instead) u(nexplained)".
     let mut matrix: Vec<(String, Vec<String>)> = Vec::new();
-    // Every effect `analyze` can name; `intensity` is a switch of the pinhole start only.
+    // Every effect `analyze` can name; `intensity` is a switch of the pinhole start only, and
+    // `array_pose` needs the quad layout (its ladder is in host/ANALYZE.md, Detection limits).
     for name in cta_lab::sim::effects::VOCABULARY
         .into_iter()
-        .filter(|n| *n != "intensity")
+        .filter(|n| *n != "intensity" && *n != "array_pose")
     {
         let rungs = ladder(name);
         let mut reliable: Option<String> = None;
