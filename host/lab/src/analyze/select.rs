@@ -595,7 +595,8 @@ pub fn select_with_folds(
 }
 
 /// Forward selection from `sel`'s current model over `pool` (module doc). Per-LED candidates
-/// are ranked as [`rank`] says and fitted only when they could come first ([`led_ceiling`]).
+/// are ranked as [`rank`] says, and fitted only when they could come first
+/// ([`led_ceiling`]) or when no global candidate is accepted in the round.
 fn forward(
     sel: &mut Selection,
     mut pool: Vec<Cand>,
@@ -617,9 +618,7 @@ fn forward(
             pool.iter().partition(|c| !c.led_names().is_empty());
         let mut scored = try_round(sel, &global, &model, &cur, data, &all, round, progress);
         let mut led_fitted = false;
-        let best_global = rank(sel, &scored, ln_m).first().map(|&(_, key)| key);
-        if !led.is_empty() && best_global.is_none_or(|g| led_ceiling(&model, &led, &cur, ln_m) > g)
-        {
+        if !led.is_empty() && led_ceiling(&model, &led, &cur, ln_m) > global_sum(sel, &scored) {
             scored.extend(try_round(
                 sel, &led, &model, &cur, data, &all, round, progress,
             ));
@@ -737,32 +736,53 @@ fn try_round(
 
 /// The order in which a round's fitted candidates (`scored`, by trial index) are offered to
 /// cross-validation: (index into `scored`, rank key), best first. A candidate is eligible when
-/// its own evidence passes (`dBIC > BIC_MIN`: the random-effects view for a per-LED one). It
-/// is ranked by the plain BIC, `dchi2 - k ln m`, every parameter charged: a per-LED cause
-/// comes before a global one only when its fit is better by more than its hundreds of
-/// parameters cost. Otherwise its per-LED freedom, which can mimic any near-field effect LED by
-/// LED, would stand in for the global cause (`face_angle`, `proximity`, `saturation`), and
-/// between two per-LED causes the better fit comes first (their random-effects ratios differ
-/// by their Occam factors, not by how well they fit).
+/// its own evidence passes (`dBIC > BIC_MIN`: the random-effects view for a per-LED one), and
+/// ranked by the plain BIC, `dchi2 - k ln m`, every parameter charged. A per-LED cause comes
+/// before the global ones only when its plain BIC beats the sum of the eligible global ones'
+/// ([`global_sum`]): with hundreds of parameters it can mimic a global near-field cause LED
+/// by LED (`face_angle`, `proximity`, `saturation`), or a mix of global causes better than any
+/// one of them, so it must do better than all of them together. Otherwise it comes after
+/// them. Between two per-LED causes the better fit comes first: their random-effects ratios
+/// differ by their Occam factors, not by how well they fit.
 fn rank(sel: &Selection, scored: &[(usize, FitResult)], ln_m: f64) -> Vec<(usize, f64)> {
-    let mut order: Vec<(usize, f64)> = scored
+    let g = global_sum(sel, scored);
+    // (tier, key): 0 a per-LED cause past every global one, 1 global, 2 per-LED after them.
+    let mut order: Vec<(usize, u8, f64)> = scored
         .iter()
         .enumerate()
         .filter(|(_, (ti, _))| sel.trials[*ti].dbic > BIC_MIN)
         .map(|(j, (ti, _))| {
             let t = &sel.trials[*ti];
-            (j, t.dchi2 - t.k as f64 * ln_m)
+            let plain = t.dchi2 - t.k as f64 * ln_m;
+            let tier = match (t.cand.led_names().is_empty(), plain > g) {
+                (true, _) => 1,
+                (false, true) => 0,
+                (false, false) => 2,
+            };
+            (j, tier, plain)
         })
         .collect();
-    order.sort_by(|a, b| b.1.total_cmp(&a.1));
-    order
+    order.sort_by(|a, b| a.1.cmp(&b.1).then(b.2.total_cmp(&a.2)));
+    order.into_iter().map(|(j, _, k)| (j, k)).collect()
+}
+
+/// The sum of the eligible (`dBIC > BIC_MIN`) global candidates' dBIC in `scored`: what the
+/// global causes together could gain, at most about (their gains overlap where they mimic
+/// one another).
+fn global_sum(sel: &Selection, scored: &[(usize, FitResult)]) -> f64 {
+    scored
+        .iter()
+        .map(|(ti, _)| &sel.trials[*ti])
+        .filter(|t| t.cand.led_names().is_empty() && t.dbic > BIC_MIN)
+        .map(|t| t.dbic)
+        .sum()
 }
 
 /// The best plain BIC any of the per-LED candidates `led` could reach on top of `model` (its
 /// fit `cur`, `m` residuals, `ln_m = ln m`): a fit down to the noise floor, the chi-square of
 /// its degrees of freedom five standard deviations low, less its parameters' `k ln m`. When
-/// even that is below a global candidate's plain BIC, the per-LED fits (the round's slowest)
-/// cannot come first and are left for a round in which no global candidate is accepted.
+/// even that is below the global candidates' [`global_sum`], the per-LED fits (the round's
+/// slowest) cannot come first and are left for a round in which no global one is accepted.
 fn led_ceiling(model: &Model, led: &[Cand], cur: &FitResult, ln_m: f64) -> f64 {
     led.iter()
         .map(|&c| {
