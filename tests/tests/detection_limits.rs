@@ -86,6 +86,7 @@ fn ladder(name: &str) -> Vec<(Effect, Vec<f64>)> {
             "separation_error" => (Effect::SeparationError(0.05 * f), vec![0.05 * f]),
             "plate_tilt" => (Effect::PlateTilt(0.2 * f), vec![0.2 * f]),
             "led_position" => (Effect::LedPosition(0.004 * f), vec![0.004 * f]),
+            "led_tilt" => (Effect::LedTilt(3.0 * f), vec![3.0 * f]),
             other => unreachable!("{other}"),
         }
     };
@@ -221,10 +222,11 @@ fn detection_limits() {
     let mut smallest: Vec<(String, String)> = Vec::new();
     // The compact matrix: per effect, per rung, "named (other named instead) u(nexplained)".
     let mut matrix: Vec<(String, Vec<String>)> = Vec::new();
-    // Every effect `analyze` can name; `intensity` is a switch of the pinhole start only.
+    // Every effect `analyze` can name; `intensity` is a switch of the pinhole start only, and
+    // `array_pose` needs the quad layout (its ladder is in host/ANALYZE.md, Detection limits).
     for name in cta_lab::sim::effects::VOCABULARY
         .into_iter()
-        .filter(|n| *n != "intensity")
+        .filter(|n| *n != "intensity" && *n != "array_pose")
     {
         let rungs = ladder(name);
         let mut reliable: Option<String> = None;

@@ -31,6 +31,8 @@ const NOISE: f64 = 32.768;
 const RANDOM_SEEDS: usize = 3;
 /// Clean datasets in `ruled_out_one_sigma_is_honest_on_clean_data` (a clean analysis is cheap).
 const CLEAN_SEEDS: std::ops::Range<u64> = 500..530;
+/// The per-LED boresight scatter `led_tilt` is hidden at, deg per axis.
+const LED_TILT_DEG: f64 = 3.0;
 
 fn sim(effects: &[&str], seed: u64) -> SimConfig {
     SimConfig {
@@ -172,6 +174,7 @@ fn named_first(effect: &str, seed: u64) -> (Analysis, Truth) {
 #[test]
 fn proximity() {
     let (a, _) = named_first("proximity=0.21", 11);
+    no_per_led_cause(&a);
     near(&a, "S", 0.21);
 }
 
@@ -219,9 +222,43 @@ fn led_position() {
     assert_eq!(a.causes.len(), 1, "{}", a.verdict);
 }
 
+/// LEDs soldered askew one by one, 3 deg per axis: named first; each LED's recovery is the
+/// unit test `led_tilt_is_named_and_each_led_recovered`. The draws' mean (about 0.3 deg per
+/// axis for 100 LEDs) is a tilt common to every LED, `beacon_tilt`'s by the gauge: when it is
+/// named too, it must be that mean.
+#[test]
+fn led_tilt() {
+    let (a, t) = named_first(&format!("led_tilt={LED_TILT_DEG}"), 28);
+    assert_eq!(t.led_tilts_deg.len(), 100);
+    let n = t.led_tilts_deg.len() as f64;
+    let m = [0, 1].map(|k| t.led_tilts_deg.iter().map(|v| v[k]).sum::<f64>() / n);
+    for c in &a.causes[1..] {
+        assert_eq!(c.effect, "beacon_tilt", "{}", a.verdict);
+        let z_t = z_of(c, "T_deg", m[0].hypot(m[1]));
+        let z_az = z_of(c, "AZ_deg", m[1].atan2(m[0]).to_degrees());
+        assert!(
+            z_t.abs() < 3.0 && z_az.abs() < 3.0,
+            "z {z_t:.2} {z_az:.2}: {}",
+            a.verdict
+        );
+    }
+}
+
+/// A global near-field cause is not taken for the per-LED freedom that can mimic it LED by
+/// LED (`led_tilt`, `led_position`): those must beat it by the plain BIC, every one of their
+/// parameters charged (host/ANALYZE.md, per-LED causes).
+fn no_per_led_cause(a: &Analysis) {
+    assert!(
+        !a.causes.iter().any(|c| c.effect.starts_with("led_")),
+        "{}",
+        a.verdict
+    );
+}
+
 #[test]
 fn face_angle() {
     let (a, _) = named_first("face_angle=1,-0.5", 16);
+    no_per_led_cause(&a);
     near(&a, "DX", 1.0);
     near(&a, "DY", -0.5);
 }
@@ -229,6 +266,7 @@ fn face_angle() {
 #[test]
 fn saturation() {
     let (a, _) = named_first("saturation=0.08", 17);
+    no_per_led_cause(&a);
     near(&a, "S", 0.08);
 }
 
@@ -307,7 +345,13 @@ fn every_effect_at_random_sizes() {
     let mut rng = StdRng::seed_from_u64(2024);
     let sign = |rng: &mut StdRng| if rng.random_bool(0.5) { 1.0 } else { -1.0 };
     let (mut z_global, mut z_local) = (Vec::new(), Vec::new());
-    for name in VOCABULARY.iter().copied().filter(|n| *n != "intensity") {
+    // `array_pose` needs the quad layout: its recovery is the unit test
+    // `array_pose_is_named_and_each_array_recovered`.
+    for name in VOCABULARY
+        .iter()
+        .copied()
+        .filter(|n| *n != "intensity" && *n != "array_pose")
+    {
         for _ in 0..RANDOM_SEEDS {
             let (s1, s2) = (sign(&mut rng), sign(&mut rng));
             let (u, v): (f64, f64) = (rng.random_range(0.0..1.0), rng.random_range(0.0..1.0));
@@ -355,6 +399,7 @@ fn every_effect_at_random_sizes() {
                 "separation_error" => (format!("separation_error={}", 0.03 + 0.05 * u), vec![]),
                 "plate_tilt" => (format!("plate_tilt={}", 0.1 + 0.2 * u), vec![]),
                 "led_position" => (format!("led_position={}", 0.003 + 0.004 * u), vec![]),
+                "led_tilt" => (format!("led_tilt={}", LED_TILT_DEG), vec![]),
                 other => unreachable!("{other}"),
             };
             let seed = rng.random_range(1..1000);
@@ -423,19 +468,17 @@ fn a_cause_that_stood_in_for_others_is_dropped() {
     );
     assert_eq!(names(&a), ["cell_gain", "cell_bias"], "{}", a.verdict);
     assert!(!a.unexplained);
-    // `led_position`'s per-LED freedom stands in for them too (named in round 1, before
-    // `plate_offset` in round 2), and is dropped as well.
-    let mut d: Vec<&str> = a.dropped.iter().map(|d| d.effect.as_str()).collect();
-    d.sort_unstable();
-    assert_eq!(d, ["led_position", "plate_offset"]);
+    // `led_position`'s per-LED freedom could stand in for them too, but it must beat
+    // `plate_offset` by the plain BIC, its 196 parameters charged: it is not named.
+    let d: Vec<&str> = a.dropped.iter().map(|d| d.effect.as_str()).collect();
+    assert_eq!(d, ["plate_offset"]);
     assert!(a
         .dropped
         .iter()
-        .all(|d| d.round <= 2 && d.dbic_keep <= 10.0));
+        .all(|d| d.round == 1 && d.dbic_keep <= 10.0));
     let text = render_text(&a);
     assert!(
-        text.contains("dropped: plate_offset: named in round 2")
-            && text.contains("dropped: led_position: named in round 1"),
+        text.contains("dropped: plate_offset: named in round 1"),
         "{text}"
     );
     // Reported with the ruled-out candidates, fitted on top of the final model.
@@ -483,12 +526,14 @@ fn clean_data_rules_every_candidate_out() {
     let (a, _) = run(&sim(&[], 22), Base::Thesis);
     assert!(a.causes.is_empty(), "{}", a.verdict);
     let tried: Vec<&str> = a.ruled_out.iter().map(|r| r.effect.as_str()).collect();
+    // `array_pose` needs several arrays: on one it is listed as not testable instead.
     let want: Vec<&str> = VOCABULARY
         .iter()
         .copied()
-        .filter(|n| *n != "intensity")
+        .filter(|n| *n != "intensity" && *n != "array_pose")
         .collect();
     assert_eq!(tried, want, "{:?}", a.ruled_out_note);
+    assert!(a.untested.iter().any(|u| u.effect == "array_pose"));
     for r in &a.ruled_out {
         assert!(r.dbic <= 10.0, "{}: dBIC {}", r.effect, r.dbic);
         if r.effect == "saturation" {
@@ -527,8 +572,8 @@ fn clean_data_rules_every_candidate_out() {
         for sp in &r.per_separation {
             // Mean square of 13 estimates against its noise-only expectation: a chi-square
             // of ~12 degrees of freedom over 12; 4 is far in its tail.
-            // `led_position`'s values are per LED (100), the others per separation.
-            let n = if r.effect == "led_position" {
+            // The per-LED candidates' values are per LED (100), the others per separation.
+            let n = if r.effect.starts_with("led_") {
                 100
             } else {
                 SEPS.len()
@@ -744,10 +789,17 @@ fn tiny_grid_names_nothing_false() {
         .collect();
     assert_eq!(
         u.iter().map(|u| u.0).collect::<Vec<_>>(),
-        ["plate_offset", "separation_error", "plate_tilt"],
+        [
+            "plate_offset",
+            "separation_error",
+            "plate_tilt",
+            "array_pose"
+        ],
         "{u:?}"
     );
-    for (e, reason) in u {
+    // One array: `array_pose` cannot be told from the head pose.
+    assert!(u[3].1.contains("one array"), "{u:?}");
+    for (e, reason) in u.into_iter().take(3) {
         assert!(
             reason.contains("a separation has only 4 usable points: too few to estimate"),
             "{e}: {reason}"

@@ -23,6 +23,11 @@ pub struct SimulateArgs {
     /// Beacon grid, COLSxROWS at 1 in pitch, centred on the board origin.
     #[arg(long, default_value = "10x10")]
     pub grid: String,
+    /// The quad layout: four copies of --grid (at most 100 LEDs each) in the plate's
+    /// quadrants, their centres SPACING in apart in x and y (12: centres at +/-6 in, the
+    /// thesis's four 12 in boards); beacon ids 100 * array + LED, as `cta sweep`'s quad.
+    #[arg(long, value_name = "SPACING")]
+    pub quad: Option<f64>,
     /// Beacon radiation profile.
     #[arg(long, value_enum, default_value_t = Profile::Lambertian)]
     pub profile: Profile,
@@ -35,7 +40,8 @@ pub struct SimulateArgs {
     /// Inject an effect of the vocabulary, NAME=VALUE (repeatable): proximity=S, intensity,
     /// beacon_pattern=H, beacon_tilt=T[,AZ], cell_gain=GX[,GY], cell_bias=BX[,BY],
     /// face_angle=DX[,DY], saturation=S, plate_offset=SIGMA, separation_error=SIGMA,
-    /// plate_tilt=SIGMA (deg), crosstalk=K (simulation only).
+    /// plate_tilt=SIGMA (deg), ambient=B, led_position=SIGMA, led_tilt=SIGMA (deg),
+    /// array_pose=SIGMA_IN[,SIGMA_DEG] (with --quad), crosstalk=K (simulation only).
     // The brackets are --help text (optional parts), not doc links.
     #[allow(rustdoc::broken_intra_doc_links)]
     #[arg(long = "effect", value_name = "NAME=VALUE")]
@@ -117,6 +123,7 @@ pub fn sim_config(a: &SimulateArgs) -> Result<SimConfig> {
         separations: seps,
         grid,
         pitch: 1.0,
+        quad: a.quad,
         pattern: a.profile.pattern(a.half_angle),
         far_field: a.far_field,
         pose: cta_core::emulator::Pose { d, p },
@@ -145,7 +152,7 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
         "wrote {} ({} x {} x {}, {} outside the field of view) to {} (truth: {})",
         plural(ds.samples.len(), "report", "reports"),
         plural(cfg.separations.len(), "separation", "separations"),
-        plural(cfg.grid.0 * cfg.grid.1, "beacon", "beacons"),
+        plural(cfg.beacon_ids().len(), "beacon", "beacons"),
         plural(cfg.samples, "sample", "samples"),
         plural(truth.skipped_points, "point", "points"),
         a.out.display(),

@@ -60,6 +60,14 @@ pub fn board_note(effect: &str) -> String {
             "outside the board's model: its poses use saturated spots as they are; keep the \
              beacons outside the range where the cells clip"
         }
+        "led_tilt" => {
+            "the board's constellation holds one LED boresight for all (`cta sensor template \
+             constellation`): a tilt per LED stays outside its model"
+        }
+        "array_pose" => {
+            "the board holds each LED's place in its constellation (`cta sensor template \
+             constellation`): give it each array's LEDs where the array's pose puts them"
+        }
         "led_position" => {
             "the board holds each LED's place in its constellation (`cta sensor template \
              constellation`): give it the measured places, not the nominal grid"
@@ -239,6 +247,17 @@ pub fn analyze(ds: &Dataset, opts: &Options, progress: &dyn Progress) -> Result<
     let few_points = min_pts < MIN_POINTS_PER_SEPARATION;
     // Per-LED candidates need each LED identified and seen at enough separations.
     let no_led = per_led_untestable(&data);
+    // `array_pose` needs the LEDs identified too, and several arrays.
+    let per_led = |c: &Cand| !c.led_names().is_empty() || *c == Cand::ArrayPose;
+    let no_arrays = no_led.clone().or_else(|| {
+        super::arrays::arrays_of(&Model::leds_of(&data))
+            .is_empty()
+            .then(|| {
+                "the plate holds one array (every beacon id is in one hundred: ids 100 * array + \
+                 LED): one array's pose is the head's"
+                    .to_string()
+            })
+    });
     let sel_opts = select::Options {
         base: opts.from,
         folds: opts.folds,
@@ -246,7 +265,8 @@ pub fn analyze(ds: &Dataset, opts: &Options, progress: &dyn Progress) -> Result<
             .candidates
             .iter()
             .filter(|c| !few_points || c.local_names().is_empty())
-            .filter(|c| no_led.is_none() || c.led_names().is_empty())
+            .filter(|c| no_led.is_none() || !per_led(c))
+            .filter(|c| no_arrays.is_none() || **c != Cand::ArrayPose)
             .cloned()
             .collect(),
         max_effects: opts.max_effects,
@@ -284,6 +304,14 @@ pub fn analyze(ds: &Dataset, opts: &Options, progress: &dyn Progress) -> Result<
         for c in opts.candidates.iter().filter(|c| !c.led_names().is_empty()) {
             untested.push(Untested {
                 effect: c.name().into(),
+                reason: why.clone(),
+            });
+        }
+    }
+    if let Some(why) = &no_arrays {
+        if opts.candidates.contains(&Cand::ArrayPose) {
+            untested.push(Untested {
+                effect: Cand::ArrayPose.name().into(),
                 reason: why.clone(),
             });
         }

@@ -224,14 +224,16 @@ impl Diagnostics {
 
 /// Angle error (deg) of every point: the direction the model infers from the measured
 /// output against the one it predicts (see the module doc). NaN where the model cannot reach
-/// the measured output.
+/// the measured output. The predicted direction is to where the model puts the beacon: its
+/// plate placed, its LED moved by its offset and its array by its pose.
 pub fn angle_errors(model: &Model, x: &[f64], data: &Data) -> Vec<f64> {
     let d = Vector3::new(x[0], x[1], x[2]);
+    let view = model.view(x);
     inferred_directions(model, x, data)
         .iter()
         .zip(&data.points)
         .map(|(dir, p)| match dir {
-            Some(v) => angle_deg(v, &(model.placement(x, p.sep).beacon(&p.r) - d)),
+            Some(v) => angle_deg(v, &(view.beacon(p) - d)),
             None => f64::NAN,
         })
         .collect()
@@ -253,7 +255,9 @@ pub fn inferred_directions(model: &Model, x: &[f64], data: &Data) -> Vec<Option<
     data.points
         .iter()
         .map(|p| {
-            let em = view.emulator(p.sep);
+            // The LED's own boresight (`led_tilt`) turned on top of the plate's.
+            let v = view.led_vals(p);
+            let em = crate::sim::led_emulator(view.emulator(p.sep), [v[2], v[3]]);
             let u = view.beacon(p) - d;
             let len = u.norm();
             let un = u / len;

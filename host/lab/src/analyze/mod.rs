@@ -20,6 +20,7 @@
 //!    +/- 1-sigma and strong correlations (how tightly the data rule it out, [`RuledOut`]).
 
 mod analysis;
+pub mod arrays;
 mod corners;
 pub mod data;
 pub mod diag;

@@ -12,6 +12,7 @@
 //! Jacobians are forward finite differences (host only; the per-separation parameters touch
 //! only their own separation's rows, so they cost one evaluation of that separation each).
 
+use super::arrays::{arrays_of, displacement, Array};
 use super::data::{Data, PointMean};
 use crate::sim::Placement;
 use cta_core::emulator::{Effects, Emulator, Head, BETA};
@@ -107,10 +108,21 @@ pub enum Cand {
     /// looks larger is a plate closer, which the per-separation corrections absorb). Reported
     /// as their RMS `rms_in` and each LED's `dx@bID`, `dy@bID`.
     LedPosition,
+    /// `led_tilt`: one boresight tilt vector (tx, ty) per LED, deg, the same at every
+    /// separation, turned on top of the plate's ([`crate::sim::led_emulator`]). A tilt common
+    /// to every LED is `beacon_tilt`'s, so their mean is held at zero. Reported as their RMS
+    /// `rms_deg` and each LED's `tx_deg@bID`, `ty_deg@bID`.
+    LedTilt,
+    /// `array_pose`: one rigid pose (dx, dy in, dtheta deg) per array on the plate, the same
+    /// at every separation (the quad layout's arrays placed by hand, [`super::arrays`]).
+    /// Needs two or more arrays (beacon ids `100 a + LED`). Gauge: the arrays' mean dx, dy
+    /// and dtheta held at zero (their common part is the head's d1, d2, p3). Reported as
+    /// `rms_in`, `rms_deg` and each array's `dx@aN`, `dy@aN`, `dtheta_deg@aN`.
+    ArrayPose,
 }
 
 /// Every candidate, in the order they are tried.
-pub const ALL: [Cand; 13] = [
+pub const ALL: [Cand; 15] = [
     Cand::Proximity,
     Cand::Intensity,
     Cand::BeaconPattern,
@@ -124,6 +136,8 @@ pub const ALL: [Cand; 13] = [
     Cand::SeparationError,
     Cand::PlateTilt,
     Cand::LedPosition,
+    Cand::LedTilt,
+    Cand::ArrayPose,
 ];
 
 /// A name in a candidate list that is no analysis candidate.
@@ -181,6 +195,8 @@ impl Cand {
             Cand::SeparationError => "separation_error",
             Cand::PlateTilt => "plate_tilt",
             Cand::LedPosition => "led_position",
+            Cand::LedTilt => "led_tilt",
+            Cand::ArrayPose => "array_pose",
         }
     }
 
@@ -207,7 +223,12 @@ impl Cand {
             Cand::FaceAngle if base == Base::Pinhole => &["DY"],
             Cand::FaceAngle => &["DX", "DY"],
             Cand::Saturation => &["lnS"],
-            Cand::PlateOffset | Cand::SeparationError | Cand::PlateTilt | Cand::LedPosition => &[],
+            Cand::PlateOffset
+            | Cand::SeparationError
+            | Cand::PlateTilt
+            | Cand::LedPosition
+            | Cand::LedTilt
+            | Cand::ArrayPose => &[],
         }
     }
 
@@ -216,7 +237,33 @@ impl Cand {
     pub fn led_names(self) -> &'static [&'static str] {
         match self {
             Cand::LedPosition => &["dx", "dy"],
+            Cand::LedTilt => &["tx_deg", "ty_deg"],
             _ => &[],
+        }
+    }
+
+    /// Names of the per-array parameters (one block per array, among the global parameters,
+    /// after any per-LED ones).
+    pub fn array_names(self) -> &'static [&'static str] {
+        match self {
+            Cand::ArrayPose => &["dx", "dy", "dtheta_deg"],
+            _ => &[],
+        }
+    }
+
+    /// Where the per-LED parameters sit in an LED's values (dx, dy, tx_deg, ty_deg).
+    fn led_slot(self) -> usize {
+        match self {
+            Cand::LedTilt => 2,
+            _ => 0,
+        }
+    }
+
+    /// Finite-difference step of the per-LED parameters.
+    fn led_step(self) -> f64 {
+        match self {
+            Cand::LedTilt => 1e-3,
+            _ => 1e-6,
         }
     }
 
@@ -304,6 +351,15 @@ impl Cand {
             ],
             Cand::Saturation => vec![("S", v[0].exp())],
             Cand::LedPosition => vec![("rms_in", rms(v))],
+            Cand::LedTilt => vec![("rms_deg", rms(v))],
+            Cand::ArrayPose => {
+                let (mut sh, mut tu) = (Vec::new(), Vec::new());
+                for p in v.chunks(3) {
+                    sh.extend(&p[..2]);
+                    tu.push(p[2]);
+                }
+                vec![("rms_in", rms(&sh)), ("rms_deg", rms(&tu))]
+            }
             _ => self
                 .global_names(base)
                 .iter()
@@ -330,7 +386,7 @@ impl Cand {
             (Cand::Saturation, _) => vec![("S", v[0].exp(), None)],
             // Only the per-LED values (their weighted RMS against noise alone, as for the
             // per-separation ones): the RMS of noise-only estimates is no estimate near 0.
-            (Cand::LedPosition, _) => Vec::new(),
+            (Cand::LedPosition | Cand::LedTilt | Cand::ArrayPose, _) => Vec::new(),
             _ => self
                 .global_names(base)
                 .iter()
@@ -372,6 +428,8 @@ pub struct Model {
     /// The LEDs of the data, by beacon id ascending ([`Model::leds_of`]); empty when a point
     /// has no beacon id (per-LED candidates cannot be tried).
     pub leds: Vec<Led>,
+    /// The arrays on the plate ([`super::arrays::arrays_of`]); empty with one.
+    pub arrays: Vec<Array>,
 }
 
 /// Where a model's parameters sit in its vector.
@@ -390,15 +448,18 @@ impl Model {
             nsep,
             measured_tilts_deg: Vec::new(),
             leds: Vec::new(),
+            arrays: Vec::new(),
         }
     }
 
     /// The starting model alone for `data`: its separations, its plates placed as their
     /// corner readings measured them.
     pub fn for_data(base: Base, data: &Data) -> Self {
+        let leds = Model::leds_of(data);
         Model {
             measured_tilts_deg: data.measured_tilts_deg.clone(),
-            leds: Model::leds_of(data),
+            arrays: arrays_of(&leds),
+            leds,
             ..Model::new(base, data.seps.len())
         }
     }
@@ -444,9 +505,12 @@ impl Model {
         leds
     }
 
-    /// Number of global parameters of effect `c`: its own plus its per-LED blocks.
+    /// Number of global parameters of effect `c`: its own plus its per-LED and per-array
+    /// blocks.
     fn global_len(&self, c: Cand) -> usize {
-        c.global_names(self.base).len() + c.led_names().len() * self.leds.len()
+        c.global_names(self.base).len()
+            + c.led_names().len() * self.leds.len()
+            + c.array_names().len() * self.arrays.len()
     }
 
     fn global_slot(&self, c: Cand) -> Option<Slot> {
@@ -470,21 +534,27 @@ impl Model {
                 .sum::<usize>()
     }
 
-    /// The LED (index into [`Model::leds`]) and coordinate (0: dx, 1: dy) parameter `i` is
-    /// the per-LED value of, if it is one.
+    /// The LED (index into [`Model::leds`]) and slot in its values (0: dx, 1: dy, 2: tx_deg,
+    /// 3: ty_deg) parameter `i` is, if it is a per-LED one.
     pub fn led_param(&self, i: usize) -> Option<(usize, usize)> {
         let mut at = self.n_base();
         for &e in &self.effects {
             let own = e.global_names(self.base).len();
             let w = e.led_names().len();
-            let len = own + w * self.leds.len();
-            if i >= at + own && i < at + len && w > 0 {
+            if i >= at + own && i < at + own + w * self.leds.len() && w > 0 {
                 let j = i - at - own;
-                return Some((j / w, j % w));
+                return Some((j / w, j % w + e.led_slot()));
             }
-            at += len;
+            at += self.global_len(e);
         }
         None
+    }
+
+    /// The array (index into [`Model::arrays`]) parameter `i` is a pose parameter of, if it
+    /// is one.
+    pub fn array_param(&self, i: usize) -> Option<usize> {
+        let s = self.global_slot(Cand::ArrayPose)?;
+        (i >= s.start && i < s.start + s.len).then(|| (i - s.start) / 3)
     }
 
     /// The index into [`Model::leds`] of beacon `id`.
@@ -498,14 +568,24 @@ impl Model {
     /// in the model, the mean stretch `(x dx + y dy) / rho` (`rho` the LEDs' RMS distance from
     /// the centre, so every row is a mean in inches). Empty without `led_position`.
     pub fn led_gauge(&self) -> Vec<Vec<(usize, f64)>> {
-        let Some(s) = self.global_slot(Cand::LedPosition) else {
-            return Vec::new();
-        };
         let n = self.leds.len();
-        if n == 0 {
-            return Vec::new();
-        }
         let nf = n as f64;
+        let mut rows = Vec::new();
+        if let Some(s) = self.global_slot(Cand::ArrayPose) {
+            rows.extend(super::arrays::gauge(s.start, self.arrays.len()));
+        }
+        // `led_tilt`: the mean tilt is `beacon_tilt`'s.
+        if let (Some(s), true) = (self.global_slot(Cand::LedTilt), n > 0) {
+            for c in 0..2 {
+                rows.push((0..n).map(|k| (s.start + 2 * k + c, 1.0 / nf)).collect());
+            }
+        }
+        let Some(s) = self.global_slot(Cand::LedPosition) else {
+            return rows;
+        };
+        if n == 0 {
+            return rows;
+        }
         let rho = (self
             .leds
             .iter()
@@ -515,20 +595,38 @@ impl Model {
             .sqrt()
             .max(1e-9);
         let (dx, dy) = (|k: usize| s.start + 2 * k, |k: usize| s.start + 2 * k + 1);
-        let mut rows = vec![
-            (0..n).map(|k| (dx(k), 1.0 / nf)).collect::<Vec<_>>(),
-            (0..n).map(|k| (dy(k), 1.0 / nf)).collect(),
-            self.leds
+        // With `array_pose` each array's shift and turn are its pose's: the offsets' mean and
+        // mean turn are held per array, about its centre.
+        let groups: Vec<([f64; 2], Vec<usize>)> = if self.effects.contains(&Cand::ArrayPose) {
+            self.arrays
                 .iter()
-                .enumerate()
-                .flat_map(|(k, l)| {
-                    [
-                        (dx(k), -l.xy[1] / (nf * rho)),
-                        (dy(k), l.xy[0] / (nf * rho)),
-                    ]
+                .map(|a| {
+                    let ks = (0..n)
+                        .filter(|&k| self.leds[k].id / super::arrays::IDS_PER_ARRAY == a.id)
+                        .collect();
+                    (a.centre, ks)
                 })
-                .collect(),
-        ];
+                .collect()
+        } else {
+            vec![([0.0; 2], (0..n).collect())]
+        };
+        for (c, ks) in groups.iter().filter(|g| !g.1.is_empty()) {
+            let m = ks.len() as f64;
+            let (u, v) = (
+                |k: usize| self.leds[k].xy[0] - c[0],
+                |k: usize| self.leds[k].xy[1] - c[1],
+            );
+            let r = (ks.iter().map(|&k| u(k) * u(k) + v(k) * v(k)).sum::<f64>() / m)
+                .sqrt()
+                .max(1e-9);
+            rows.extend([
+                ks.iter().map(|&k| (dx(k), 1.0 / m)).collect::<Vec<_>>(),
+                ks.iter().map(|&k| (dy(k), 1.0 / m)).collect(),
+                ks.iter()
+                    .flat_map(|&k| [(dx(k), -v(k) / (m * r)), (dy(k), u(k) / (m * r))])
+                    .collect(),
+            ]);
+        }
         if self.effects.contains(&Cand::SeparationError) {
             rows.push(
                 self.leds
@@ -610,6 +708,11 @@ impl Model {
                     v.push(format!("{}.{n}@b{}", e.name(), l.id));
                 }
             }
+            for a in self.arrays.iter().filter(|_| !e.array_names().is_empty()) {
+                for n in e.array_names() {
+                    v.push(format!("{}.{n}@a{}", e.name(), a.id));
+                }
+            }
         }
         for &e in &self.effects {
             for sep in &seps[..self.nsep] {
@@ -665,9 +768,12 @@ impl Model {
         for &e in &self.effects {
             v.extend(e.steps(self.base));
             v.extend(std::iter::repeat_n(
-                1e-6,
+                e.led_step(),
                 e.led_names().len() * self.leds.len(),
             ));
+            for _ in self.arrays.iter().filter(|_| !e.array_names().is_empty()) {
+                v.extend([1e-6, 1e-6, 1e-5]);
+            }
         }
         // The per-separation blocks, in their layout order (see `local_slot`).
         for &e in &self.effects {
@@ -762,8 +868,12 @@ impl Model {
                     Base::Pinhole => head.alpha_y = head.alpha_x + rad(v[0]),
                 },
                 Cand::Saturation => fx.saturation = Some(v[0].exp()),
-                Cand::PlateOffset | Cand::SeparationError | Cand::PlateTilt | Cand::LedPosition => {
-                }
+                Cand::PlateOffset
+                | Cand::SeparationError
+                | Cand::PlateTilt
+                | Cand::LedPosition
+                | Cand::LedTilt
+                | Cand::ArrayPose => {}
             }
         }
         let pose = cta_core::emulator::Pose {
@@ -804,21 +914,42 @@ impl Model {
         View {
             ems,
             places,
-            leds: self.led_offsets(x),
+            leds: self.led_values(x),
         }
     }
 
-    /// Each LED's in-plane offset (beacon id, (dx, dy)) by `x`, by id ascending; empty
-    /// without `led_position`.
-    pub fn led_offsets(&self, x: &[f64]) -> Vec<(u32, [f64; 2])> {
-        let v = self.global_values(Cand::LedPosition, x);
-        if v.is_empty() {
+    /// Each LED's values by `x` (beacon id, (dx, dy, tx_deg, ty_deg)), by id ascending; empty
+    /// without per-LED effects.
+    /// The offset (dx, dy) is the LED's own (`led_position`) moved with its array
+    /// (`array_pose`, [`super::arrays::displacement`]).
+    pub fn led_values(&self, x: &[f64]) -> Vec<(u32, [f64; 4])> {
+        let (p, t, a) = (
+            self.global_values(Cand::LedPosition, x),
+            self.global_values(Cand::LedTilt, x),
+            self.global_values(Cand::ArrayPose, x),
+        );
+        if p.is_empty() && t.is_empty() && a.is_empty() {
             return Vec::new();
         }
+        let at = |v: &[f64], i: usize| v.get(i).copied().unwrap_or(0.0);
         self.leds
             .iter()
             .enumerate()
-            .map(|(k, l)| (l.id, [v[2 * k], v[2 * k + 1]]))
+            .map(|(k, l)| {
+                let j = 2 * k;
+                let mut d = [at(p, j), at(p, j + 1)];
+                let arr = self
+                    .arrays
+                    .iter()
+                    .position(|r| r.id == l.id / super::arrays::IDS_PER_ARRAY);
+                if let (Some(q), false) = (arr, a.is_empty()) {
+                    let pose = [a[3 * q], a[3 * q + 1], a[3 * q + 2]];
+                    let (xr, yr) = (l.xy[0] + d[0], l.xy[1] + d[1]);
+                    let m = displacement(self.arrays[q].centre, pose, xr, yr);
+                    d = [d[0] + m[0], d[1] + m[1]];
+                }
+                (l.id, [d[0], d[1], at(t, j), at(t, j + 1)])
+            })
             .collect()
     }
 
@@ -845,23 +976,29 @@ impl Model {
 pub struct View {
     ems: Vec<Emulator<f64>>,
     places: Vec<Placement>,
-    leds: Vec<(u32, [f64; 2])>,
+    leds: Vec<(u32, [f64; 4])>,
 }
 
 impl View {
     /// The true beacon position (N, in) of point `p` by the model: its recorded place moved
     /// by its LED's offset on the plate (`led_position`), then placed with the plate.
     pub fn beacon(&self, p: &PointMean) -> Vector3<f64> {
-        self.places[p.sep].beacon(&(p.r + self.led_offset(p)))
+        let v = self.led_vals(p);
+        self.places[p.sep].beacon(&(p.r + Vector3::new(v[0], v[1], 0.0)))
     }
 
-    /// The in-plane offset of point `p`'s LED on the plate (zero without `led_position`).
-    pub fn led_offset(&self, p: &PointMean) -> Vector3<f64> {
+    /// Point `p`'s LED's values: in-plane offset (dx, dy) on the plate and its boresight's
+    /// own tilt (tx_deg, ty_deg); zero without per-LED effects.
+    pub fn led_vals(&self, p: &PointMean) -> [f64; 4] {
         p.beacon
             .and_then(|id| self.leds.binary_search_by_key(&id, |l| l.0).ok())
-            .map_or_else(Vector3::zeros, |k| {
-                Vector3::new(self.leds[k].1[0], self.leds[k].1[1], 0.0)
-            })
+            .map_or([0.0; 4], |k| self.leds[k].1)
+    }
+
+    /// The model's output for point `p` were its LED's values `v` ([`View::led_vals`]).
+    pub fn output_with(&self, p: &PointMean, v: [f64; 4]) -> Option<[f64; 2]> {
+        let r = self.places[p.sep].beacon(&(p.r + Vector3::new(v[0], v[1], 0.0)));
+        crate::sim::led_emulator(&self.ems[p.sep], [v[2], v[3]]).output(&r)
     }
 
     /// The emulator of separation `k`.
@@ -871,7 +1008,7 @@ impl View {
 
     /// The model's output for point `p`.
     pub fn output(&self, p: &PointMean) -> Option<[f64; 2]> {
-        self.ems[p.sep].output(&self.beacon(p))
+        self.output_with(p, self.led_vals(p))
     }
 }
 
@@ -947,17 +1084,31 @@ impl Problem<f64> for FitProblem<'_> {
                 if let Some((k, c)) = m.led_param(i) {
                     // A per-LED parameter: only its LED's points move, and nothing else.
                     let id = m.leds[k].id;
-                    let mut step = Vector3::zeros();
-                    step[c] = h;
                     for (j, &pi) in self.subset.iter().enumerate() {
                         let p = &data.points[pi];
                         if p.beacon != Some(id) {
                             continue;
                         }
-                        let r = p.r + v0.led_offset(p) + step;
-                        let yp = v0.ems[p.sep]
-                            .output(&v0.places[p.sep].beacon(&r))
-                            .ok_or(ModelError::NonFinite)?;
+                        let mut v = v0.led_vals(p);
+                        v[c] += h;
+                        let yp = v0.output_with(p, v).ok_or(ModelError::NonFinite)?;
+                        for a in 0..2 {
+                            jm[(j * 2 + a) * nf + f] = (yp[a] - y0[j][a]) / h;
+                        }
+                    }
+                } else if let Some(q) = m.array_param(i) {
+                    // An array's pose: only its LEDs' points move.
+                    let vp = m.led_values(&xp);
+                    let id = m.arrays[q].id;
+                    for (j, &pi) in self.subset.iter().enumerate() {
+                        let p = &data.points[pi];
+                        let Some(k) = m.led_index(p.beacon) else {
+                            continue;
+                        };
+                        if m.leds[k].id / super::arrays::IDS_PER_ARRAY != id {
+                            continue;
+                        }
+                        let yp = v0.output_with(p, vp[k].1).ok_or(ModelError::NonFinite)?;
                         for a in 0..2 {
                             jm[(j * 2 + a) * nf + f] = (yp[a] - y0[j][a]) / h;
                         }
@@ -981,8 +1132,10 @@ impl Problem<f64> for FitProblem<'_> {
                         if p.sep != sep {
                             continue;
                         }
-                        let yp = em
-                            .output(&place.beacon(&(p.r + v0.led_offset(p))))
+                        let v = v0.led_vals(p);
+                        let r = place.beacon(&(p.r + Vector3::new(v[0], v[1], 0.0)));
+                        let yp = crate::sim::led_emulator(&em, [v[2], v[3]])
+                            .output(&r)
                             .ok_or(ModelError::NonFinite)?;
                         for a in 0..2 {
                             jm[(j * 2 + a) * nf + f] = (yp[a] - y0[j][a]) / h;

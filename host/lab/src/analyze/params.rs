@@ -285,7 +285,8 @@ pub(super) fn cause_params(model: &Model, c: Cand, f: &FitResult, seps: &[f64]) 
     (p, s, prop.correlations(), prop.base_correlations())
 }
 
-/// Each per-LED parameter of `c` in `model` as (`dx@bID`, index), LED by LED.
+/// Each per-LED parameter of `c` in `model` as (`dx@bID`, index), LED by LED, then the
+/// per-array ones.
 fn led_values(model: &Model, c: Cand) -> Vec<(String, usize)> {
     let own = c.global_names(model.base).len();
     let start = model.global_indices(c).start + own;
@@ -300,6 +301,27 @@ fn led_values(model: &Model, c: Cand) -> Vec<(String, usize)> {
                 .iter()
                 .enumerate()
                 .map(move |(j, n)| (format!("{n}@b{}", l.id), start + k * w + j))
+        })
+        .chain(array_values(model, c))
+        .collect()
+}
+
+/// Each per-array parameter of `c` in `model` as (`dx@aN`, index), array by array.
+fn array_values(model: &Model, c: Cand) -> Vec<(String, usize)> {
+    let start = model.global_indices(c).start
+        + c.global_names(model.base).len()
+        + c.led_names().len() * model.leds.len();
+    let w = c.array_names().len();
+    model
+        .arrays
+        .iter()
+        .enumerate()
+        .filter(|_| w > 0)
+        .flat_map(|(k, a)| {
+            c.array_names()
+                .iter()
+                .enumerate()
+                .map(move |(j, n)| (format!("{n}@a{}", a.id), start + k * w + j))
         })
         .collect()
 }

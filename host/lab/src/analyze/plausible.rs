@@ -74,6 +74,10 @@ fn alternatives(c: Cand) -> &'static str {
             "a head or plate that moved between separations (`plate_offset`), or a beacon \
              pattern that differs from LED to LED"
         }
+        Cand::ArrayPose => {
+            "LEDs off their pads one by one (`led_position`), or a head or plate that moved \
+             between separations (`plate_offset`)"
+        }
         Cand::PlateTilt => {
             "LED boresights tilted one by one (`led_tilt`) or all alike (`beacon_tilt`), or a \
              gain that drifts over the run"
@@ -114,7 +118,9 @@ pub fn check(c: Cand, params: &ParamMap, budget: &Budget, r_max: f64) -> Option<
             let h = r_max * t.to_radians().tan();
             ("Z", h, rss[2], vec![("tx_deg", tx), ("ty_deg", ty)])
         }
-        Cand::LedPosition => {
+        // The arrays' shifts against the placement lines, as the LEDs' (each array is placed
+        // on the plate as an LED is on its pads; Table 2 has no line of its own for it).
+        Cand::LedPosition | Cand::ArrayPose => {
             let (x, y) = (series(params, "dx"), series(params, "dy"));
             let (rx, ry) = (rms(&x) / rss[0], rms(&y) / rss[1]);
             if rx >= ry {

@@ -594,7 +594,9 @@ pub fn select_with_folds(
     }
 }
 
-/// Forward selection from `sel`'s current model over `pool` (module doc).
+/// Forward selection from `sel`'s current model over `pool` (module doc). Per-LED candidates
+/// are ranked as [`rank`] says, and fitted only when they could come first
+/// ([`led_ceiling`]) or when no global candidate is accepted in the round.
 fn forward(
     sel: &mut Selection,
     mut pool: Vec<Cand>,
@@ -611,42 +613,38 @@ fn forward(
             let (m, f, c) = sel.last();
             (m.clone(), f.clone(), c.clone())
         };
-        let results: Vec<(Cand, Result<Option<FitResult>, FitFailure>)> = pool
-            .par_iter()
-            .map(|&c| {
-                let r = match start(&model, c, &cur, data, &all) {
-                    None => Ok(None),
-                    Some(x0) => fit_all(&model.with(c), data, &all, &x0).map(Some),
-                };
-                progress(&format!("round {round}: {}", c.name()));
-                (c, r)
-            })
-            .collect();
         let ln_m = (cur.m as f64).ln();
-        let mut scored: Vec<(usize, FitResult)> = Vec::new();
-        for (c, r) in results {
-            let k = added_params(&model, c);
-            let mut t = Trial::unfitted(round, c, k, ln_m);
-            match r {
-                Ok(Some(f)) => {
-                    t.dchi2 = cur.chi2 - f.chi2;
-                    t.dbic = dbic(&model.with(c), c, &f, t.dchi2, k, ln_m);
-                    t.fit = Some(Box::new((model.with(c), f.clone())));
-                    scored.push((sel.trials.len(), f));
-                }
-                Ok(None) => {}
-                Err(e) => t.failure = Some(e.0),
-            }
-            sel.trials.push(t);
+        let (led, global): (Vec<Cand>, Vec<Cand>) =
+            pool.iter().partition(|c| !c.led_names().is_empty());
+        let mut scored = try_round(sel, &global, &model, &cur, data, &all, round, progress);
+        let mut led_fitted = false;
+        if !led.is_empty() && led_ceiling(&model, &led, &cur, ln_m) > global_sum(sel, &scored) {
+            scored.extend(try_round(
+                sel, &led, &model, &cur, data, &all, round, progress,
+            ));
+            led_fitted = true;
         }
-        scored.sort_by(|a, b| sel.trials[b.0].dbic.total_cmp(&sel.trials[a.0].dbic));
         let mut accepted = None;
-        for (ti, f) in scored {
-            if sel.trials[ti].dbic <= BIC_MIN {
-                break;
-            }
+        let mut tried: Vec<usize> = Vec::new();
+        loop {
+            let order = rank(sel, &scored, ln_m);
+            let next = order.iter().find(|(j, _)| !tried.contains(&scored[*j].0));
+            let Some(&(j, _)) = next else {
+                if led_fitted || led.is_empty() {
+                    break;
+                }
+                // No global candidate was accepted: the per-LED ones get their turn.
+                scored.extend(try_round(
+                    sel, &led, &model, &cur, data, &all, round, progress,
+                ));
+                led_fitted = true;
+                continue;
+            };
+            let ti = scored[j].0;
+            tried.push(ti);
             let c = sel.trials[ti].cand;
             let m2 = model.with(c);
+            let f = &scored[j].1;
             let cv = match cross_validate(&m2, data, &f.x, fold_seps) {
                 Ok(cv) => cv,
                 Err(e) => {
@@ -664,7 +662,7 @@ fn forward(
                     model: m2,
                     dchi2: sel.trials[ti].dchi2,
                     dbic: sel.trials[ti].dbic,
-                    fit: f,
+                    fit: f.clone(),
                     cv_before: cur_cv.clone(),
                     cv_after: cv,
                 });
@@ -690,6 +688,110 @@ fn forward(
             sel.untested.push((c, why));
         }
     }
+}
+
+/// Fit each of `cands` on top of `model` (its fit `cur`) in parallel, record them as trials
+/// of `round`, and return the fitted ones (trial index, fit).
+#[allow(clippy::too_many_arguments)] // one round's state, passed as the loop holds it
+fn try_round(
+    sel: &mut Selection,
+    cands: &[Cand],
+    model: &Model,
+    cur: &FitResult,
+    data: &Data,
+    all: &[usize],
+    round: usize,
+    progress: Progress,
+) -> Vec<(usize, FitResult)> {
+    let results: Vec<(Cand, Result<Option<FitResult>, FitFailure>)> = cands
+        .par_iter()
+        .map(|&c| {
+            let r = match start(model, c, cur, data, all) {
+                None => Ok(None),
+                Some(x0) => fit_all(&model.with(c), data, all, &x0).map(Some),
+            };
+            progress(&format!("round {round}: {}", c.name()));
+            (c, r)
+        })
+        .collect();
+    let ln_m = (cur.m as f64).ln();
+    let mut scored = Vec::new();
+    for (c, r) in results {
+        let k = added_params(model, c);
+        let mut t = Trial::unfitted(round, c, k, ln_m);
+        match r {
+            Ok(Some(f)) => {
+                t.dchi2 = cur.chi2 - f.chi2;
+                t.dbic = dbic(&model.with(c), c, &f, t.dchi2, k, ln_m);
+                t.fit = Some(Box::new((model.with(c), f.clone())));
+                scored.push((sel.trials.len(), f));
+            }
+            Ok(None) => {}
+            Err(e) => t.failure = Some(e.0),
+        }
+        sel.trials.push(t);
+    }
+    scored
+}
+
+/// The order in which a round's fitted candidates (`scored`, by trial index) are offered to
+/// cross-validation: (index into `scored`, rank key), best first. A candidate is eligible when
+/// its own evidence passes (`dBIC > BIC_MIN`: the random-effects view for a per-LED one), and
+/// ranked by the plain BIC, `dchi2 - k ln m`, every parameter charged. A per-LED cause comes
+/// before the global ones only when its plain BIC beats the sum of the eligible global ones'
+/// ([`global_sum`]): with hundreds of parameters it can mimic a global near-field cause LED
+/// by LED (`face_angle`, `proximity`, `saturation`), or a mix of global causes better than any
+/// one of them, so it must do better than all of them together. Otherwise it comes after
+/// them. Between two per-LED causes the better fit comes first: their random-effects ratios
+/// differ by their Occam factors, not by how well they fit.
+fn rank(sel: &Selection, scored: &[(usize, FitResult)], ln_m: f64) -> Vec<(usize, f64)> {
+    let g = global_sum(sel, scored);
+    // (tier, key): 0 a per-LED cause past every global one, 1 global, 2 per-LED after them.
+    let mut order: Vec<(usize, u8, f64)> = scored
+        .iter()
+        .enumerate()
+        .filter(|(_, (ti, _))| sel.trials[*ti].dbic > BIC_MIN)
+        .map(|(j, (ti, _))| {
+            let t = &sel.trials[*ti];
+            let plain = t.dchi2 - t.k as f64 * ln_m;
+            let tier = match (t.cand.led_names().is_empty(), plain > g) {
+                (true, _) => 1,
+                (false, true) => 0,
+                (false, false) => 2,
+            };
+            (j, tier, plain)
+        })
+        .collect();
+    order.sort_by(|a, b| a.1.cmp(&b.1).then(b.2.total_cmp(&a.2)));
+    order.into_iter().map(|(j, _, k)| (j, k)).collect()
+}
+
+/// The sum of the eligible (`dBIC > BIC_MIN`) global candidates' dBIC in `scored`: what the
+/// global causes together could gain, at most about (their gains overlap where they mimic
+/// one another).
+fn global_sum(sel: &Selection, scored: &[(usize, FitResult)]) -> f64 {
+    scored
+        .iter()
+        .map(|(ti, _)| &sel.trials[*ti])
+        .filter(|t| t.cand.led_names().is_empty() && t.dbic > BIC_MIN)
+        .map(|t| t.dbic)
+        .sum()
+}
+
+/// The best plain BIC any of the per-LED candidates `led` could reach on top of `model` (its
+/// fit `cur`, `m` residuals, `ln_m = ln m`): a fit down to the noise floor, the chi-square of
+/// its degrees of freedom five standard deviations low, less its parameters' `k ln m`. When
+/// even that is below the global candidates' [`global_sum`], the per-LED fits (the round's
+/// slowest) cannot come first and are left for a round in which no global one is accepted.
+fn led_ceiling(model: &Model, led: &[Cand], cur: &FitResult, ln_m: f64) -> f64 {
+    led.iter()
+        .map(|&c| {
+            let m2 = model.with(c);
+            let dof = (cur.m as f64 - (m2.n_params() - m2.n_constraints()) as f64).max(1.0);
+            let floor = (dof - 5.0 * (2.0 * dof).sqrt()).max(0.0);
+            cur.chi2 - floor - added_params(model, c) as f64 * ln_m
+        })
+        .fold(f64::NEG_INFINITY, f64::max)
 }
 
 /// The most redundant named cause, when one is: every cause but the last (which was just

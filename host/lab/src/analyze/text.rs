@@ -122,7 +122,7 @@ impl DroppedOut {
 /// names that carry their unit).
 pub fn unit(effect: &str, param: &str) -> &'static str {
     match (effect, param) {
-        ("proximity", "S") | ("led_position", "rms_in") => " in",
+        ("proximity", "S") | ("led_position", "rms_in") | ("array_pose", "rms_in") => " in",
         ("cell_bias", _) | ("ambient", _) | ("saturation", "S") => " /in^2",
         ("face_angle", _) => " deg",
         _ => "",
@@ -167,8 +167,10 @@ fn estimates_text(
                 )
             })
             .collect();
-        let per = if effect == "led_position" {
+        let per = if effect.starts_with("led_") {
             "per LED"
+        } else if effect == "array_pose" {
+            "per array"
         } else {
             "per separation"
         };

@@ -45,6 +45,12 @@ pub enum EffectError {
     /// A name outside the vocabulary.
     #[error("unknown effect `{0}`; known: {known}, crosstalk (simulation only)", known = VOCABULARY.join(", "))]
     Unknown(String),
+    /// An effect the sweep's simulated CTA does not simulate.
+    #[error(
+        "effect `{0}` is not simulated by the sweep's simulated CTA (it would be ignored): \
+         simulate it with `cta simulate --effect`"
+    )]
+    NotInSweep(&'static str),
     /// An effect named twice.
     #[error("effect `{name}` given twice (`{first}` and `{second}`): give each effect once")]
     Twice {
@@ -113,6 +119,18 @@ pub enum Effect {
     /// every separation: a hand-soldered LED off its pads (Ch IV Table 2, "LED placement on
     /// solder pads"). Analysis estimates one (dx, dy) per LED.
     LedPosition(f64),
+    /// `led_tilt=SIGMA`: each LED's boresight tilted by its own tilt vector (tx, ty), each
+    /// component drawn once with standard deviation SIGMA deg (seeded; a random azimuth), the
+    /// same at every separation: LEDs soldered askew one by one, unlike `beacon_tilt` (all
+    /// alike). Analysis estimates one (tx, ty) per LED.
+    LedTilt(f64),
+    /// `array_pose=SIGMA_IN[,SIGMA_DEG]`: with several arrays on the plate (the quad layout),
+    /// each array placed off its nominal place as a rigid body: shifted in the plate's plane by
+    /// (dx, dy), each drawn once with standard deviation SIGMA_IN in, and turned about its own
+    /// centre by dtheta drawn with SIGMA_DEG deg (0 when omitted), the same at every
+    /// separation: four boards mounted on the plate one by one. Analysis estimates one
+    /// (dx, dy, dtheta) per array.
+    ArrayPose(f64, f64),
     /// `crosstalk=K`: each cell picks up K times the signal of the matching cell of the other
     /// pair. NOT in the analysis vocabulary: simulation only, to test that `analyze` reports
     /// unexplained structure instead of a false name.
@@ -120,7 +138,7 @@ pub enum Effect {
 }
 
 /// The names `cta analyze` can report (every effect but `crosstalk`).
-pub const VOCABULARY: [&str; 13] = [
+pub const VOCABULARY: [&str; 15] = [
     "proximity",
     "intensity",
     "beacon_pattern",
@@ -134,6 +152,8 @@ pub const VOCABULARY: [&str; 13] = [
     "separation_error",
     "plate_tilt",
     "led_position",
+    "led_tilt",
+    "array_pose",
 ];
 
 impl Effect {
@@ -153,6 +173,8 @@ impl Effect {
             Effect::SeparationError(_) => "separation_error",
             Effect::PlateTilt(_) => "plate_tilt",
             Effect::LedPosition(_) => "led_position",
+            Effect::LedTilt(_) => "led_tilt",
+            Effect::ArrayPose(..) => "array_pose",
             Effect::Crosstalk(_) => "crosstalk",
         }
     }
@@ -266,6 +288,33 @@ impl Effect {
                 Effect::PlateTilt(v)
             }
             "led_position" => Effect::LedPosition(nonneg("led_position", nums(1, 1)?[0])?),
+            "led_tilt" => {
+                let v = nums(1, 1)?[0];
+                if !(0.0..=20.0).contains(&v) {
+                    return Err(range(
+                        "led_tilt",
+                        format!(
+                            "SIGMA = {v} must be in [0, 20] deg (the 1-sigma of each LED's tilt \
+                             per axis)"
+                        ),
+                    ));
+                }
+                Effect::LedTilt(v)
+            }
+            "array_pose" => {
+                let v = nums(1, 2)?;
+                let deg = v.get(1).copied().unwrap_or(0.0);
+                if !(0.0..=10.0).contains(&deg) {
+                    return Err(range(
+                        "array_pose",
+                        format!(
+                            "SIGMA_DEG = {deg} must be in [0, 10] deg (the 1-sigma of each \
+                             array's turn)"
+                        ),
+                    ));
+                }
+                Effect::ArrayPose(nonneg("array_pose", v[0])?, deg)
+            }
             "crosstalk" => {
                 let k = nums(1, 1)?[0];
                 if !(0.0..1.0).contains(&k) {
@@ -327,7 +376,9 @@ impl Effect {
             Effect::PlateOffset(_)
             | Effect::SeparationError(_)
             | Effect::PlateTilt(_)
-            | Effect::LedPosition(_) => {}
+            | Effect::LedPosition(_)
+            | Effect::LedTilt(_)
+            | Effect::ArrayPose(..) => {}
         }
     }
 }
@@ -345,6 +396,19 @@ pub fn check_unique(effects: &[Effect]) -> Result<(), EffectError> {
         }
     }
     Ok(())
+}
+
+/// Refuse the effects the sweep's simulated CTA (`cta sweep --sim-effect`) does not
+/// simulate: per-LED boresights (`led_tilt`) and several arrays' poses (`array_pose`) are
+/// simulated by [`crate::sim::SimConfig`] alone.
+pub fn check_sweep(effects: &[Effect]) -> Result<(), EffectError> {
+    match effects
+        .iter()
+        .find(|e| matches!(e, Effect::LedTilt(_) | Effect::ArrayPose(..)))
+    {
+        Some(e) => Err(EffectError::NotInSweep(e.name())),
+        None => Ok(()),
+    }
 }
 
 /// Parse a list of `NAME=VALUE` effects (the repeatable `--effect`), refusing an effect
@@ -383,6 +447,8 @@ fn usage(name: &str) -> &'static str {
         "separation_error" => "separation_error=SIGMA (in)",
         "plate_tilt" => "plate_tilt=SIGMA (deg)",
         "led_position" => "led_position=SIGMA (in, per LED and axis)",
+        "led_tilt" => "led_tilt=SIGMA (deg, per LED and axis)",
+        "array_pose" => "array_pose=SIGMA_IN[,SIGMA_DEG] (per array: shift in, turn deg)",
         "crosstalk" => "crosstalk=K (fraction)",
         _ => "NAME=VALUE",
     }
@@ -401,6 +467,7 @@ impl fmt::Display for Effect {
             | Effect::SeparationError(v)
             | Effect::PlateTilt(v)
             | Effect::LedPosition(v)
+            | Effect::LedTilt(v)
             | Effect::Crosstalk(v) => {
                 write!(f, "{}={v}", self.name())
             }
@@ -408,7 +475,8 @@ impl fmt::Display for Effect {
             Effect::BeaconTilt(a, b)
             | Effect::CellGain(a, b)
             | Effect::CellBias(a, b)
-            | Effect::FaceAngle(a, b) => {
+            | Effect::FaceAngle(a, b)
+            | Effect::ArrayPose(a, b) => {
                 write!(f, "{}={a},{b}", self.name())
             }
         }
@@ -440,6 +508,8 @@ mod tests {
             "separation_error=0.05",
             "plate_tilt=0.5",
             "led_position=0.004",
+            "led_tilt=3",
+            "array_pose=0.02,0.3",
             "crosstalk=0.02",
         ] {
             let e = Effect::parse(s).unwrap();
@@ -519,6 +589,8 @@ mod tests {
             ("face_angle=0,-30", "(-30, 60)"),
             ("plate_tilt=-1", "[0, 10]"),
             ("plate_tilt=20", "[0, 10]"),
+            ("led_tilt=30", "[0, 20]"),
+            ("array_pose=0.02,-0.3", "[0, 10]"),
         ] {
             let e = Effect::parse(s).unwrap_err().to_string();
             let name = s.split('=').next().unwrap();

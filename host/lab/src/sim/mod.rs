@@ -34,7 +34,7 @@ mod tests;
 mod truth;
 
 pub use files::{check_out, write_files, WriteError};
-pub use placement::{Physics, Placement};
+pub use placement::{led_emulator, ArrayPlace, Physics, Placement};
 pub use rail::rail_note;
 pub use truth::{Truth, TruthError};
 
@@ -73,6 +73,24 @@ pub enum SimError {
     /// A pitch that is not positive.
     #[error("grid pitch {0} in must be > 0")]
     Pitch(f64),
+    /// A quad layout whose spacing is not positive, or whose grid has more LEDs than an
+    /// array's 100 beacon ids.
+    #[error(
+        "quad layout (spacing {spacing} in, {beacons} LEDs per array): the spacing must be > 0 \
+         and an array at most 100 LEDs (beacon ids 100 * array + LED)"
+    )]
+    Quad {
+        /// Distance between array centres, in.
+        spacing: f64,
+        /// LEDs per array.
+        beacons: usize,
+    },
+    /// `array_pose` on one array, whose pose is the head's: nothing to simulate.
+    #[error(
+        "array_pose needs several arrays on the plate (the quad layout, `--quad SPACING`): one \
+         array's shift and turn are the head's offset and attitude"
+    )]
+    OneArray,
     /// Samples per point outside 1..=[`MAX_SAMPLES`].
     #[error("{0} samples per point: between 1 and {MAX_SAMPLES} (as in a sweep plan)")]
     Samples(usize),
@@ -187,6 +205,12 @@ const TILT_STREAM: u64 = 0x706c_6174_7469_6c74;
 /// Seed of the LED placement draws' stream ("ledplace"), XORed with the seed.
 const LED_STREAM: u64 = 0x6c65_6470_6c61_6365;
 
+/// Seed of the LED tilt draws' stream ("ledtilts"), XORed with the seed.
+const LED_TILT_STREAM: u64 = 0x6c65_6474_696c_7473;
+
+/// Seed of the array pose draws' stream ("arrposes"), XORed with the seed.
+const ARRAY_STREAM: u64 = 0x6172_7270_6f73_6573;
+
 /// What to simulate.
 #[derive(Debug, Clone)]
 pub struct SimConfig {
@@ -196,6 +220,12 @@ pub struct SimConfig {
     pub grid: (usize, usize),
     /// Grid pitch, inches.
     pub pitch: f64,
+    /// The quad layout (Ch IV: four arrays in the plate's quadrants), the distance between
+    /// neighbouring array centres in x and y, in: four copies of the grid centred at
+    /// (+/-spacing/2, +/-spacing/2), array `a` at x = -/+ for `a` even/odd and y = -/+ for
+    /// `a` below/from 2, its beacon ids `100 a + LED` (as the sweep's `quad` layout). None:
+    /// one grid on the N axis.
+    pub quad: Option<f64>,
     /// The base beacon pattern (before effects).
     pub pattern: Pattern<f64>,
     /// Far-field base physics (no proximity, no intensity) instead of the thesis physics.
@@ -229,6 +259,7 @@ impl Default for SimConfig {
             separations: (2..=30).map(f64::from).collect(),
             grid: (10, 10),
             pitch: 1.0,
+            quad: None,
             pattern: Pattern::vsml3710(),
             far_field: false,
             pose: Pose::table3(),
@@ -306,7 +337,9 @@ impl SimConfig {
             })
             .unwrap_or(0.0);
         let mut led_rng = StdRng::seed_from_u64(self.seed ^ LED_STREAM);
-        let led_offsets = (0..self.grid.0 * self.grid.1)
+        let ids = self.beacon_ids();
+        let n_ids = ids.last().map_or(0, |&i| i + 1);
+        let led_offsets = (0..n_ids)
             .map(|_| {
                 if led_sigma > 0.0 {
                     [
@@ -318,10 +351,80 @@ impl SimConfig {
                 }
             })
             .collect();
+        let tilt_sigma = self
+            .effects
+            .iter()
+            .find_map(|e| match *e {
+                Effect::LedTilt(s) => Some(s),
+                _ => None,
+            })
+            .unwrap_or(0.0);
+        let mut tilt_rng = StdRng::seed_from_u64(self.seed ^ LED_TILT_STREAM);
+        let led_tilts_deg = (0..n_ids)
+            .map(|_| {
+                if tilt_sigma > 0.0 {
+                    [
+                        rng_n(&mut tilt_rng) * tilt_sigma,
+                        rng_n(&mut tilt_rng) * tilt_sigma,
+                    ]
+                } else {
+                    [0.0; 2]
+                }
+            })
+            .collect();
+        let (pose_in, pose_deg) = self
+            .effects
+            .iter()
+            .find_map(|e| match *e {
+                Effect::ArrayPose(a, b) => Some((a, b)),
+                _ => None,
+            })
+            .unwrap_or((0.0, 0.0));
+        let mut array_rng = StdRng::seed_from_u64(self.seed ^ ARRAY_STREAM);
+        let arrays = self
+            .array_centres()
+            .into_iter()
+            .map(|centre| ArrayPlace {
+                centre,
+                pose: [
+                    rng_n(&mut array_rng) * pose_in,
+                    rng_n(&mut array_rng) * pose_in,
+                    rng_n(&mut array_rng) * pose_deg,
+                ],
+            })
+            .collect();
         Physics {
             emulator,
             geometry,
             led_offsets,
+            led_tilts_deg,
+            arrays,
+        }
+    }
+
+    /// The nominal centre of each array on the plate (one at the origin without
+    /// [`SimConfig::quad`]).
+    pub fn array_centres(&self) -> Vec<[f64; 2]> {
+        match self.quad {
+            None => vec![[0.0, 0.0]],
+            Some(spacing) => {
+                let h = spacing / 2.0;
+                (0..4)
+                    .map(|a| [if a % 2 == 0 { -h } else { h }, if a < 2 { -h } else { h }])
+                    .collect()
+            }
+        }
+    }
+
+    /// Every beacon id of the plate, ascending: the grid's LEDs in order, `100 a + LED` on
+    /// array `a` of the quad layout.
+    pub fn beacon_ids(&self) -> Vec<usize> {
+        let n = self.grid.0 * self.grid.1;
+        match self.quad {
+            None => (0..n).collect(),
+            Some(_) => (0..4)
+                .flat_map(|a| (0..n).map(move |i| 100 * a + i))
+                .collect(),
         }
     }
 
@@ -352,6 +455,17 @@ impl SimConfig {
         if !(self.pitch.is_finite() && self.pitch > 0.0) {
             return Err(SimError::Pitch(self.pitch));
         }
+        if let Some(spacing) = self.quad {
+            if !(spacing.is_finite() && spacing > 0.0) || beacons > 100 {
+                return Err(SimError::Quad { spacing, beacons });
+            }
+        } else if self
+            .effects
+            .iter()
+            .any(|e| matches!(e, Effect::ArrayPose(..)))
+        {
+            return Err(SimError::OneArray);
+        }
         if !(1..=MAX_SAMPLES).contains(&self.samples) {
             return Err(SimError::Samples(self.samples));
         }
@@ -364,6 +478,7 @@ impl SimConfig {
         if !(0.0..=MAX_LED_BRIGHTNESS).contains(&self.led_brightness) {
             return Err(SimError::LedBrightness(self.led_brightness));
         }
+        let beacons = beacons * self.array_centres().len();
         let reports = (self.separations.len() as u128) * (beacons as u128) * (self.samples as u128);
         if reports > MAX_REPORTS as u128 {
             return Err(SimError::TooManyReports {
@@ -386,7 +501,7 @@ impl SimConfig {
             return Err(SimError::Nothing {
                 skipped: truth.skipped_points,
                 separations: self.separations.len(),
-                beacons: self.grid.0 * self.grid.1,
+                beacons: self.beacon_ids().len(),
                 span: span(&self.separations),
                 effects: truth.effects.join(" "),
             });
@@ -406,7 +521,9 @@ impl SimConfig {
         // The magnitude noise has its own stream: turning it on leaves x and y as they were.
         let mut mag_rng = StdRng::seed_from_u64(self.seed ^ MAGNITUDE_STREAM);
         let mag_sigma = self.magnitude_noise / 100.0;
-        let n = self.grid.0 * self.grid.1;
+        let ids = self.beacon_ids();
+        let centres = self.array_centres();
+        let n = ids.len();
         let bright = led_brightness(self.seed, self.led_brightness, n);
         let mut samples = Vec::with_capacity(
             self.separations
@@ -419,9 +536,15 @@ impl SimConfig {
         for (k, &sep) in self.separations.iter().enumerate() {
             let place = phys.geometry[k];
             let em = place.emulator(em);
-            for (i, brightness) in bright.iter().enumerate() {
-                let nominal = grid_position_xy(self.grid, self.pitch, sep, i);
+            for (&i, brightness) in ids.iter().zip(&bright) {
+                let (c, led) = match self.quad {
+                    None => ([0.0; 2], i),
+                    Some(_) => (centres[i / 100], i % 100),
+                };
+                let nominal = grid_position_xy(self.grid, self.pitch, sep, led)
+                    + Vector3::new(c[0], c[1], 0.0);
                 let truth = phys.beacon(k, i, &nominal);
+                let em = phys.led_emulator(i, &em);
                 let Some(out) = em.output(&truth) else {
                     skipped += 1;
                     continue;
@@ -477,6 +600,21 @@ impl SimConfig {
             plate_tilts_deg: phys.geometry.iter().map(|g| g.tilt_deg).collect(),
             led_offsets: if phys.led_offsets.iter().any(|d| d != &[0.0, 0.0]) {
                 phys.led_offsets.clone()
+            } else {
+                Vec::new()
+            },
+            led_tilts_deg: if phys.led_tilts_deg.iter().any(|d| d != &[0.0, 0.0]) {
+                phys.led_tilts_deg.clone()
+            } else {
+                Vec::new()
+            },
+            array_centres: if centres.len() > 1 {
+                centres.clone()
+            } else {
+                Vec::new()
+            },
+            array_poses: if phys.arrays.iter().any(|a| a.pose != [0.0; 3]) {
+                phys.arrays.iter().map(|a| a.pose).collect()
             } else {
                 Vec::new()
             },

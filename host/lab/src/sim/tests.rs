@@ -403,3 +403,46 @@ fn a_tilted_plate_turns_about_its_centre() {
         assert!(!a.tilted() && b.tilted());
     }
 }
+
+/// The quad layout: four copies of the grid at (+/-6, +/-6) in, ids `100 a + LED`; each
+/// array moved by its pose, recorded in the truth; `array_pose` on one array is refused, and
+/// the sweep's simulated CTA refuses what it would ignore.
+#[test]
+fn quad_arrays_are_placed_by_their_poses() {
+    let cfg = SimConfig {
+        separations: vec![30.0],
+        quad: Some(12.0),
+        effects: vec![Effect::parse("array_pose=0.02,0.3").unwrap()],
+        ..SimConfig::default()
+    };
+    let phys = cfg.physics();
+    let (ds, truth) = cfg.run();
+    assert_eq!(
+        truth.array_centres,
+        [[-6.0, -6.0], [6.0, -6.0], [-6.0, 6.0], [6.0, 6.0]]
+    );
+    assert_eq!(truth.array_poses.len(), 4);
+    let s = ds.samples.iter().find(|s| s.beacon == Some(311)).unwrap();
+    // LED 11 of a 10 x 10 grid: column 1, row 1, at (-3.5, -3.5) from its array's centre.
+    assert_eq!([s.r[0], s.r[1]], [2.5, 2.5]);
+    // Its true place: turned about (6, 6) by dtheta (counter-clockwise), then shifted.
+    let [dx, dy, dt] = truth.array_poses[3];
+    let (sn, cs) = dt.to_radians().sin_cos();
+    let want = [
+        6.0 + cs * -3.5 - sn * -3.5 + dx,
+        6.0 + sn * -3.5 + cs * -3.5 + dy,
+    ];
+    let r = phys.beacon(0, 311, &nalgebra::Vector3::new(2.5, 2.5, 30.0));
+    assert!(
+        (r.x - want[0]).abs() < 1e-12 && (r.y - want[1]).abs() < 1e-12,
+        "{r}"
+    );
+    assert!(dt != 0.0 && dx != 0.0);
+    let one = SimConfig {
+        quad: None,
+        ..cfg.clone()
+    };
+    assert_eq!(one.check(), Err(SimError::OneArray));
+    let e = crate::sim::effects::check_sweep(&cfg.effects).unwrap_err();
+    assert!(e.to_string().contains("array_pose"), "{e}");
+}

@@ -49,6 +49,19 @@ pub struct Truth {
     /// (`led_position`); absent when every LED sits on its place.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub led_offsets: Vec<[f64; 2]>,
+    /// Per LED (by beacon id): its boresight's own tilt vector (tx, ty), deg (`led_tilt`);
+    /// absent when no LED is tilted.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub led_tilts_deg: Vec<[f64; 2]>,
+    /// Per array on the plate (the quad layout, array `a` holding beacon ids `100 a` to
+    /// `100 a + 99`): its nominal centre (x, y), in; absent with one array.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub array_centres: Vec<[f64; 2]>,
+    /// Per array: where it truly sits against its nominal place (`array_pose`): shift
+    /// (dx, dy) in and turn dtheta deg about its centre (counter-clockwise seen from the
+    /// sensor's +z); absent when every array sits on its place.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub array_poses: Vec<[f64; 3]>,
     /// Recorded separations, in.
     pub separations: Vec<f64>,
     /// Noise 1-sigma, counts.

@@ -874,6 +874,7 @@ impl SimCta {
             .map(|s| Effect::parse(s).map_err(|e| Error::Refused(format!("--sim-effect {s}: {e}"))))
             .collect::<Result<Vec<_>>>()?;
         crate::sim::effects::check_unique(&effects)
+            .and_then(|_| crate::sim::effects::check_sweep(&effects))
             .map_err(|e| Error::Refused(format!("--sim-effect: {e}")))?;
         if !(settings.noise.is_finite() && settings.noise >= 0.0) {
             bail!(
