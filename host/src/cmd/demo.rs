@@ -319,21 +319,52 @@ fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> 
     let calibration = serde_json::from_str::<cta_core::pose::Calibration>(&text)
         .with_context(|| format!("{}", cal.display()))?;
     let noise = calibration.noise;
-    // What becomes of the spot magnitudes on the simulated board.
+    let truth = cta_lab::sim::Truth::path_for(&run_dir.join("data.csv"));
+    // The simulated board's own scene, as `cta sensor sim --truth` takes it by default.
+    let scene = cta_lab::pose::head::SimScene {
+        truth: Some(truth.clone()),
+        ..Default::default()
+    };
+    // What becomes of the spot magnitudes on the simulated board: its NorthStar reads them by
+    // the same law as the sweep's (`cta_core::magnitude_law`), so those within cal.json's law
+    // are fitted with the spots.
     let magnitudes = match calibration.magnitude {
-        Some(m) => format!(
-            " The pose report's `mag` column counts the spot magnitudes fitted: none here. \
-             cal.json's magnitude law holds the readings it was fitted on, {:.0} to {:.0} counts \
-             (the simulated sweep's NorthStar, whose scale mimics the real one's 5000-65535); the \
-             simulated board's are on a scale of its own, a few hundred counts at 12 in, below \
-             the law's range, so its poses use the spots alone.",
-            m.min, m.max
-        ),
+        Some(m) => {
+            let ns = scene.try_northstar()?;
+            let law = cta_core::magnitude_law::reading(
+                1.0,
+                cta_core::magnitude_law::signal_at_30(&ns.physics),
+                ns.power_level,
+                ns.sensitivity,
+            );
+            let spots = cta_core::pose::simulate_spots_scaled(
+                &ns.physics,
+                &ns.constellation,
+                &ns.t,
+                &ns.q,
+                law,
+                |_| 0.0,
+                |_| 0.0,
+            );
+            let read: Vec<f32> = spots.iter().map(|s| f32::from(s.magnitude)).collect();
+            let used = read.iter().filter(|&&r| r >= m.min && r < m.max).count();
+            let (lo, hi) = read.iter().fold((f32::INFINITY, 0.0f32), |(lo, hi), &r| {
+                (lo.min(r), hi.max(r))
+            });
+            format!(
+                " Its NorthStar reads the spot magnitudes by the sweep's law (power level {}, \
+                 sensitivity {}): {lo:.0} to {hi:.0} counts for the {} spots, {used} within \
+                 cal.json's magnitude law ({:.0} to {:.0} counts), so the pose report's `mag` \
+                 column shows {used} magnitudes fitted with the spots.",
+                ns.power_level,
+                ns.sensitivity,
+                read.len(),
+                m.min,
+                m.max
+            )
+        }
         None => String::new(),
     };
-    let truth = cta_lab::sim::Truth::path_for(&run_dir.join("data.csv"));
-    // The simulated board's own scene, as `cta sensor sim` takes it by default.
-    let scene = cta_lab::pose::head::SimScene::default();
     let [x, y] = scene.offset;
     let hidden = hidden_effect_words(effect);
     Ok(format!(
