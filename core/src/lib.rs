@@ -25,6 +25,7 @@ pub mod collinearity;
 pub mod crystal;
 pub mod emulator;
 pub mod glsdc;
+pub mod magnitude_law;
 pub mod mrp;
 pub mod nearfield2d;
 pub mod pattern;

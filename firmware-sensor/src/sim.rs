@@ -18,7 +18,8 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use cta_core::emulator::{Effects, Emulator, Head, Pose as HeadPose};
-use cta_core::pose::{simulate_spots_with, Calibration, Constellation};
+use cta_core::magnitude_law;
+use cta_core::pose::{simulate_spots_scaled, Calibration, Constellation};
 #[cfg(unix)]
 use cta_core::wire::ResetCause;
 use nalgebra::Vector3;
@@ -61,6 +62,9 @@ pub struct SimNorthStar {
     pub rate_hz: u8,
     /// Sensitivity setting (set by the board's command; echoed in the frames).
     pub sensitivity: u8,
+    /// The beacons' power level (the array's slide switches: 1 = 1 kOhm, 2 = 360 Ohm; 2 by
+    /// default), for the magnitude law.
+    pub power_level: u8,
     seq: u8,
     rng: StdRng,
     /// The magnitude noise's own stream.
@@ -97,6 +101,7 @@ impl SimNorthStar {
             wrong_id: 0.0,
             rate_hz: 10,
             sensitivity: 4,
+            power_level: 2,
             seq: 0,
             rng: StdRng::seed_from_u64(seed),
             magnitude_rng: StdRng::seed_from_u64(seed ^ MAGNITUDE_STREAM),
@@ -110,11 +115,19 @@ impl SimNorthStar {
         let mag_normal =
             Normal::new(0.0, self.magnitude_noise.max(0.0) / 100.0).expect("finite sigma");
         let (rng, mag_rng) = (&mut self.rng, &mut self.magnitude_rng);
-        let mut spots = simulate_spots_with(
+        // The NorthStar's magnitude law, counts per 1/in^2 at the current settings.
+        let scale = magnitude_law::reading(
+            1.0,
+            magnitude_law::signal_at_30(&self.physics),
+            self.power_level,
+            self.sensitivity,
+        );
+        let mut spots = simulate_spots_scaled(
             &self.physics,
             &self.constellation,
             &self.t,
             &self.q,
+            scale,
             |_| normal.sample(rng),
             |_| mag_normal.sample(mag_rng),
         );
@@ -376,16 +389,68 @@ mod tests {
         out
     }
 
+    /// The NorthStar reads the magnitude law of every simulator (`cta_core::magnitude_law`):
+    /// each spot the law's counts of its signal, scaled by the power level and the
+    /// sensitivity in force (0.36 at level 1; each step down halves it).
+    #[test]
+    fn the_magnitudes_follow_the_law_and_the_settings() {
+        let t = Vector3::new(0.2, -0.1, 12.0);
+        let q = Vector3::new(0.0, 0.0, 0.01);
+        let mut ns = SimNorthStar::new(&Calibration::table3(), cta_constellation(), t, q, 0.0, 5);
+        let at_30 = magnitude_law::signal_at_30(&ns.physics);
+        let signals: Vec<f64> = {
+            let ct = cta_core::mrp::dcm(&q).transpose();
+            let em = ns
+                .physics
+                .with_boresight(&(ct * Vector3::new(0.0, 0.0, -1.0)));
+            ns.constellation
+                .beacons
+                .iter()
+                .map(|b| {
+                    let r = Vector3::new(b.r[0] as f64, b.r[1] as f64, b.r[2] as f64);
+                    em.magnitude(&(t + ct * r))
+                })
+                .collect()
+        };
+        for (power, sensitivity) in [(1, 4), (2, 3), (1, 2)] {
+            ns.power_level = power;
+            ns.sensitivity = sensitivity;
+            let m: Vec<u16> = frames(&mut ns, 1)[0]
+                .spots
+                .iter()
+                .map(|s| s.magnitude)
+                .collect();
+            let law: Vec<u16> = signals
+                .iter()
+                .map(|&s| {
+                    magnitude_law::counts(magnitude_law::reading(s, at_30, power, sensitivity))
+                })
+                .collect();
+            assert_eq!(m, law, "power {power}, sensitivity {sensitivity}");
+        }
+        // At 12 in, power level 1, sensitivity 4: tens of thousands of counts, unsaturated.
+        ns.power_level = 1;
+        ns.sensitivity = 4;
+        let f = frames(&mut ns, 1);
+        assert!(
+            f[0].spots
+                .iter()
+                .all(|s| (20_000..60_000).contains(&s.magnitude)),
+            "{f:?}"
+        );
+    }
+
     /// The magnitude noise scatters the magnitudes by the percentage asked for, from a
     /// stream of its own: the coordinates are those of the same NorthStar without it.
     #[test]
     fn magnitude_noise_has_its_own_stream() {
-        // At 3 in the inner beacons' magnitudes are thousands of counts: their rounding is
-        // negligible.
-        let t = Vector3::new(0.2, -0.1, 3.0);
+        // At 12 in, power level 1, the magnitudes are tens of thousands of counts, below
+        // saturation: their rounding is negligible.
+        let t = Vector3::new(0.2, -0.1, 12.0);
         let q = Vector3::new(0.0, 0.0, 0.01);
         let cal = Calibration::table3();
         let mut quiet = SimNorthStar::new(&cal, cta_constellation(), t, q, 32.768, 5);
+        quiet.power_level = 1;
         let mut noisy = quiet.clone();
         noisy.magnitude_noise = 1.0;
         let (a, b) = (frames(&mut quiet, 200), frames(&mut noisy, 200));
@@ -394,7 +459,12 @@ mod tests {
             assert_eq!(a.spots.len(), b.spots.len());
             for (a, b) in a.spots.iter().zip(&b.spots) {
                 assert_eq!((a.id, a.x, a.y), (b.id, b.x, b.y));
-                if a.magnitude > 2000 {
+                assert!(
+                    a.magnitude > 2000 && a.magnitude < 60_000,
+                    "{}",
+                    a.magnitude
+                );
+                {
                     rel.push(b.magnitude as f64 / a.magnitude as f64 - 1.0);
                 }
             }

@@ -373,7 +373,15 @@ fn demo_runs_end_to_end() {
         stdout,
         String::from_utf8_lossy(&o.stderr)
     );
+    // One screen: a line per step, the files, the rehearsal; the details in logs/.
+    assert!(stdout.lines().count() <= 25, "{stdout}");
     assert!(stdout.contains("named: cell_gain"), "{stdout}");
+    let log = |n: &str| std::fs::read_to_string(out.join("logs").join(n)).unwrap();
+    assert!(log("7-analyze.txt").contains("named: cell_gain"));
+    assert!(
+        log("3-sweep.txt").contains("1400/1400 points") && stdout.contains("1400 ok"),
+        "{stdout}"
+    );
     assert!(
         stdout.contains("on the sensor board: the board's calibration holds it (gx, gy)"),
         "{stdout}"
@@ -386,10 +394,11 @@ fn demo_runs_end_to_end() {
     // The board's calibration holds it: `cta calibrate` does not warn (the pinhole `cta fit`
     // at 20-30 in does, pointing at `cta analyze`, which names it).
     assert!(
-        !stdout.contains("the chip's near-field model (d, p"),
+        !log("6-calibrate.txt").contains("the chip's near-field model (d, p"),
         "{stdout}"
     );
-    assert!(stdout.contains("the pinhole model (eq 65: d, p, H) cannot represent"));
+    assert!(log("4-fit.txt").contains("the pinhole model (eq 65: d, p, H) cannot represent"));
+    assert!(stdout.contains("1 warning(s)"), "{stdout}");
     for f in [
         "nearfield.svg",
         "uncertainty.svg",
@@ -400,6 +409,9 @@ fn demo_runs_end_to_end() {
         "run/data.csv",
         "report/index.html",
         "index.html",
+        "logs/1-nearfield.txt",
+        "logs/2-uncertainty.txt",
+        "logs/5-figure57.txt",
     ] {
         assert!(out.join(f).exists(), "{f} missing");
     }

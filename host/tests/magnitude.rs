@@ -1,5 +1,6 @@
-//! `cta calibrate`'s spot magnitude law end to end: from `cta simulate` magnitudes (the summed
-//! cell signal times each LED's brightness, with noise) to the calibration file the board
+//! `cta calibrate`'s spot magnitude law end to end: from `cta simulate` magnitudes (the
+//! NorthStar's magnitude law, counts: the summed cell signal times each LED's brightness, with
+//! noise) to the calibration file the board
 //! loads, `--no-magnitude`, and a file without magnitudes.
 
 use std::process::Output;
@@ -50,13 +51,15 @@ fn calibrate_measures_a_simulated_law_and_the_leds_brightness() {
     let f = |v: &serde_json::Value| v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"));
     let law = &m["law"];
     let (g, gs) = (f(&law["exponent"]), f(&m["exponent_sigma"]));
+    // Fitted on 16-30 in: nearer, the law's readings saturate (power level 2, sensitivity 4).
     assert!(
-        (g - 1.0).abs() < 4.0 * gs && gs < 2e-4,
+        (g - 1.0).abs() < 4.0 * gs && gs < 5e-4,
         "exponent {g} +/- {gs}"
     );
-    // The magnitudes are S (about 0.003 at 30 in): an offset of 1e-5 would be 0.3 % there.
-    let o = f(&law["offset"]);
-    assert!(o < 1e-5, "offset {o}: {m}");
+    // The magnitudes are counts (about 20000 on the axis at 30 in): an offset of 60 counts
+    // would be 0.3 % there.
+    let (o, os) = (f(&law["offset"]), f(&m["offset_sigma"]));
+    assert!(o.abs() < 4.0 * os && os < 60.0, "offset {o} +/- {os}: {m}");
     let noise = f(&law["noise_percent"]);
     assert!((noise / 0.2 - 1.0).abs() < 0.15, "noise {noise} %");
     assert_eq!(law["sensitivity"], 4);

@@ -220,6 +220,8 @@ fn protocol_and_pose_over_a_pty() {
 fn a_magnitude_law_is_fitted_at_its_sensitivity_only() {
     let (mut ns, t, _) = scene(10.0, 0.0);
     ns.magnitude_noise = 0.07;
+    // The magnitude law's readings at 10 in: below saturation at power level 1.
+    ns.power_level = 1;
     let sim = SimBoard::spawn(ns).unwrap();
     let mut l = connect(&sim);
     let cal = Calibration {

@@ -1155,3 +1155,84 @@ fn the_simulated_ctas_real_time_is_kept_on_resume() {
         last_session(&run)
     );
 }
+
+/// A plan's `[metadata]` is journalled with each session's plan, in the manifest and in
+/// `--status`; a resume may bring it up to date (a note says what changed), the earlier
+/// session keeping the metadata it ran under, and the data are those of an unchanged run.
+#[test]
+fn metadata_is_journalled_shown_and_may_change_on_resume() {
+    let d = TestDir::new("sweep-checks-metadata");
+    let first =
+        "[metadata]\noperator = \"A. Lab\"\nsensor_serial = \"NS-0412\"\ntemperature_c = 21.5\n";
+    let plan = write_plan(&d, &format!("{PLAN}{first}"));
+    let run = d.join("run");
+    let s = sweep::sweep(&SweepOptions {
+        no_sync: true,
+        sim_seed: Some(5),
+        ..sweep_args(&plan, &run)
+    })
+    .unwrap();
+    assert_eq!(s.ending, Ending::Complete);
+    let full = read(&run.join("data.csv"));
+    let manifest = |run: &Path| -> serde_json::Value {
+        serde_json::from_str(&read(&run.join("manifest.json"))).unwrap()
+    };
+    let m = manifest(&run);
+    assert_eq!(m["metadata"]["sensor_serial"], "NS-0412");
+    assert_eq!(m["metadata"]["temperature_c"], 21.5);
+    assert_eq!(m["plan"]["metadata"], m["metadata"]);
+    let st = sweep::status::status(&run).unwrap();
+    assert!(
+        st.render().contains(
+            "  metadata: operator = \"A. Lab\", sensor_serial = \"NS-0412\", temperature_c = 21.5\n"
+        ),
+        "{}",
+        st.render()
+    );
+    assert_eq!(st.to_json()["plan"]["metadata"]["operator"], "A. Lab");
+
+    // Stopped at point 20; the afternoon shift resumes, warmer.
+    crash_after(&run, 20);
+    let second = first.replace("A. Lab", "B. Lab").replace("21.5", "23.0");
+    std::fs::write(run.join("plan.toml"), format!("{PLAN}{second}")).unwrap();
+    assert_eq!(resume(&run).unwrap().ending, Ending::Complete);
+    let session = last_session(&run);
+    assert!(
+        session.contains(
+            "plan.toml: [metadata] changed since the last session (as recorded in journal.jsonl): \
+             `operator`: \\\"A. Lab\\\" -> \\\"B. Lab\\\"; `temperature_c`: 21.5 -> 23.0; it \
+             describes the run"
+        ) && session.contains("\"temperature_c\":23.0"),
+        "{session}"
+    );
+    // The measured values as an uninterrupted run's (the clock columns aside).
+    assert_eq!(
+        without_clock(&read(&run.join("data.csv"))),
+        without_clock(&full)
+    );
+    let m = manifest(&run);
+    assert_eq!(m["metadata"]["operator"], "B. Lab");
+    let sessions: Vec<&serde_json::Value> = m["sessions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|s| s["plan"].is_object())
+        .collect();
+    assert_eq!(sessions.len(), 2);
+    assert_eq!(sessions[0]["plan"]["metadata"]["operator"], "A. Lab");
+    assert_eq!(sessions[1]["plan"]["metadata"]["operator"], "B. Lab");
+
+    // With another change, the metadata is named among what alone would be accepted.
+    crash_after(&run, 25);
+    std::fs::write(
+        run.join("plan.toml"),
+        format!("{}{first}", PLAN.replace("samples = 4", "samples = 5")),
+    )
+    .unwrap();
+    let e = resume(&run).unwrap_err();
+    assert!(
+        e.contains("`samples`: 4 -> 5")
+            && e.contains("(the change of `metadata` alone would be accepted)"),
+        "{e}"
+    );
+}

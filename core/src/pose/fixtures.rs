@@ -42,6 +42,23 @@ pub fn simulate_spots_with<T: Real>(
     con: &Constellation,
     t: &Vector3<T>,
     q: &Vector3<T>,
+    noise: impl FnMut(usize) -> T,
+    mag_noise: impl FnMut(usize) -> T,
+) -> Vec<Spot, MAX_BEACONS> {
+    simulate_spots_scaled(em, con, t, q, SIM_MAGNITUDE_SCALE, noise, mag_noise)
+}
+
+/// [`simulate_spots_with`] with the magnitude `scale` (counts per 1/in^2 of summed cell
+/// signal) given: the simulated board's NorthStar passes the magnitude law's
+/// ([`crate::magnitude_law::reading`] of a unit signal), which saturates nearer than this
+/// module's fixture scale. The reading is rounded and saturated as the law says
+/// ([`crate::magnitude_law::counts`]).
+pub fn simulate_spots_scaled<T: Real>(
+    em: &Emulator<T>,
+    con: &Constellation,
+    t: &Vector3<T>,
+    q: &Vector3<T>,
+    scale: f64,
     mut noise: impl FnMut(usize) -> T,
     mut mag_noise: impl FnMut(usize) -> T,
 ) -> Vec<Spot, MAX_BEACONS> {
@@ -55,9 +72,9 @@ pub fn simulate_spots_with<T: Real>(
         let x = y[0] + noise(k);
         let yy = y[1] + noise(k + 1);
         let m = em.magnitude(&rn)
-            * T::lit(SIM_MAGNITUDE_SCALE * b.brightness as f64)
+            * T::lit(scale * b.brightness as f64)
             * (T::one() + mag_noise(out.len()));
-        let mag = libm::round(m.to_f64().clamp(0.0, 65535.0)) as u16;
+        let mag = crate::magnitude_law::counts(m.to_f64());
         let _ = out.push(Spot {
             id: b.id,
             x: crate::emulator::saturate_i16(x),

@@ -120,8 +120,8 @@ pub use config::{
 };
 pub use fixtures::{
     attitude_xyz, benchmark_frames, benchmark_frames_of, cold_frames_of, cta_constellation,
-    flat_constellation, four_array_constellation, mislabel, simulate_spots, simulate_spots_with,
-    BenchmarkFrames, SIM_MAGNITUDE_SCALE,
+    flat_constellation, four_array_constellation, mislabel, simulate_spots, simulate_spots_scaled,
+    simulate_spots_with, BenchmarkFrames, SIM_MAGNITUDE_SCALE,
 };
 pub use magnitude::MAGNITUDE_RMS_SIGMAS;
 pub use obs::Obs;

@@ -3,6 +3,7 @@
 use crate::args::{Profile, WeightsArg};
 use crate::cmd::analyze::{AnalyzeArgs, Base, Weights};
 use crate::cmd::calibrate::CalibrateArgs;
+use crate::cmd::capture;
 use crate::cmd::evaluate::EvaluateArgs;
 use crate::cmd::fit::FitArgs;
 use crate::cmd::nearfield::NearfieldArgs;
@@ -44,8 +45,9 @@ const DEMO_README_HEAD: &str = "written by `cta demo`: `cta demo --force` delete
 
 /// What the demo writes into its folder: `--force` deletes a folder holding only these, with
 /// [`DEMO_README`].
-const DEMO_ENTRIES: [&str; 11] = [
+const DEMO_ENTRIES: [&str; 12] = [
     DEMO_README,
+    LOGS,
     "nearfield.svg",
     "uncertainty.svg",
     "plan.toml",
@@ -56,6 +58,20 @@ const DEMO_ENTRIES: [&str; 11] = [
     "calibration.svg",
     "report",
     "index.html",
+];
+
+/// The folder of the steps' full reports, one file each ([`LOG_FILES`]).
+const LOGS: &str = "logs";
+
+/// The steps' reports in [`LOGS`], in order.
+const LOG_FILES: [&str; 7] = [
+    "1-nearfield.txt",
+    "2-uncertainty.txt",
+    "3-sweep.txt",
+    "4-fit.txt",
+    "5-figure57.txt",
+    "6-calibrate.txt",
+    "7-analyze.txt",
 ];
 
 /// The demo's plots, each with what it claims: the captions of its `index.html`.
@@ -145,83 +161,173 @@ pub fn run(a: &DemoArgs) -> Result<()> {
              top-level README.md):\nnearfield.svg, uncertainty.svg: Ch II errors and Ch IV budget\n\
              plan.toml, run/: the simulated sweep\nfit.json, figure57.svg: the 20-30 in \
              calibration and Figure 57\ncal.json, calibration.svg: the sensor board's \
-             calibration\nreport/index.html: cta analyze's report\nindex.html: every plot with its caption\n"
+             calibration\nreport/index.html: cta analyze's report\nindex.html: every plot with its caption\n\
+             logs/: each step's full report, as the command prints it\n"
         )
         .as_bytes(),
     )
     .map_err(anyhow::Error::msg)?;
-    println!("== 1. Ch II: near-field errors (2-D)");
-    crate::cmd::nearfield::run(&NearfieldArgs {
-        alpha: 30.0,
-        theta: "6,18,30,45".into(),
-        noise_deg: 0.1,
-        profile: Profile::Lambertian,
-        half_angle: 60.0,
-        diameter_in: 0.35,
-        plot: Some(p("nearfield.svg")),
-        json: false,
+    let logs = p(LOGS);
+    std::fs::create_dir_all(&logs).with_context(|| format!("{}", logs.display()))?;
+    let log = |n: &str| logs.join(n);
+    // Each step prints its full report into its log; the terminal gets one line per step.
+    let step = |n: &str, f: &dyn Fn() -> Result<()>| capture::to_file(&log(n), f);
+    let mut summary = vec![format!(
+        "cta demo: the main job on the simulated CTA, hidden effect `{}`, seed {}; in {}",
+        a.effect,
+        a.seed,
+        a.out.display()
+    )];
+
+    step("1-nearfield.txt", &|| {
+        crate::cmd::nearfield::run(&NearfieldArgs {
+            alpha: 30.0,
+            theta: "6,18,30,45".into(),
+            noise_deg: 0.1,
+            profile: Profile::Lambertian,
+            half_angle: 60.0,
+            diameter_in: 0.35,
+            plot: Some(p("nearfield.svg")),
+            json: false,
+        })
     })?;
-    println!("\n== 2. Ch IV: CTA uncertainty");
-    crate::cmd::uncertainty::run(&UncertaintyArgs {
-        budget: None,
-        diameter_in: 0.35,
-        plot: Some(p("uncertainty.svg")),
-        json: false,
+    summary
+        .push(" 1. Ch II near-field errors (2-D, 0.1 deg noise, D 0.35 in): nearfield.svg".into());
+    step("2-uncertainty.txt", &|| {
+        crate::cmd::uncertainty::run(&UncertaintyArgs {
+            budget: None,
+            diameter_in: 0.35,
+            plot: Some(p("uncertainty.svg")),
+            json: false,
+        })
     })?;
+    let rss = capture::line_with(&log("2-uncertainty.txt"), "root-sum-square")
+        .map(|l| {
+            let v: Vec<&str> = l.split_whitespace().skip(1).collect();
+            format!(
+                ": X {} Y {} Z {} mils",
+                v.first().unwrap_or(&"?"),
+                v.get(2).unwrap_or(&"?"),
+                v.get(4).unwrap_or(&"?")
+            )
+        })
+        .unwrap_or_default();
+    summary.push(format!(
+        " 2. Ch IV CTA uncertainty (Table 2){rss}: uncertainty.svg"
+    ));
+
     let run_dir = p("run");
     let plan = p("plan.toml");
     std::fs::write(&plan, DEMO_PLAN).with_context(|| format!("{}", plan.display()))?;
-    println!(
-        "\n== 3. Ch VI: an unattended sweep of the simulated CTA (both boards on pseudo-terminals), \
-         4-30 in, noise 0.1 % of beta for a strong spot (growing as a spot dims, about 50 counts at 30 in), spot magnitudes \
-         scattering 0.07 % (what that noise implies if both come from the cells), hidden effect `{}`",
-        a.effect
-    );
-    crate::cmd::sweep::run(&SweepArgs {
-        plan: Some(plan.clone()),
-        out: Some(run_dir.clone()),
-        sim: true,
-        sim_noise: Some(32.8),
-        sim_magnitude_noise: Some(0.07),
-        sim_effect: vec![a.effect.clone()],
-        sim_seed: Some(a.seed),
-        yes: true,
-        ..SweepArgs::default()
+    step("3-sweep.txt", &|| {
+        println!(
+            "An unattended sweep of the simulated CTA (both boards on pseudo-terminals), 4-30 in, \
+             noise 0.1 % of beta for a strong spot (growing as a spot dims, about 50 counts at 30 \
+             in), spot magnitudes scattering 0.07 % (what that noise implies if both come from \
+             the cells), hidden effect `{}`",
+            a.effect
+        );
+        crate::cmd::sweep::run(&SweepArgs {
+            plan: Some(plan.clone()),
+            out: Some(run_dir.clone()),
+            sim: true,
+            sim_noise: Some(32.8),
+            sim_magnitude_noise: Some(0.07),
+            sim_effect: vec![a.effect.clone()],
+            sim_seed: Some(a.seed),
+            yes: true,
+            ..SweepArgs::default()
+        })
     })?;
-    let data = run_dir.join("data.csv");
-    println!("\n== 4. Ch V: calibrate the pinhole model at 20-30 in (thesis recommendation)");
-    let fit = p("fit.json");
-    crate::cmd::fit::run(&FitArgs {
-        file: data.clone(),
-        separations: Some("20..30:2".into()),
-        weights: WeightsArg::Pooled,
-        save: Some(fit.clone()),
-        force: false,
-        drop_glitches: false,
-        json: false,
-    })?;
-    println!("\n== 5. Figure 57: error in angle of that calibration at every separation");
-    crate::cmd::evaluate::run(&EvaluateArgs {
-        fit,
-        file: data.clone(),
-        separations: None,
-        head: None,
-        budget: None,
-        without_rail: false,
-        drop_glitches: false,
-        plot: Some(p("figure57.svg")),
-        json: false,
-    })?;
-    println!(
-        "\n== 6. The sensor board's calibration from the sweep (pinhole, then the chip's near-field model)"
-    );
-    let cal = p("cal.json");
-    crate::cmd::calibrate::run(&calibrate_args(&data, &cal, &p("calibration.svg")))?;
+    let points = std::fs::read_to_string(run_dir.join("manifest.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .map(|m| {
+            let n = |k: &str| m["points"][k].as_u64().unwrap_or(0);
+            format!(
+                "{} points ({} ok, {} no signal, {} partial), {} samples",
+                n("total"),
+                n("ok"),
+                n("no_signal"),
+                n("partial"),
+                m["samples"].as_u64().unwrap_or(0)
+            )
+        })
+        .unwrap_or_default();
+    summary.push(format!(
+        " 3. Ch VI sweep of the simulated CTA, 4-30 in: {points}: run/data.csv"
+    ));
 
-    println!("\n== 7. What the simulation gets wrong, why, and the gain of the extended model");
+    let data = run_dir.join("data.csv");
+    let fit = p("fit.json");
+    step("4-fit.txt", &|| {
+        println!("Calibrate the pinhole model at 20-30 in (thesis recommendation)");
+        crate::cmd::fit::run(&FitArgs {
+            file: data.clone(),
+            separations: Some("20..30:2".into()),
+            weights: WeightsArg::Pooled,
+            save: Some(fit.clone()),
+            force: false,
+            drop_glitches: false,
+            json: false,
+        })
+    })?;
+    let rms = capture::line_with(&log("4-fit.txt"), "residual RMS")
+        .map(|l| format!(": {l}"))
+        .unwrap_or_default();
+    summary.push(format!(" 4. Ch V pinhole fit at 20-30 in{rms}: fit.json"));
+    step("5-figure57.txt", &|| {
+        println!("Figure 57: error in angle of that calibration at every separation");
+        crate::cmd::evaluate::run(&EvaluateArgs {
+            fit: fit.clone(),
+            file: data.clone(),
+            separations: None,
+            head: None,
+            budget: None,
+            without_rail: false,
+            drop_glitches: false,
+            plot: Some(p("figure57.svg")),
+            json: false,
+        })
+    })?;
+    let ratio = capture::line_with(&log("5-figure57.txt"), "std over the CTA uncertainty")
+        .and_then(|l| {
+            l.split_once("uncertainty: ")
+                .map(|(_, r)| r.split(';').next().unwrap_or(r).to_string())
+        })
+        .map(|r| format!(": std / CTA uncertainty {r}"))
+        .unwrap_or_default();
+    summary.push(format!(" 5. Figure 57{ratio}: figure57.svg"));
+
+    let cal = p("cal.json");
+    step("6-calibrate.txt", &|| {
+        println!(
+            "The sensor board's calibration from the sweep (pinhole, then the chip's near-field model)"
+        );
+        crate::cmd::calibrate::run(&calibrate_args(&data, &cal, &p("calibration.svg")))
+    })?;
+    let near = capture::line_with(&log("6-calibrate.txt"), "iterations, condition")
+        .map(|l| {
+            let l = l.split(", ").take(2).collect::<Vec<_>>().join(", ");
+            format!(": near-field {l}")
+        })
+        .unwrap_or_default();
+    summary.push(format!(
+        " 6. The sensor board's calibration{near}: cal.json"
+    ));
+
     let report = p("report");
     let analyze = analyze_args(&data, &report);
-    crate::cmd::analyze::run(&analyze)?;
+    step("7-analyze.txt", &|| {
+        println!("What the simulation gets wrong, why, and the gain of the extended model");
+        crate::cmd::analyze::run(&analyze)
+    })?;
+    let named = capture::line_with(&log("7-analyze.txt"), "named:")
+        .unwrap_or_else(|| "no effect named".into());
+    summary.push(format!(" 7. cta analyze: {named}: report/index.html"));
+    if let Some(l) = capture::line_with(&log("7-analyze.txt"), "on the sensor board:") {
+        summary.push(format!("    {l}"));
+    }
     let page = cta_lab::html::gallery(
         "cta demo",
         &format!(
@@ -237,13 +343,13 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         ],
     );
     cta_lab::data::write_output(&p("index.html"), page.as_bytes()).map_err(anyhow::Error::msg)?;
-    println!(
-        "\nDemo output in {}: nearfield.svg, uncertainty.svg, run/ (sweep data, manifest, truth), fit.json, \
-         figure57.svg, cal.json (for `cta sensor load-calibration`) and calibration.svg, and the analysis report: open {} (every plot with its caption: {})",
-        a.out.display(),
-        report.join("index.html").display(),
-        p("index.html").display()
-    );
+    let warned: usize = LOG_FILES.iter().map(|n| capture::warnings(&log(n))).sum();
+    summary.push(format!(
+        "Every plot with its caption: {}; each step's full report ({warned} warning(s)): {}",
+        p("index.html").display(),
+        logs.display()
+    ));
+    println!("{}", summary.join("\n"));
     print!("{}", rehearsal(&run_dir, &cal, &a.effect)?);
     Ok(())
 }
@@ -319,33 +425,61 @@ fn rehearsal(run_dir: &std::path::Path, cal: &std::path::Path, effect: &str) -> 
     let calibration = serde_json::from_str::<cta_core::pose::Calibration>(&text)
         .with_context(|| format!("{}", cal.display()))?;
     let noise = calibration.noise;
-    // What becomes of the spot magnitudes on the simulated board.
+    let truth = cta_lab::sim::Truth::path_for(&run_dir.join("data.csv"));
+    // The simulated board's own scene, as `cta sensor sim --truth` takes it by default.
+    let scene = cta_lab::pose::head::SimScene {
+        truth: Some(truth.clone()),
+        ..Default::default()
+    };
+    // What becomes of the spot magnitudes on the simulated board: its NorthStar reads them by
+    // the same law as the sweep's (`cta_core::magnitude_law`), so those within cal.json's law
+    // are fitted with the spots.
     let magnitudes = match calibration.magnitude {
-        Some(m) => format!(
-            " The pose report's `mag` column counts the spot magnitudes fitted: none here. \
-             cal.json's magnitude law holds the readings it was fitted on, {:.0} to {:.0} counts \
-             (the simulated sweep's NorthStar, whose scale mimics the real one's 5000-65535); the \
-             simulated board's are on a scale of its own, a few hundred counts at 12 in, below \
-             the law's range, so its poses use the spots alone.",
-            m.min, m.max
-        ),
+        Some(m) => {
+            let ns = scene.try_northstar()?;
+            let law = cta_core::magnitude_law::reading(
+                1.0,
+                cta_core::magnitude_law::signal_at_30(&ns.physics),
+                ns.power_level,
+                ns.sensitivity,
+            );
+            let spots = cta_core::pose::simulate_spots_scaled(
+                &ns.physics,
+                &ns.constellation,
+                &ns.t,
+                &ns.q,
+                law,
+                |_| 0.0,
+                |_| 0.0,
+            );
+            let read: Vec<f32> = spots.iter().map(|s| f32::from(s.magnitude)).collect();
+            let used = read.iter().filter(|&&r| r >= m.min && r < m.max).count();
+            let (lo, hi) = read.iter().fold((f32::INFINITY, 0.0f32), |(lo, hi), &r| {
+                (lo.min(r), hi.max(r))
+            });
+            format!(
+                "; the `mag` column shows {used} magnitudes fitted\n(the board's NorthStar reads \
+                 the sweep's law at power level {}, sensitivity {}: {lo:.0}-{hi:.0} counts for \
+                 the {} spots; cal.json's law holds {:.0}-{:.0})",
+                ns.power_level,
+                ns.sensitivity,
+                read.len(),
+                m.min,
+                m.max
+            )
+        }
         None => String::new(),
     };
-    let truth = cta_lab::sim::Truth::path_for(&run_dir.join("data.csv"));
-    // The simulated board's own scene, as `cta sensor sim` takes it by default.
-    let scene = cta_lab::pose::head::SimScene::default();
     let [x, y] = scene.offset;
     let hidden = hidden_effect_words(effect);
     Ok(format!(
-        "\nRehearse the sensor board with cal.json, no hardware: a simulated board with this sweep's \
-         head ({hidden}), at the calibration's spot noise. \
-         Run the first command in another terminal; it prints the pseudo-terminal to use as PTY:\n\
+        "Rehearse the board with cal.json, no hardware (the first command in another terminal \
+         prints the PTY):\n\
          \x20 cta sensor sim --truth {} --noise {noise:.1} --configured\n\
          \x20 cta sensor --port PTY load-calibration {}\n\
          \x20 cta sensor --port PTY pose --count 5\n\
-         The target sits at x {x}, y {y}, z {} in (the simulated board's --offset and --range): \
-         single poses scatter about it by their 1-sigma (sx, sy, sz), and the mean of a few lies \
-         within it.{magnitudes}\n",
+         Poses scatter about x {x}, y {y}, z {} in by their 1-sigma{magnitudes}.\n\
+         The simulated head is this sweep's: {hidden}.\n",
         truth.display(),
         cal.display(),
         scene.range,

@@ -149,6 +149,11 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
             Err(_) => return Err(e.into()),
         },
     };
+    // A calibration's covariance (`cta calibrate --out` keeps it), checked as it is read.
+    let covariance = match &cal {
+        Some(_) => cta_lab::fit::calibrate::covariance::read(&a.fit).map_err(anyhow::Error::msg)?,
+        None => None,
+    };
     let prepared = prepare(&a.file, a.separations.as_deref(), a.drop_glitches)?;
     let budget = load_budget(a.budget.as_deref())?;
     // The models to evaluate, each with the title of its table.
@@ -223,7 +228,7 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
         if rep.is_some() {
             println!("{}", crate::json_with_provenance(&out[0], &inputs)?);
         } else {
-            let models = serde_json::json!({ "models": out });
+            let models = serde_json::json!({ "models": out, "calibration_covariance": covariance });
             println!("{}", crate::json_with_provenance(&models, &inputs)?);
         }
     } else {
@@ -232,6 +237,9 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
                 println!();
             }
             print_evaluation(title, ev, &prepared.notes);
+        }
+        if let Some(c) = &covariance {
+            println!("{}", covariance_line(c));
         }
     }
     if let Some(p) = &a.plot {
@@ -247,6 +255,34 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
         announce_plot(p);
     }
     Ok(())
+}
+
+/// What `cta evaluate` says of a calibration's covariance: its parameters, the head centre's
+/// 1-sigma from it, and its strongest correlation.
+fn covariance_line(c: &cta_lab::fit::calibrate::covariance::Covariance) -> String {
+    let d: Vec<String> = ["d1", "d2", "d3"]
+        .iter()
+        .map(|n| c.sigma(n).map_or("-".into(), |s| sig(s, 2)))
+        .collect();
+    let mut strongest: Option<(f64, &str, &str)> = None;
+    for (i, a) in c.parameters.iter().enumerate() {
+        for b in &c.parameters[..i] {
+            if let Some(r) = c.correlation(b, a) {
+                if strongest.is_none_or(|(s, _, _)| r.abs() > s.abs()) {
+                    strongest = Some((r, b, a));
+                }
+            }
+        }
+    }
+    format!(
+        "the calibration's covariance ({} parameters: {}): head centre d 1-sigma {} in{}",
+        c.parameters.len(),
+        c.parameters.join(", "),
+        d.join(", "),
+        strongest.map_or(String::new(), |(r, a, b)| format!(
+            "; strongest correlation {a},{b} {r:+.2}"
+        ))
+    )
 }
 
 /// The text table of `cta evaluate`: the mean error with its standard error (to the digits

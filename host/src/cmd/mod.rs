@@ -4,6 +4,7 @@
 pub mod analyze;
 pub mod beacon;
 pub mod calibrate;
+pub mod capture;
 pub mod completions;
 pub mod demo;
 pub mod evaluate;

@@ -200,6 +200,9 @@ pub struct NearFieldSolution {
     /// Pairs of fitted parameters whose estimates correlate at [`STRONG_CORRELATION`] or
     /// more in magnitude: `(a, b, rho)`.
     pub correlations: Vec<(String, String, f64)>,
+    /// The covariance of the fitted parameters (the first 8 of [`NF_NAMES`], all 13 when
+    /// extended), scaled by the residual variance as the 1-sigma are.
+    pub covariance: nalgebra::DMatrix<f64>,
 }
 
 /// Correlations of fitted parameters from this magnitude on are reported: their 1-sigma
@@ -289,6 +292,7 @@ pub fn fit_near_field(
         iterations: sol.iterations,
         condition: sol.condition,
         correlations: strong_correlations(&sol.covariance),
+        covariance: sol.covariance,
     })
 }
 

@@ -32,6 +32,10 @@ pub struct SimScene {
     pub garbage: f64,
     /// Probability that a frame carries one spot under another beacon's ID (0 to 1).
     pub wrong_id: f64,
+    /// The beacons' power level (1 or 2), for the magnitude law
+    /// ([`cta_core::magnitude_law`]): level 1 keeps the default scene's spots (12 in) below
+    /// saturation at sensitivity 4.
+    pub power_level: u8,
     /// A simulation's truth sidecar whose head to simulate.
     pub truth: Option<PathBuf>,
     /// Effects of the vocabulary to give the Table 3 head, `NAME=VALUE`.
@@ -48,6 +52,7 @@ impl Default for SimScene {
             magnitude_noise: 0.07,
             garbage: 0.0,
             wrong_id: 0.0,
+            power_level: 1,
             truth: None,
             effects: Vec::new(),
         }
@@ -88,6 +93,12 @@ impl SimScene {
             return bad(format!(
                 "--garbage {}: expected a probability, 0 to 1",
                 self.garbage
+            ));
+        }
+        if !(1..=2).contains(&self.power_level) {
+            return bad(format!(
+                "--power-level {}: expected 1 (1 kOhm) or 2 (360 Ohm)",
+                self.power_level
             ));
         }
         Ok(())
@@ -167,6 +178,7 @@ impl SimScene {
         ns.magnitude_noise = self.magnitude_noise;
         ns.garbage = self.garbage;
         ns.wrong_id = self.wrong_id;
+        ns.power_level = self.power_level;
         Ok(ns)
     }
 

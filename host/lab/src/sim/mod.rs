@@ -40,6 +40,7 @@ pub use truth::{Truth, TruthError};
 
 use crate::data::{Dataset, Sample, MAX_SEPARATIONS};
 use cta_core::emulator::{grid_position, saturate_i16, Effects, Emulator, Head, Pose};
+use cta_core::magnitude_law;
 use cta_core::pattern::Pattern;
 use cta_core::real::deg;
 use effects::{Effect, EffectError};
@@ -533,6 +534,9 @@ impl SimConfig {
                 .min(MAX_REPORTS),
         );
         let mut skipped = 0;
+        // The NorthStar's magnitude law (`cta_core::magnitude_law`), at power level 2 and
+        // sensitivity 4 (the data carry no settings).
+        let at_30 = magnitude_law::signal_at_30(em);
         for (k, &sep) in self.separations.iter().enumerate() {
             let place = phys.geometry[k];
             let em = place.emulator(em);
@@ -549,7 +553,7 @@ impl SimConfig {
                     skipped += 1;
                     continue;
                 };
-                let mag = em.magnitude(&truth) * brightness;
+                let mag = magnitude_law::reading(em.magnitude(&truth), at_30, 2, 4) * brightness;
                 for s in 0..self.samples {
                     let mut v = [out[0], out[1]];
                     if self.noise > 0.0 {
@@ -568,11 +572,19 @@ impl SimConfig {
                         y: v[1],
                         beacon: Some(i as u32),
                         sample: Some(s as u32),
-                        magnitude: Some(if mag_sigma > 0.0 {
-                            let z: f64 = mag_rng.sample(StandardNormal);
-                            (mag * (1.0 + mag_sigma * z)).max(0.0)
-                        } else {
-                            mag
+                        magnitude: Some({
+                            let m = if mag_sigma > 0.0 {
+                                let z: f64 = mag_rng.sample(StandardNormal);
+                                mag * (1.0 + mag_sigma * z)
+                            } else {
+                                mag
+                            };
+                            // Counts, saturated; whole ones where the coordinates are.
+                            if round {
+                                f64::from(magnitude_law::counts(m))
+                            } else {
+                                m.clamp(0.0, magnitude_law::MAX_COUNTS)
+                            }
                         }),
                         time_s: Some(sweep_time(k, n, i, s, self.samples)),
                         ..Default::default()

@@ -107,12 +107,23 @@ fn led_brightness_scales_the_magnitudes_by_their_leds_factor() {
     assert_eq!(t1.led_brightness_percent, 10.0);
     assert_eq!(t1.led_brightness.len(), 100);
     assert_eq!(t1.led_brightness, led_brightness(8, 10.0, 100));
+    let mut compared = 0;
     for (a, b) in plain.samples.iter().zip(&bright.samples) {
         assert_eq!([a.x, a.y], [b.x, b.y]);
         let f = t1.led_brightness[a.beacon.unwrap() as usize];
         let (ma, mb) = (a.magnitude.unwrap(), b.magnitude.unwrap());
-        assert!((mb / ma / f - 1.0).abs() < 1e-12, "{ma} {mb} {f}");
+        // Whole counts (the coordinates are rounded too), saturated at 65535 (5 in, power
+        // level 2, sensitivity 4: the magnitude law's spots saturate there).
+        if ma.max(mb) >= 65535.0 {
+            continue;
+        }
+        compared += 1;
+        assert!(
+            (mb / ma / f - 1.0).abs() < 0.6 / ma + 0.6 / mb,
+            "{ma} {mb} {f}"
+        );
     }
+    assert!(compared >= 200, "{compared}");
     let ln: Vec<f64> = t1.led_brightness.iter().map(|b| b.ln()).collect();
     let sd = (ln.iter().map(|v| v * v).sum::<f64>() / ln.len() as f64).sqrt();
     assert!((0.08..0.12).contains(&sd), "{sd}");

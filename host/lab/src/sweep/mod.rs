@@ -24,6 +24,7 @@ pub mod event;
 pub mod groups;
 mod journal;
 pub mod layout;
+pub mod metadata;
 pub mod plan;
 pub mod points;
 mod pty;
@@ -821,6 +822,9 @@ fn write_manifest(store: &RunDir, plan: &Plan, state: &str) -> Result<()> {
         "updated": updated,
         "updated_time": stamp::iso8601(updated),
         "plan": plan,
+        // The plan's `[metadata]` as the last session ran under it (each session's own is in
+        // its `plan` in `sessions`).
+        "metadata": plan.metadata,
         "points": { "total": plan.len(), "done": store.next_point(), "ok": ok, "no_signal": no_signal, "partial": partial },
         "samples": samples,
         "files": { "data": store::DATA, "journal": store::JOURNAL, "plan": store::PLAN },

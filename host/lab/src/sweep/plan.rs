@@ -23,6 +23,7 @@ use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
 use super::groups::Cached;
+use super::metadata::{Metadata, EXPECTED};
 use crate::data::parse_separations;
 
 /// Longest `[timing] heartbeat_ms` accepted: half the beacon board's dead-man timeout
@@ -120,6 +121,10 @@ pub struct Plan {
     /// Beacons per separation measured alone as well as in their group (the crosstalk check).
     #[serde(default)]
     pub crosstalk_check: usize,
+    /// The `[metadata]` table: free key-value pairs describing the run (sensor serial,
+    /// operator, temperature...), journalled with each session's plan.
+    #[serde(default)]
+    pub metadata: Metadata,
     /// The groups, built from the keys above on first use.
     #[serde(skip)]
     pub(crate) schedule: Cached,
@@ -153,20 +158,27 @@ fn one() -> usize {
 /// light settles before sampling) and `rate_hz` (the NorthStar's report rate) shape the
 /// measurement on the apparatus; `name` is in the data file's header; the others define and
 /// number the points.
-pub const RESUME_MAY_CHANGE: [&str; 6] = [
+///
+/// `metadata` may change too: it describes the run (who operates it, the room's temperature,
+/// which spare cable is in) and is neither measured nor used to number or record a point, so
+/// it can be brought up to date at a resume (a new operator, a warmer afternoon). Nothing is
+/// lost by it: each session journals its plan with the metadata it ran under, and the change
+/// is said in a note.
+pub const RESUME_MAY_CHANGE: [&str; 7] = [
     "timing.request_timeout_ms",
     "timing.retries",
     "timing.report_timeout_ms",
     "timing.heartbeat_ms",
     "timing.backoff_max_s",
     "timing.give_up_s",
+    "metadata",
 ];
 
 /// A plan key's value in a [`Plan`], in full, as [`Plan::differences`] compares it.
 pub type KeyValue = fn(&Plan) -> String;
 
 /// Every plan key as written in the file (`[timing]` ones as `timing.KEY`), with its value.
-pub const KEYS: [(&str, KeyValue); 21] = [
+pub const KEYS: [(&str, KeyValue); 22] = [
     ("name", |p| show(&p.name)),
     ("separations_in", |p| show(&p.separations)),
     ("layout", |p| match p.layout {
@@ -191,6 +203,7 @@ pub const KEYS: [(&str, KeyValue); 21] = [
     ("timing.heartbeat_ms", |p| show(&p.heartbeat_ms)),
     ("timing.backoff_max_s", |p| show(&p.backoff_max_s)),
     ("timing.give_up_s", |p| show(&p.give_up_s)),
+    ("metadata", |p| p.metadata.to_string()),
 ];
 
 /// Plan keys whose default is computed from other keys: the key, the keys its default
@@ -324,6 +337,7 @@ struct Raw {
     frequencies_per_beacon: Option<Spanned<i64>>,
     crosstalk_check: Option<Spanned<i64>>,
     timing: Option<RawTiming>,
+    metadata: Option<toml::Table>,
 }
 
 #[derive(Deserialize, Default)]
@@ -356,11 +370,15 @@ enum Kind {
     Any,
     /// The `[timing]` table.
     Timing,
+    /// The `[metadata]` table.
+    Metadata,
+    /// A `[metadata]` value: text, a number or a boolean.
+    Scalar,
 }
 
 /// Every plan key with the kind of its value and an example, as said in a type error:
 /// ``key `samples`: expected a whole number, e.g. 20, got 5.5``.
-const KINDS: [(&str, Kind, &str); 23] = [
+const KINDS: [(&str, Kind, &str); 24] = [
     ("name", Kind::Text, "\"lab run 1\""),
     ("separations_in", Kind::Any, ""),
     ("layout", Kind::Text, "\"single\""),
@@ -384,6 +402,7 @@ const KINDS: [(&str, Kind, &str); 23] = [
     ("timing.heartbeat_ms", Kind::Whole, "2000"),
     ("timing.backoff_max_s", Kind::Number, "30"),
     ("timing.give_up_s", Kind::Number, "3600"),
+    ("metadata", Kind::Metadata, ""),
 ];
 
 /// A TOML value as a type error shows it: numbers, booleans and dates as written, text in
@@ -414,10 +433,11 @@ fn check_types(src: &str) -> Result<(), (String, std::ops::Range<usize>, String)
     let mut values: Vec<(String, &Spanned<DeValue<'_>>)> = Vec::new();
     for (k, v) in doc.get_ref() {
         values.push((k.get_ref().to_string(), v));
-        if let (true, DeValue::Table(t)) = (k.get_ref() == "timing", v.get_ref()) {
+        let table = k.get_ref().as_ref();
+        if let (true, DeValue::Table(t)) = (["timing", "metadata"].contains(&table), v.get_ref()) {
             values.extend(
                 t.iter()
-                    .map(|(k, v)| (format!("timing.{}", k.get_ref()), v)),
+                    .map(|(k, v)| (format!("{table}.{}", k.get_ref()), v)),
             );
         }
     }
@@ -425,7 +445,11 @@ fn check_types(src: &str) -> Result<(), (String, std::ops::Range<usize>, String)
     let number = |v: &DeValue<'_>| matches!(v, DeValue::Integer(_) | DeValue::Float(_));
     let whole = |v: &DeValue<'_>| matches!(v, DeValue::Integer(_));
     for (key, v) in values {
-        let Some(&(_, kind, example)) = KINDS.iter().find(|(k, _, _)| *k == key) else {
+        let free = key
+            .starts_with("metadata.")
+            .then_some((key.as_str(), Kind::Scalar, ""));
+        let Some((_, kind, example)) = KINDS.iter().copied().find(|(k, _, _)| *k == key).or(free)
+        else {
             continue;
         };
         let fail = |at: &Spanned<DeValue<'_>>, expected: String| {
@@ -434,6 +458,7 @@ fn check_types(src: &str) -> Result<(), (String, std::ops::Range<usize>, String)
                 DeValue::String(s) if s.trim().parse::<f64>().is_ok() => {
                     " (text: write a number without quotes)"
                 }
+                DeValue::Datetime(_) => " (a date: write it in quotes, e.g. \"2026-01-31\")",
                 _ => "",
             };
             Err((
@@ -463,6 +488,23 @@ fn check_types(src: &str) -> Result<(), (String, std::ops::Range<usize>, String)
                 v,
                 "a table: a `[timing]` line, then its keys one per line".into(),
             )?,
+            Kind::Metadata if !matches!(v.get_ref(), DeValue::Table(_)) => fail(
+                v,
+                "a table, a `[metadata]` line then `key = value` lines, e.g. operator = \"A. Lab\""
+                    .into(),
+            )?,
+            Kind::Scalar
+                if !matches!(
+                    v.get_ref(),
+                    DeValue::String(_)
+                        | DeValue::Integer(_)
+                        | DeValue::Float(_)
+                        | DeValue::Boolean(_)
+                ) =>
+            {
+                let e = EXPECTED.strip_prefix("expected ").unwrap_or(EXPECTED);
+                fail(v, e.into())?
+            }
             _ => {}
         }
     }
@@ -872,6 +914,16 @@ impl Plan {
         let backoff_max_s = secs("backoff_max_s", &t.backoff_max_s, 30.0, 0.01, 3600.0)?;
         let give_up_s = secs("give_up_s", &t.give_up_s, 3600.0, 0.1, 7.0 * 86400.0)?;
 
+        let metadata = match &raw.metadata {
+            Some(t) => Metadata::from_toml(t).map_err(|(k, message)| PlanError {
+                file: file.into(),
+                line: None,
+                key: Some(format!("metadata.{k}")),
+                message,
+            })?,
+            None => Metadata::default(),
+        };
+
         Ok(Plan {
             name: raw.name.unwrap_or_else(|| "unnamed".into()),
             separations,
@@ -894,6 +946,7 @@ impl Plan {
             group,
             frequencies_per_beacon,
             crosstalk_check,
+            metadata,
             schedule: Cached::default(),
         })
     }

@@ -37,6 +37,7 @@ use std::time::{Duration, Instant};
 
 use super::error::{bail, Context, Error, Result};
 use cta_core::emulator::{grid_position, saturate_i16, Emulator};
+use cta_core::magnitude_law;
 use cta_core::pose::Spot;
 use cta_core::schedule::NORTHSTAR_TABLE_MHZ;
 use cta_core::wire::beacon::{FreqSet, LedMode, LED_COUNT};
@@ -59,14 +60,10 @@ use super::store::{corner_mean, corner_uncertainty, SeparationEntry};
 use crate::sim::effects::Effect;
 use crate::sim::{Placement, SimConfig, Truth};
 
-/// Reported magnitude of a beacon on the axis at 30 in, power level 2, sensitivity 4.
-const MAG_AT_30: f64 = 20_000.0;
 /// Below this reported magnitude the NorthStar does not track a spot (REFERENCE.md §4).
 pub const NO_SIGNAL: f64 = 5_000.0;
 /// Above this the signal is strong; the noise is `--sim-noise` there.
 const STRONG: f64 = 47_000.0;
-/// Drive current ratio of power level 1 (1 kOhm) to level 2 (360 Ohm).
-const POWER1_GAIN: f64 = 0.36;
 
 /// Which simulated board.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -329,11 +326,9 @@ impl World {
         let em = place.emulator(&self.em);
         let sep = self.separations[si];
         let c = self.layout.centre(st.quadrant);
-        let gain =
-            if st.power == 1 { POWER1_GAIN } else { 1.0 } * f64::powi(2.0, sensitivity as i32 - 4);
-        // Scale: an on-axis beacon at 30 in, power 2, sensitivity 4 reads MAG_AT_30.
-        let on_axis_30 = self.em.magnitude(&nalgebra::Vector3::new(0.0, 0.0, 30.0));
-        let scale = MAG_AT_30 / on_axis_30;
+        // The NorthStar's magnitude law (`cta_core::magnitude_law`), scaled by the head's own
+        // on-axis signal at 30 in (the plate's placement aside).
+        let at_30 = magnitude_law::signal_at_30(&self.em);
         // Every lit spot's noise-free reading and magnitude first: `spot_crosstalk` mixes
         // them.
         let mut lit: Vec<(usize, FreqSet, [f64; 2], f64)> = Vec::new();
@@ -353,7 +348,8 @@ impl World {
             let Some(out) = em.output(&r) else {
                 continue;
             };
-            let mag = em.magnitude(&r) * scale * gain * self.brightness[led];
+            let mag = magnitude_law::reading(em.magnitude(&r), at_30, st.power, sensitivity)
+                * self.brightness[led];
             if mag.is_nan() || mag < NO_SIGNAL {
                 continue;
             }
@@ -403,9 +399,7 @@ impl World {
                     id: ch,
                     x: saturate_i16(out[0] + sigma * nx),
                     y: saturate_i16(out[1] + sigma * ny),
-                    // Rounded, as the coordinates: truncation would bias ln M by -0.5 / M,
-                    // which depends on the distance.
-                    magnitude: m.min(65535.0).round() as u16,
+                    magnitude: magnitude_law::counts(m),
                 });
             }
         }

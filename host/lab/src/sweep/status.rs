@@ -68,6 +68,8 @@ pub struct Status {
     pub pid: Option<u32>,
     /// The plan's name.
     pub plan_name: String,
+    /// The plan's `[metadata]`, as the last session ran under it.
+    pub metadata: super::metadata::Metadata,
     /// Points in the plan.
     pub total: usize,
     /// Points done (committed); also the index of the next point.
@@ -301,6 +303,7 @@ fn status_held(dir: &Path, holder: Holder) -> Result<Status> {
         reason: stopped,
         pid,
         plan_name: plan.name.clone(),
+        metadata: plan.metadata.clone(),
         total,
         done,
         outcomes,
@@ -504,6 +507,13 @@ impl Status {
             self.total,
             self.separations.first().map_or(0, |s| s.total)
         );
+        if !self.metadata.is_empty() {
+            o += &format!(
+                "  metadata: {}
+",
+                self.metadata.lines().join(", ")
+            );
+        }
         o += &format!(
             "  points: {} ok, {} no signal, {} partial; {} samples\n",
             self.outcomes.0, self.outcomes.1, self.outcomes.2, self.samples
@@ -588,7 +598,7 @@ impl Status {
             "state": self.state,
             "reason": self.reason,
             "pid": self.pid,
-            "plan": { "name": self.plan_name, "points": self.total },
+            "plan": { "name": self.plan_name, "points": self.total, "metadata": self.metadata },
             "points": {
                 "total": self.total,
                 "done": self.done,

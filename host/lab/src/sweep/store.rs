@@ -344,9 +344,9 @@ impl RunDir {
     }
 
     /// Reopen `dir` to continue it with `plan`: reads the journal (dropping a torn last line),
-    /// checks the plan is the one the run started with (only the timing keys of
-    /// [`RESUME_MAY_CHANGE`] may differ from the last session's plan, each change said in a
-    /// note) and the committed data are intact, and decides what to cut: `data.csv` back to
+    /// checks the plan is the one the run started with (only the timing keys and the
+    /// `[metadata]` of [`RESUME_MAY_CHANGE`] may differ from the last session's plan, each
+    /// change said in a note) and the committed data are intact, and decides what to cut: `data.csv` back to
     /// the last committed point (said in a note), the journal to its last whole line.
     /// [`RunDir::begin`] makes those changes and positions both files for appending, once the
     /// session goes ahead; nothing is modified before (a check that fails here, or the
@@ -448,6 +448,8 @@ impl RunDir {
                     .differences(&was)
                     .into_iter()
                     .partition(Change::resumable);
+                let (metadata, timing): (Vec<Change>, Vec<Change>) =
+                    timing.into_iter().partition(|c| c.key == "metadata");
                 let list = |c: &[Change]| {
                     c.iter()
                         .map(|c| c.to_string())
@@ -465,15 +467,18 @@ impl RunDir {
                         "{file}: the plan was changed since the run started (as recorded in \
                          {recorded}): {}. A resume continues the plan the run started with, whose \
                          point numbers the data use, measuring and recording the points as \
-                         before: only the keys that govern waiting and retrying ({}) may \
-                         change{}; not resuming, nothing was changed: {}, or start a new run \
+                         before: only the keys that govern waiting and retrying, and the \
+                         run's description `[metadata]` ({}) may change{}; not resuming, nothing was changed: {}, or start a new run \
                          with --out for the new plan",
                         list(&refused),
                         RESUME_MAY_CHANGE.join(", "),
-                        if timing.is_empty() {
-                            String::new()
-                        } else {
-                            format!(" (the change of {} alone would be accepted)", keys(&timing))
+                        {
+                            let ok = [&timing[..], &metadata[..]].concat();
+                            if ok.is_empty() {
+                                String::new()
+                            } else {
+                                format!(" (the change of {} alone would be accepted)", keys(&ok))
+                            }
                         },
                         match given {
                             Some(_) => format!(
@@ -492,6 +497,15 @@ impl RunDir {
                          session's plan",
                         if last.is_some() { JOURNAL } else { PLAN },
                         list(&timing)
+                    ));
+                }
+                if !metadata.is_empty() {
+                    notes.push(format!(
+                        "{short}: [metadata] changed since the last session (as recorded in {}): \
+                         {}; it describes the run and is not measured: the run continues, \
+                         journalled with this session's plan (the earlier sessions keep theirs)",
+                        if last.is_some() { JOURNAL } else { PLAN },
+                        now.metadata.changes(&was.metadata).join("; ")
                     ));
                 }
             }

@@ -102,16 +102,25 @@ fn magnitude_bins_end_at_the_ceiling_and_one_group_has_no_ratio() {
 
 #[test]
 fn magnitude_repeatability_is_measured() {
-    let mut ds = two_separations();
+    // 20 and 30 in: nearer, the magnitude law's readings saturate (power level 2, sensitivity
+    // 4) and their spread is not measured.
+    let mut ds = SimConfig {
+        separations: vec![20.0, 30.0],
+        noise: 30.0,
+        samples: 10,
+        ..Default::default()
+    }
+    .run()
+    .0;
     // Simulated magnitudes carry no noise.
     let r = analyze_noise(&ds).unwrap();
     assert!(r.magnitude.as_ref().unwrap().percent < 1e-9);
     assert!(render_text(&r).contains("no spread"));
     // Give them +/-1 % (alternating, so the one-sample std is 1 % x sqrt(n/(n-1))), and
-    // 2 % at 20 in.
+    // 2 % at 30 in.
     for s in ds.samples.iter_mut() {
         let k = s.sample.unwrap_or(0);
-        let a = if s.separation_in == 20.0 { 0.02 } else { 0.01 };
+        let a = if s.separation_in == 30.0 { 0.02 } else { 0.01 };
         if let Some(m) = s.magnitude.as_mut() {
             *m *= if k % 2 == 0 { 1.0 + a } else { 1.0 - a };
         }

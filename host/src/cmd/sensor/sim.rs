@@ -44,8 +44,9 @@ pub struct SimArgs {
     #[arg(long, default_value_t = 32.768, allow_negative_numbers = true)]
     pub noise: f64,
     /// Spot magnitude noise, percent of the magnitude (1-sigma, 0 to 100; the magnitudes are
-    /// then rounded to counts, 0.29 counts 1-sigma: about 0.1 % of the 270-360 counts of the
-    /// default scene at 12 in). The default 0.07 % is the level the default spot noise (0.1 %
+    /// then rounded to counts, 0.29 counts 1-sigma). The magnitudes follow the NorthStar's
+    /// magnitude law of every simulator (host/MEASUREMENTS.md): about 30000-45000 counts in
+    /// the default scene at 12 in (power level 1, sensitivity 4). The default 0.07 % is the level the default spot noise (0.1 %
     /// of beta) implies if both come from independent noise in the four cells (sigma_M / M =
     /// sigma_X / (sqrt 2 beta), see `cta sensor floor --help`). The board fits the magnitudes
     /// when its calibration has a magnitude law (`magnitude`) fitted at the NorthStar's
@@ -60,6 +61,10 @@ pub struct SimArgs {
     /// Probability of line noise before a NorthStar frame (0 to 1).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub garbage: f64,
+    /// The beacons' power level for the spot magnitudes: 1 (1 kOhm, up to ~10-15 in) or 2
+    /// (360 Ohm, 2.8x brighter, for 15-30 in: nearer, its spots saturate at sensitivity 4).
+    #[arg(long, value_name = "1|2", default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=2))]
+    pub power_level: u8,
     /// Stop after this many seconds (above 0; default: until Ctrl-C).
     #[arg(long, allow_negative_numbers = true)]
     pub seconds: Option<f64>,
@@ -103,6 +108,7 @@ impl SimArgs {
             noise: self.noise,
             magnitude_noise: self.magnitude_noise,
             garbage: self.garbage,
+            power_level: self.power_level,
             truth: self.truth.clone(),
             effects: self.effects.clone(),
         })

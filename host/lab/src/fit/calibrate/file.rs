@@ -60,6 +60,10 @@ pub struct Provenance {
     /// `[a, b, rho]` (empty when absent from the file).
     #[serde(default)]
     pub correlations: Vec<(String, String, f64)>,
+    /// The near-field fit's full covariance, with its parameters' names and units (absent
+    /// from files written before it was kept); checked when read ([`super::covariance::read`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub covariance: Option<super::covariance::Covariance>,
     /// The run that wrote the file: the tool and its commit, the date, the command line and
     /// the measurement file's SHA-256 (absent from files written before it).
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -24,6 +24,7 @@
 //! pooled over the file. A chi2/dof well above 1 means the data hold structure the chip's
 //! model cannot represent: `cta analyze` names it.
 
+pub mod covariance;
 mod error;
 mod file;
 mod report;
@@ -564,6 +565,7 @@ pub fn calibrate(
                 pinned_points: pinned,
                 glitches_left_out: 0,
                 correlations: nf.correlations.clone(),
+                covariance: Some(covariance::Covariance::near_field(&nf.covariance)),
                 run: None,
             },
             led_brightness: Vec::new(),

@@ -108,7 +108,7 @@ fn a_synthetic_law_is_recovered_within_its_sigma() {
 fn a_file_saturating_below_the_rail_gives_its_law_and_max() {
     use crate::sim::SimConfig;
     let cfg = SimConfig {
-        separations: vec![6.0, 10.0, 14.0, 20.0, 30.0],
+        separations: vec![6.0, 10.0, 14.0, 17.0, 20.0, 24.0, 30.0],
         samples: 3,
         noise: 10.0,
         magnitude_noise: 0.3,
@@ -118,11 +118,20 @@ fn a_file_saturating_below_the_rail_gives_its_law_and_max() {
     };
     let (mut ds, truth) = cfg.run();
     let em = cfg.physics().emulator;
-    // 6 in on the axis reads about 100000: the closest separation saturates.
+    // 6 in on the axis reads about 100000: the closest separation saturates. The file's
+    // counts (the NorthStar's magnitude law, `cta_core::magnitude_law`) are turned back into
+    // the signal times the LED's brightness; the law's own saturation (6-14 in, power level 2,
+    // sensitivity 4) stays saturation.
     let k = 100_000.0 / em.magnitude(&Vector3::new(0.0, 0.0, 6.0));
+    let counts_per_signal =
+        cta_core::magnitude_law::reading(1.0, cta_core::magnitude_law::signal_at_30(&em), 2, 4);
     for s in &mut ds.samples {
         let m = s.magnitude.unwrap();
-        s.magnitude = Some((300.0 + k * m).round().min(50_000.0));
+        s.magnitude = Some(if m >= 65535.0 {
+            50_000.0
+        } else {
+            (300.0 + k * m / counts_per_signal).round().min(50_000.0)
+        });
         s.sensitivity = Some(3.0);
     }
     let Outcome::Law(m) = fit_dataset(&ds, &em, None).unwrap() else {
@@ -135,8 +144,8 @@ fn a_file_saturating_below_the_rail_gives_its_law_and_max() {
     let weakest = ds
         .samples
         .iter()
-        .filter(|s| s.separation_in > 6.0)
         .map(|s| s.magnitude.unwrap())
+        .filter(|&m| m < 50_000.0)
         .fold(f64::INFINITY, f64::min);
     assert_eq!(f64::from(m.law.min), weakest.floor(), "{:?}", m.law);
     assert!(
@@ -194,8 +203,9 @@ fn a_file_saturating_below_the_rail_gives_its_law_and_max() {
 #[test]
 fn files_that_cannot_give_a_law_say_why() {
     use crate::sim::SimConfig;
+    // 20 and 30 in: nearer, the magnitude law's spots saturate at power level 2.
     let cfg = SimConfig {
-        separations: vec![10.0, 20.0],
+        separations: vec![20.0, 30.0],
         ..Default::default()
     };
     let (ds, _) = cfg.run();
@@ -210,12 +220,12 @@ fn files_that_cannot_give_a_law_say_why() {
     }
     let mut one = ds.clone();
     for s in &mut one.samples {
-        if s.separation_in == 20.0 {
+        if s.separation_in == 30.0 {
             s.magnitude = None;
         }
     }
     match fit_dataset(&one, &em, None).unwrap() {
-        Outcome::NoLaw(w) => assert!(w.contains("1 separation(s) (10 in)"), "{w}"),
+        Outcome::NoLaw(w) => assert!(w.contains("1 separation(s) (20 in)"), "{w}"),
         Outcome::Law(_) => panic!("a law from one separation"),
     }
     // Both separations: a law (the noise-free file's scatter is the board's floor).
