@@ -453,9 +453,10 @@ pub fn render(a: &Analysis, provenance: Option<&Provenance>) -> Result<String, D
             "<h2>Residual maps</h2><p>Each arrow is a point's mean residual (measured &minus; \
              model) in the sensor's (X, Y) output counts, drawn from the beacon's position on \
              the plate (x, y in inches, dot); red with the starting model (before), blue with \
-             the final one (after). Before and after share one arrow scale per separation: \
-             the arrow under each map is its key, in counts. The colour only tells the models \
-             apart; the size of a residual is the arrow's length.</p>",
+             the final one (after). Each map has its own arrow scale, so that what the final \
+             model leaves is as visible as what the starting one did: the arrow under each map \
+             is its key, in counts; compare the keys to compare the sizes. The colour only \
+             tells the models apart.</p>",
         );
         s.push_str(&quivers(a, d)?);
     }
@@ -525,7 +526,7 @@ fn param_table(s: &mut String, params: &[super::Param]) {
 }
 
 /// Height of the strip under each residual map that holds its arrow key, pixels.
-const KEY_STRIP: u32 = 24;
+const KEY_STRIP: u32 = 28;
 
 /// The largest 1, 2 or 5 times a power of 10 not above `v` (`v` itself when it is not a
 /// positive number).
@@ -566,18 +567,6 @@ fn quivers(a: &Analysis, d: &super::Detail) -> Result<String, DrawError> {
             let idx: Vec<usize> = (0..d.data.points.len())
                 .filter(|&i| d.data.points[i].sep == k)
                 .collect();
-            let max_res = idx
-                .iter()
-                .map(|&i| d.before[i].0[0].hypot(d.before[i].0[1]))
-                .filter(|v| v.is_finite())
-                .fold(0.0f64, f64::max)
-                .max(1e-9);
-            // The longest "before" arrow spans 1.2 in on the plate (1.2 pitches of the 1 in
-            // grid).
-            let scale = 1.2 / max_res;
-            // The key: a round number of counts (1, 2 or 5 times a power of 10) whose arrow
-            // is 0.4 to 1 in long.
-            let key = round_down_125(1.0 / scale);
             for (col, (res, name)) in [
                 (&d.before, "before (starting model)"),
                 (&d.after, "after (final model)"),
@@ -585,16 +574,29 @@ fn quivers(a: &Analysis, d: &super::Detail) -> Result<String, DrawError> {
             .iter()
             .enumerate()
             {
+                // Each map its own scale: its longest arrow spans 1.2 in on the plate (1.2
+                // pitches of the 1 in grid), so what the final model leaves shows as clearly
+                // as what the starting one did; the keys tell the sizes apart.
+                let max_res = idx
+                    .iter()
+                    .map(|&i| res[i].0[0].hypot(res[i].0[1]))
+                    .filter(|v| v.is_finite())
+                    .fold(0.0f64, f64::max)
+                    .max(1e-9);
+                let scale = 1.2 / max_res;
+                // The key: a round number of counts (1, 2 or 5 times a power of 10) whose
+                // arrow is 0.4 to 1 in long.
+                let key = round_down_125(1.0 / scale);
                 let (map_area, key_area) =
                     areas[row * 2 + col].split_vertically(h / rows as u32 - KEY_STRIP);
                 let mut c = ChartBuilder::on(&map_area)
                     .caption(
                         format!("{} in, {name}", a.separations[k]),
-                        ("sans-serif", 14),
+                        ("sans-serif", 17),
                     )
                     .margin(8)
-                    .x_label_area_size(36)
-                    .y_label_area_size(48)
+                    .x_label_area_size(42)
+                    .y_label_area_size(56)
                     .build_cartesian_2d(-ext..ext, -ext..ext)
                     .map_err(e)?;
                 c.configure_mesh()
@@ -603,8 +605,8 @@ fn quivers(a: &Analysis, d: &super::Detail) -> Result<String, DrawError> {
                     .y_desc("beacon y on the plate (in)")
                     .x_label_formatter(&|v: &f64| crate::plot::tick(*v))
                     .y_label_formatter(&|v: &f64| crate::plot::tick(*v))
-                    .label_style(("sans-serif", 11))
-                    .axis_desc_style(("sans-serif", 12))
+                    .label_style(("sans-serif", 14))
+                    .axis_desc_style(("sans-serif", 15))
                     .draw()
                     .map_err(e)?;
                 let color = if col == 0 {
@@ -667,7 +669,7 @@ fn quivers(a: &Analysis, d: &super::Detail) -> Result<String, DrawError> {
                             crate::plot::tick(key)
                         ),
                         (kx + len + 8, ky),
-                        ("sans-serif", 12)
+                        ("sans-serif", 15)
                             .into_font()
                             .color(&BLACK)
                             .pos(Pos::new(HPos::Left, VPos::Center)),
