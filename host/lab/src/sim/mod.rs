@@ -10,9 +10,11 @@ mod rail;
 pub const SIM_RATE_HZ: f64 = 10.0;
 /// Settle time before a simulated point's first report, s (a sweep plan's default).
 pub const SIM_SETTLE_S: f64 = 0.2;
-/// The requests around a point, s (as `cta sweep --estimate` counts them).
+/// The requests around a point, s: four exchanges of a few dozen bytes at 115,200 baud (also
+/// what `cta sweep --estimate` counts).
 pub const SIM_REQUESTS_S: f64 = 0.08;
-/// A plate move between separations, s (as `cta sweep --estimate` assumes).
+/// A plate move between separations with its corner readings, s (also the default
+/// `cta sweep --estimate` assumes).
 pub const SIM_PLATE_MOVE_S: f64 = 180.0;
 
 /// When a one-at-a-time sweep would take sample `s` of beacon `i` (of `n`, `samples` each) at

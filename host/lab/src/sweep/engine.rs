@@ -284,22 +284,20 @@ fn went_back(now: u32, seen: u32) -> bool {
     now.wrapping_sub(seen) > u32::MAX / 2
 }
 
-/// The sensor board's report clock tied to the host's wall clock at the last restore: a
-/// report's time since the run started, in seconds.
+/// The sensor board's report clock tied to the host's wall clock at the last restore.
 #[derive(Debug, Clone, Copy, Default)]
 struct BoardClock {
     /// Board time at the tie, microseconds since its reset.
     board_us: u64,
     /// Host time at the tie, seconds since the epoch.
     epoch_s: f64,
-    /// When the run started, seconds since the epoch.
-    run_start: f64,
 }
 
 impl BoardClock {
-    /// Seconds since the run started of a report the board timed `t_us`, to 0.1 ms.
-    fn seconds(&self, t_us: u64) -> f64 {
-        let t = self.epoch_s + (t_us as f64 - self.board_us as f64) / 1e6 - self.run_start;
+    /// Seconds since `run_start` (epoch seconds) of a report the board timed `t_us`, to
+    /// 0.1 ms.
+    fn seconds(&self, t_us: u64, run_start: f64) -> f64 {
+        let t = self.epoch_s + (t_us as f64 - self.board_us as f64) / 1e6 - run_start;
         (t.max(0.0) * 1e4).round() / 1e4
     }
 }
@@ -560,7 +558,6 @@ impl<'a> Engine<'a> {
         self.clock = BoardClock {
             board_us: s.uptime_ms * 1000,
             epoch_s: now(),
-            run_start: self.run_start,
         };
         Ok(())
     }
@@ -1064,10 +1061,7 @@ impl<'a> Engine<'a> {
         // Reports in a row at another sensitivity than the point's, and the last one's.
         let mut wrong_sensitivity = (0u32, 0u8);
         // The board's clock, tied to the host's at the first report since the last restore.
-        let clock = BoardClock {
-            run_start: self.run_start,
-            ..self.clock
-        };
+        let (clock, run_start) = (self.clock, self.run_start);
         // Takes a report in; returns the sensitivity it reports when that is not the point's.
         let mut absorb = |r: SpotReport, m: &mut Measured| -> Option<u8> {
             if done(m) {
@@ -1083,7 +1077,7 @@ impl<'a> Engine<'a> {
                 return Some(r.sensitivity);
             }
             m.reports += 1;
-            let time_s = clock.seconds(r.t_us);
+            let time_s = clock.seconds(r.t_us, run_start);
             for s in &r.spots {
                 let once = r.spots.iter().filter(|o| o.id == s.id).count() == 1;
                 match p.lit.iter().position(|l| l.channel == s.id) {

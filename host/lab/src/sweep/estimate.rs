@@ -13,8 +13,8 @@ use super::plan::Plan;
 
 /// Requests around a point (light the beacons, stream on and off, beacons off), s: four
 /// exchanges of a few dozen bytes at 115,200 baud, each answered within a pass of the
-/// board's main loop.
-pub const REQUESTS_S: f64 = 0.08;
+/// board's main loop. The same figure times simulated files ([`crate::sim::sweep_time`]).
+pub const REQUESTS_S: f64 = crate::sim::SIM_REQUESTS_S;
 
 /// Durations of the manual steps, s.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,7 +32,7 @@ impl Default for Steps {
     /// minute for the switches, 5 minutes an array mount.
     fn default() -> Self {
         Steps {
-            plate_move_s: 180.0,
+            plate_move_s: crate::sim::SIM_PLATE_MOVE_S,
             power_switch_s: 60.0,
             quadrant_s: 300.0,
         }

@@ -1136,9 +1136,10 @@ pub fn channel_of(hz: f64) -> Option<u8> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
+    /// A short plan the tests of the plan and of its points share.
     pub(crate) const SHORT: &str = r#"
 name = "t"
 separations_in = [20, 25]

@@ -223,17 +223,7 @@ impl Plan {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    const SHORT: &str = r#"
-name = "t"
-separations_in = [20, 25]
-beacons = [0, 45, 99]
-frequencies_hz = [4050]
-power_levels = [1, 2]
-sensitivities = [4]
-samples = 5
-settle_ms = 0
-"#;
+    use crate::sweep::plan::tests::SHORT;
 
     #[test]
     fn expands_in_order_with_serpentine_power() {
